@@ -1,0 +1,120 @@
+"""Weighted reservoir sampling: RIS and GRIS in one pass over the candidates.
+
+A reservoir (Chao 1982; Bitterli et al. 2020) streams candidates with
+resampling weights w_l and keeps one of them, each with probability
+w_l / Σ w, in O(1) memory. grisx's :class:`Reservoir` holds the
+bookkeeping of seed 004's Algorithm 1:
+
+``w_sum``       Σ w_l of everything streamed so far;
+``target``      p̂(y) of the kept sample y, in the reservoir's own domain;
+``confidence``  c (seed 001's α, ReSTIR's M): how many candidates' worth of
+                information the reservoir holds — the weight it gets in MIS;
+``ucw``         the unbiased contribution weight W_y = w_sum / p̂(y)
+                (seed 000, Eq. 8), set by :func:`reservoir_finalize`.
+
+The sample itself is *not* in the struct: its type depends on the problem
+(a float on a toy, a path record in a renderer). :func:`reservoir_update`
+returns whether the incoming candidate was kept, and the caller copies its
+payload then — the same contract as pbrt-v4's ``WeightedReservoirSampler::Add``.
+
+Weights must already contain the MIS weight m_l (seed 000, Eq. 6 and 9), so
+finalizing never divides by M: with m_l = 1/M the result is the classic
+W = (1/(M p̂(y))) Σ p̂/p of seed 004, Eq. 7.
+
+Merging a reservoir r' into r (seed 004, Alg. 1 MERGE) is one more GRIS
+candidate: its sample shifted into r's domain, weighted by Eq. 9 with W = r'.ucw,
+carrying r'.confidence. :func:`reservoir_merge` does exactly that.
+
+Random decisions take ``u`` in [0, 1) from the caller (see
+:mod:`grisx.theory.random`); nothing here draws numbers of its own.
+"""
+
+from __future__ import annotations
+
+import warp as wp
+
+from grisx.theory.gris import resampling_weight
+
+__all__ = [
+    "Reservoir",
+    "reservoir_empty",
+    "reservoir_update",
+    "reservoir_merge",
+    "reservoir_finalize",
+    "confidence_capped",
+]
+
+
+@wp.struct
+class Reservoir:
+    """Bookkeeping of one reservoir (seed 004, Alg. 1); the kept sample lives beside it."""
+
+    w_sum: float
+    target: float
+    confidence: float
+    ucw: float
+
+
+@wp.func
+def reservoir_empty() -> Reservoir:
+    """A reservoir that has seen nothing: every field 0."""
+    r = Reservoir()
+    r.w_sum = 0.0
+    r.target = 0.0
+    r.confidence = 0.0
+    r.ucw = 0.0
+    return r
+
+
+@wp.func
+def reservoir_update(r: Reservoir, w: float, target: float, confidence: float, u: float):
+    """Stream one candidate of weight ``w`` (seed 004, Alg. 1 UPDATE).
+
+    ``target`` is p̂ of the candidate in this reservoir's domain and
+    ``confidence`` what it adds to c. Returns ``(reservoir, kept)``; when
+    ``kept`` is true the caller stores the candidate as the new sample.
+    Weights that are 0, negative or NaN add confidence but can never be kept.
+    """
+    out = r
+    out.confidence = r.confidence + confidence
+    kept = False
+    if w > 0.0:
+        out.w_sum = r.w_sum + w
+        # Keep with probability w / w_sum. The first positive candidate is
+        # always kept, even where u·w_sum rounds up to w in float32.
+        if r.w_sum <= 0.0 or u * out.w_sum < w:
+            out.target = target
+            kept = True
+    return out, kept
+
+
+@wp.func
+def reservoir_merge(
+    r: Reservoir, other: Reservoir, mis: float, target_shifted: float, jacobian: float, u: float
+):
+    """Merge reservoir ``other`` into ``r`` as one GRIS candidate (seed 004, Alg. 1 MERGE).
+
+    ``target_shifted`` is p̂ of other's sample after the shift into r's domain,
+    ``jacobian`` the shift's |∂T/∂x| and ``mis`` its MIS weight; the resampling
+    weight is seed 000's Eq. 9 with W = other.ucw. Returns ``(reservoir, kept)``.
+    """
+    w = resampling_weight(mis, target_shifted, other.ucw, jacobian)
+    return reservoir_update(r, w, target_shifted, other.confidence, u)
+
+
+@wp.func
+def reservoir_finalize(r: Reservoir) -> Reservoir:
+    """Set the UCW W = w_sum / p̂(y) (seed 000, Eq. 8); 0 for an empty reservoir."""
+    out = r
+    out.ucw = 0.0
+    if r.target > 0.0 and r.w_sum > 0.0:
+        out.ucw = r.w_sum / r.target
+    return out
+
+
+@wp.func
+def confidence_capped(confidence: float, cap: float) -> float:
+    """min(c, cap): the history cap of ReSTIR (e.g. 20 in seed 004); cap <= 0 means no cap."""
+    if cap > 0.0:
+        return wp.min(confidence, cap)
+    return confidence

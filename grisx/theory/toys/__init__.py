@@ -1,0 +1,41 @@
+"""Toy problems with exact answers: where every estimator in grisx is verified first.
+
+Each problem is a :class:`~grisx.theory.toys.base.ToyProblem` with named
+methods and parameters; :func:`run_toy` runs one and returns an
+:class:`~grisx.theory.toys.base.Estimate`. The same registry backs
+``grisx toy list`` and ``grisx toy run``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+from grisx.errors import UnknownNameError
+from grisx.theory.toys.base import Estimate, Method, Param, ToyProblem
+from grisx.theory.toys.ris_1d import RIS1D
+
+__all__ = ["PROBLEMS", "get_problem", "run_toy", "Estimate", "Method", "Param", "ToyProblem"]
+
+PROBLEMS: dict[str, ToyProblem] = {p.name: p for p in (RIS1D(),)}
+
+
+def get_problem(name: str) -> ToyProblem:
+    """The toy problem called ``name`` (see ``grisx toy list``)."""
+    try:
+        return PROBLEMS[name]
+    except KeyError:
+        raise UnknownNameError("toy problem", name, sorted(PROBLEMS)) from None
+
+
+def run_toy(
+    name: str,
+    method: str,
+    trials: int = 100_000,
+    seed: int = 0,
+    params: Mapping[str, Any] | None = None,
+    device: str = "cpu",
+    return_samples: bool = False,
+) -> Estimate:
+    """Run toy ``name`` with ``method``; see :meth:`ToyProblem.run`."""
+    return get_problem(name).run(method, trials=trials, seed=seed, params=params, device=device, return_samples=return_samples)
