@@ -40,6 +40,7 @@ from __future__ import annotations
 import warp as wp
 
 __all__ = [
+    "target_from",
     "balance_term",
     "balance_mis",
     "pairwise_pair_share",
@@ -50,6 +51,20 @@ __all__ = [
     "mis_weight",
     "MIS_MODES",
 ]
+
+
+@wp.func
+def target_from(target_at_preimage: float, inverse_jacobian: float) -> float:
+    """p̂_{←j}(y) = p̂_j(T_j⁻¹(y)) · |∂T_j⁻¹/∂y| (seed 001, Eq. 16).
+
+    ``target_at_preimage`` is domain j's target at the inverse shift of y and
+    ``inverse_jacobian`` that inverse shift's Jacobian; call it only where
+    the inverse shift is defined (elsewhere p̂_{←j}(y) = 0).
+    """
+    t = target_at_preimage * wp.abs(inverse_jacobian)
+    if t > 0.0:
+        return t
+    return 0.0
 
 
 @wp.func

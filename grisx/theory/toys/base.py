@@ -17,7 +17,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -179,6 +179,8 @@ class ToyProblem:
     params: tuple[Param, ...] = ()
     #: (method, {param: value}, why) triples that are biased by construction
     biased_variants: tuple[tuple[str, dict[str, Any], str], ...] = ()
+    #: trials per kernel launch (smaller for problems with large per-trial scratch)
+    chunk_trials: int = CHUNK_TRIALS
 
     # ---- hooks -----------------------------------------------------------------
     def components(self, params: Mapping[str, Any]) -> int:
@@ -256,7 +258,7 @@ class ToyProblem:
         for kernel in self.kernels():
             wp.load_module(kernel.module, device=dev)
 
-        chunk = min(trials, CHUNK_TRIALS)
+        chunk = min(trials, self.chunk_trials)
         values = wp.empty((chunk, k), dtype=float, device=dev)
         sample_buf = wp.empty((chunk, k), dtype=float, device=dev) if return_samples else None
         samples = np.empty((trials, k), dtype=np.float32) if return_samples else None
@@ -314,5 +316,3 @@ def _check_count(name: str, value: Any) -> int:
         raise InvalidParameterError(f"{name} must be below 2^31, got {value}")
     return int(value)
 
-
-Launcher = Callable[..., None]
