@@ -1,0 +1,7 @@
+"""``python -m grisx`` runs the command line."""
+
+import sys
+
+from grisx.cli import main
+
+sys.exit(main())
