@@ -63,6 +63,9 @@ def _key_value(text: str) -> tuple[str, str]:
     return key.strip(), value.strip()
 
 
+_key_value.__name__ = "key=value"
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="grisx", description="Resampled importance sampling (RIS, GRIS, ReSTIR) with exact answers.")
     from grisx import __version__

@@ -8,6 +8,9 @@ grisx runs its kernels on ``"cpu"`` by default and on ``"cuda"`` (or
 from __future__ import annotations
 
 import functools
+import os
+import sys
+import tempfile
 
 import warp as wp
 
@@ -16,11 +19,37 @@ from grisx.errors import DeviceError
 __all__ = ["init", "resolve_device", "cuda_available", "synchronize"]
 
 
+#: a line Warp's native library prints on every machine without a GPU; on such
+#: a machine it is expected, and grisx reports CUDA's absence itself when asked
+_EXPECTED_NATIVE_NOISE = ("Could not find or load the NVIDIA CUDA driver",)
+
+
 @functools.cache
 def init() -> None:
-    """Initialise Warp once, quietly (kernel-load messages off)."""
-    wp.config.quiet = True
-    wp.init()
+    """Initialise Warp once, quietly.
+
+    Warp's info messages (greeting, kernel loads) are hidden unless the
+    environment sets ``GRISX_VERBOSE=1``; the native "no CUDA driver" notice
+    is dropped (``cuda_available()`` answers that question) and anything else
+    Warp writes to stderr while starting is passed on.
+    """
+    verbose = os.environ.get("GRISX_VERBOSE", "") not in ("", "0")
+    if not verbose:
+        wp.config.log_level = max(wp.config.log_level, wp.LOG_WARNING)
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile(mode="w+b") as capture:
+        os.dup2(capture.fileno(), 2)
+        try:
+            wp.init()
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+        capture.seek(0)
+        text = capture.read().decode(errors="replace")
+    kept = [line for line in text.splitlines() if verbose or not any(n in line for n in _EXPECTED_NATIVE_NOISE)]
+    if kept:
+        print("\n".join(kept), file=sys.stderr)
 
 
 def cuda_available() -> bool:

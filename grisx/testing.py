@@ -164,8 +164,12 @@ def chi2_test(
     scalar_pdf = lambda t: float(np.asarray(pdf(np.array([t])))[0])  # noqa: E731
     mass = np.array([scipy.integrate.quad(scalar_pdf, a, b, limit=100)[0] for a, b in zip(edges[:-1], edges[1:])])
     expected = mass * x.size
+    outside_expected = max(0.0, 1.0 - mass.sum()) * x.size
+    if outside > 0 and outside_expected < 1e-9 * x.size:
+        # samples where the pdf says none can be: certain failure, whatever the bins say
+        return Chi2Result(statistic=math.inf, dof=bins - 1, p_value=0.0, alpha=alpha, passed=False)
     observed = np.append(observed, outside)
-    expected = np.append(expected, max(0.0, 1.0 - mass.sum()) * x.size)
+    expected = np.append(expected, outside_expected)
     # pool small bins (in order) until every pooled bin expects >= min_expected
     obs_pooled, exp_pooled = [], []
     acc_o = acc_e = 0.0

@@ -28,7 +28,7 @@ every point with f ≠ 0 — the canonical sample's job.
 
 **Support-counting uniform weights** (seed 004, Alg. 4 lines 16–19)::
 
-    m_i(y) = c_i / Z(y),   Z(y) = Σ_{j : p̂_{←j}(y) > 0} c_j
+    m_i(y) = c_i [p̂_{←i}(y) > 0] / Z(y),   Z(y) = Σ_{j : p̂_{←j}(y) > 0} c_j
 
 Only domains whose support holds y are counted. Counting *every* domain
 (the naive 1/M of biased ReSTIR) is the same formula with the wrong Z, and is
@@ -48,6 +48,7 @@ __all__ = [
     "pairwise_mis_canonical_term",
     "support_count_term",
     "support_mis",
+    "confidence_share",
     "mis_weight",
     "MIS_MODES",
 ]
@@ -158,10 +159,18 @@ def support_count_term(confidence: float, target_from: float) -> float:
 
 
 @wp.func
-def support_mis(confidence: float, z: float) -> float:
-    """m_i = c_i / Z with Z the confidence of the domains that can produce y (seed 004, Alg. 4 l. 16–19)."""
+def support_mis(confidence: float, target_from: float, z: float) -> float:
+    """m_i = c_i [p̂_{←i}(y) > 0] / Z, Z the confidence of the domains that can produce y (seed 004, Alg. 4 l. 16–19)."""
     if z > 0.0:
-        return confidence / z
+        return support_count_term(confidence, target_from) / z
+    return 0.0
+
+
+@wp.func
+def confidence_share(confidence: float, total: float) -> float:
+    """c_i / Σ_j c_j over *all* domains: the naive weight, unbiased only where every domain covers y."""
+    if total > 0.0:
+        return confidence / total
     return 0.0
 
 
@@ -217,9 +226,10 @@ def mis_weight(
                 m += pairwise_mis_canonical_term(confidence[l], target_from[l], c_c, t_c, k, total)
         return m
     z = float(0.0)
-    for l in range(n):
-        if mode == MIS_SUPPORT:
+    if mode == MIS_SUPPORT:
+        for l in range(n):
             z += support_count_term(confidence[l], target_from[l])
-        else:
-            z += confidence[l]
-    return support_mis(confidence[source], z)
+        return support_mis(confidence[source], target_from[source], z)
+    for l in range(n):
+        z += confidence[l]
+    return confidence_share(confidence[source], z)

@@ -113,6 +113,12 @@ class GRISShift(PixelReuseProblem):
         ("gris", {"jacobian": False}, "resampling weights without |∂T/∂x| (seed 000, Eq. 9)"),
     )
 
+    def is_biased(self, method: str, params: Mapping[str, Any]) -> bool:
+        biased = super().is_biased(method, params)
+        if biased and params.get("mis") == "naive" and params.get("jacobian", True):
+            return int(params.get("pixels", 5)) >= 5  # the partial-bijection pixel is pixel 4
+        return biased
+
     def check_params(self, method: str, params: dict[str, Any]) -> None:
         from grisx.errors import InvalidParameterError
 

@@ -64,7 +64,7 @@ def make_pixel_reuse_kernel(spec_type: Any, sample_candidate: Any, candidate_pdf
             return 0.0
         return target_from(target(spec, l, s.x), s.jacobian)
 
-    @wp.kernel(module="unique")
+    @wp.kernel(module="unique", enable_backward=False)
     def pixel_reuse(
         spec: spec_type,
         candidates: int,
@@ -200,6 +200,12 @@ class PixelReuseProblem(ToyProblem):
 
     def components(self, params: Mapping[str, Any]) -> int:
         return int(params["pixels"])
+
+    def is_biased(self, method: str, params: Mapping[str, Any]) -> bool:
+        # every declared bias lives in the reuse passes: without one, each pixel is plain RIS
+        if int(params.get("passes", 1)) == 0:
+            return False
+        return super().is_biased(method, params)
 
     def kernels(self) -> list[Any]:
         if self._kernel is None:

@@ -33,6 +33,9 @@ from grisx.theory.reservoir import reservoir_empty, reservoir_finalize, reservoi
 from grisx.theory.toys.base import Method, Param, ToyProblem, TrialBatch
 from grisx.theory.toys.domains import interval_pdf, sample_interval
 
+# grisx never differentiates through its kernels: skip adjoint code (halves compile time)
+wp.set_module_options({"enable_backward": False})
+
 __all__ = ["RIS1D", "ris1d_integrand", "ris1d_target"]
 
 TARGETS = ("integrand", "approx", "narrow")

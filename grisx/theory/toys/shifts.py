@@ -27,6 +27,9 @@ import warp as wp
 
 from grisx.theory.shift import ShiftResult, shift_failed, shift_result
 
+# grisx never differentiates through its kernels: skip adjoint code (halves compile time)
+wp.set_module_options({"enable_backward": False})
+
 __all__ = [
     "MAP_KINDS",
     "phi",

@@ -1,0 +1,106 @@
+"""The CLI contract: `grisx toy list|run`, `grisx demo`, and one-line errors with a non-zero exit."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from grisx.cli import main
+
+CONTRACT_KEYS = {"estimate", "stderr", "exact", "trials", "seconds", "method", "problem"}
+
+
+def run_cli(capsys, *argv):
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_toy_list_json_names_every_problem_method_and_param(capsys):
+    code, out, _ = run_cli(capsys, "toy", "list", "--json")
+    assert code == 0
+    problems = {p["name"]: p for p in json.loads(out)["problems"]}
+    assert {"ris-1d", "gris-shift", "reconnection-flatland"} <= set(problems)
+    gris = problems["gris-shift"]["methods"][0]
+    assert {p["name"] for p in gris["params"]} >= {"mis", "passes", "jacobian", "cap"}
+    assert problems["gris-shift"]["biased_variants"]
+
+
+def test_toy_list_text(capsys):
+    code, out, _ = run_cli(capsys, "toy", "list")
+    assert code == 0 and "--param mis=balance" in out and "biased by design" in out
+
+
+@pytest.mark.parametrize(
+    "argv, n",
+    [
+        (["ris-1d", "--method", "ris", "--param", "target=approx"], 1),
+        (["gris-shift", "--method", "gris", "--param", "mis=pairwise", "--param", "passes=2"], 5),
+        (["reconnection-flatland", "--method", "gris", "--param", "pixels=3"], 3),
+    ],
+)
+def test_toy_run_json_has_the_contract_fields(capsys, argv, n):
+    code, out, _ = run_cli(capsys, "toy", "run", *argv, "--trials", "2e4", "--seed", "5", "--json")
+    assert code == 0
+    d = json.loads(out)
+    assert CONTRACT_KEYS <= set(d)
+    assert d["trials"] == 20000 and d["seconds"] > 0
+    if n > 1:
+        assert len(d["estimate"]) == len(d["stderr"]) == len(d["exact"]) == n
+    else:
+        assert isinstance(d["estimate"], float)
+
+
+def test_toy_run_text(capsys):
+    code, out, _ = run_cli(capsys, "toy", "run", "ris-1d", "--method", "mc", "--trials", "1000")
+    assert code == 0 and "exact" in out and "z =" in out
+
+
+@pytest.mark.parametrize(
+    "argv, text",
+    [
+        (["toy", "run", "nope", "--method", "ris"], "unknown toy problem 'nope'"),
+        (["toy", "run", "ris-1d", "--method", "nope"], "unknown method"),
+        (["toy", "run", "ris-1d", "--method", "ris", "--param", "alpha=2"], "unknown param"),
+        (["toy", "run", "ris-1d", "--method", "ris", "--param", "candidates=-3"], "candidates"),
+        (["toy", "run", "ris-1d", "--method", "ris", "--param", "noequals"], "key=value"),
+        (["toy", "run", "gris-shift", "--method", "gris", "--param", "cap=nan"], "finite"),
+        (["toy", "run", "ris-1d", "--method", "ris", "--trials", "0"], "--trials"),
+        (["toy", "run", "ris-1d", "--method", "ris", "--trials", "-5"], "--trials"),
+        (["toy", "run", "ris-1d", "--method", "ris", "--trials", "abc"], "--trials"),
+        (["toy", "run", "ris-1d", "--method", "ris", "--device", "tpu"], "unknown device 'tpu'"),
+        (["toy", "run", "ris-1d"], "--method"),
+        (["toy", "frobnicate"], "invalid choice"),
+        (["demo", "--out", "figure.jpg"], ".png"),
+    ],
+)
+def test_bad_input_prints_one_line_and_exits_non_zero(capsys, argv, text):
+    code, out, err = run_cli(capsys, *argv)
+    assert code == 2
+    assert out == ""
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("grisx: error:") and text in lines[0], err
+
+
+def test_console_entry_point_runs_as_a_module():
+    proc = subprocess.run(
+        [sys.executable, "-m", "grisx", "toy", "run", "ris-1d", "--method", "ris", "--trials", "1000", "--json"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert CONTRACT_KEYS <= set(json.loads(proc.stdout))
+    bad = subprocess.run([sys.executable, "-m", "grisx", "toy", "run", "x", "--method", "y"], capture_output=True, text=True, timeout=300)
+    assert bad.returncode == 2 and "Traceback" not in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
+
+
+def test_demo_writes_a_figure_and_a_summary(capsys, tmp_path):
+    out = tmp_path / "demo.png"
+    code, stdout, _ = run_cli(capsys, "demo", "--trials", "20000", "--out", str(out))
+    assert code == 0
+    assert out.stat().st_size > 10_000
+    summary = json.loads(out.with_suffix(".json").read_text())
+    assert all("UNEXPECTED" not in r["verdict"] and "NOT caught" not in r["verdict"] for r in summary["runs"])
+    assert "caught: biased by design" in stdout

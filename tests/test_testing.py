@@ -1,0 +1,56 @@
+"""grisx.testing: the checks themselves, on cases with known answers."""
+
+import numpy as np
+import pytest
+import scipy.stats
+
+from grisx.errors import InvalidValueError
+from grisx.testing import chi2_test, sidak_alpha, sidak_threshold, z_test
+
+
+def test_z_test_hand_computed():
+    r = z_test(1.3, 0.1, 1.0)
+    np.testing.assert_allclose(r.z, [3.0])
+    assert r.passed and r.threshold == 4.0
+    assert not z_test(1.5, 0.1, 1.0).passed
+
+
+def test_zero_stderr_passes_only_exact_matches():
+    assert z_test(2.0, 0.0, 2.0).passed
+    assert not z_test(2.0, 0.0, 2.1).passed
+
+
+def test_sidak_numbers():
+    # 1 − (1 − 0.05)^(1/10) = 0.0051162...
+    np.testing.assert_allclose(sidak_alpha(0.05, 10), 0.00511619, rtol=1e-5)
+    assert sidak_threshold(4.0, 1) == pytest.approx(4.0)
+    assert 4.0 < sidak_threshold(4.0, 100) < 5.5
+    r = z_test(np.zeros(100) + 4.2, np.ones(100), np.zeros(100))
+    assert r.passed and r.threshold > 4.2  # 4.2σ is no surprise among 100 values
+
+
+def test_z_test_rejects_nan():
+    with pytest.raises(InvalidValueError, match="estimate"):
+        z_test(np.nan, 1.0, 0.0)
+
+
+def test_z_test_false_alarm_rate_is_as_designed():
+    # 20 000 draws of a correct estimator: 4σ false alarms ≈ 20000 · 6.3e-5 ≈ 1.3
+    rng = np.random.default_rng(0)
+    z = rng.standard_normal(20_000)
+    alarms = sum(not z_test(v, 1.0, 0.0).passed for v in z[:20_000])
+    assert alarms <= 6
+
+
+def test_chi2_accepts_the_right_pdf_and_rejects_a_wrong_one():
+    rng = np.random.default_rng(1)
+    x = rng.beta(2.0, 5.0, 100_000)
+    right = chi2_test(x, lambda t: scipy.stats.beta.pdf(t, 2.0, 5.0), 0.0, 1.0)
+    wrong = chi2_test(x, lambda t: scipy.stats.beta.pdf(t, 2.1, 5.0), 0.0, 1.0)
+    assert right.passed, right
+    assert not wrong.passed, wrong
+
+
+def test_chi2_fails_on_samples_where_the_pdf_is_zero():
+    x = np.concatenate([np.full(10, 1.5), np.random.default_rng(2).uniform(0, 1, 1000)])
+    assert not chi2_test(x, lambda t: np.ones_like(t), 0.0, 1.0).passed
