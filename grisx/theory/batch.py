@@ -71,9 +71,8 @@ def _resample_kernel(
     r = reservoir_empty()
     index = int(-1)
     for i in range(weights.shape[1]):
-        kept = bool(False)
-        r, kept = reservoir_update(r, weights[row, i], targets[row, i], confidences[row, i], random_uniform(key, i))
-        if kept:
+        r = reservoir_update(r, weights[row, i], targets[row, i], confidences[row, i], random_uniform(key, i))
+        if r.selected:
             index = i
     out_index[row] = index
     out[row] = reservoir_finalize(r)
@@ -94,9 +93,8 @@ def _merge_kernel(
     r = reservoir_empty()
     index = int(-1)
     for i in range(inputs.shape[1]):
-        kept = bool(False)
-        r, kept = reservoir_merge(r, inputs[row, i], mis[row, i], targets_shifted[row, i], jacobians[row, i], random_uniform(key, i))
-        if kept:
+        r = reservoir_merge(r, inputs[row, i], mis[row, i], targets_shifted[row, i], jacobians[row, i], random_uniform(key, i))
+        if r.selected:
             index = i
     out_index[row] = index
     out[row] = reservoir_finalize(r)

@@ -10,12 +10,15 @@ bookkeeping of seed 004's Algorithm 1:
 ``confidence``  c (seed 001's α, ReSTIR's M): how many candidates' worth of
                 information the reservoir holds — the weight it gets in MIS;
 ``ucw``         the unbiased contribution weight W_y = w_sum / p̂(y)
-                (seed 000, Eq. 8), set by :func:`reservoir_finalize`.
+                (seed 000, Eq. 8), set by :func:`reservoir_finalize`;
+``selected``    whether the most recent update kept its incoming candidate.
 
 The sample itself is *not* in the struct: its type depends on the problem
-(a float on a toy, a path record in a renderer). :func:`reservoir_update`
-returns whether the incoming candidate was kept, and the caller copies its
-payload then — the same contract as pbrt-v4's ``WeightedReservoirSampler::Add``.
+(a float on a toy, a path record in a renderer). After
+``r = reservoir_update(r, ...)`` the caller copies the candidate's payload
+when ``r.selected`` is true — pbrt-v4's ``WeightedReservoirSampler::Add``
+returns the same answer as a bool. (A flag in the returned record rather than a
+second return value: Warp's CPU back end compiles tuple returns ~1.4× slower.)
 
 Weights must already contain the MIS weight m_l (seed 000, Eq. 6 and 9), so
 finalizing never divides by M: with m_l = 1/M the result is the classic
@@ -53,6 +56,7 @@ class Reservoir:
     target: float
     confidence: float
     ucw: float
+    selected: wp.bool
 
 
 @wp.func
@@ -63,40 +67,42 @@ def reservoir_empty() -> Reservoir:
     r.target = 0.0
     r.confidence = 0.0
     r.ucw = 0.0
+    r.selected = False
     return r
 
 
 @wp.func
-def reservoir_update(r: Reservoir, w: float, target: float, confidence: float, u: float):
+def reservoir_update(r: Reservoir, w: float, target: float, confidence: float, u: float) -> Reservoir:
     """Stream one candidate of weight ``w`` (seed 004, Alg. 1 UPDATE).
 
     ``target`` is p̂ of the candidate in this reservoir's domain and
-    ``confidence`` what it adds to c. Returns ``(reservoir, kept)``; when
-    ``kept`` is true the caller stores the candidate as the new sample.
-    Weights that are 0, negative or NaN add confidence but can never be kept.
+    ``confidence`` what it adds to c. In the returned reservoir,
+    ``selected`` is true when the candidate was kept: the caller stores it
+    as the new sample then. Weights that are 0, negative or NaN add
+    confidence but are never kept.
     """
     out = r
     out.confidence = r.confidence + confidence
-    kept = False
+    out.selected = False
     if w > 0.0:
         out.w_sum = r.w_sum + w
         # Keep with probability w / w_sum. The first positive candidate is
         # always kept, even where u·w_sum rounds up to w in float32.
         if r.w_sum <= 0.0 or u * out.w_sum < w:
             out.target = target
-            kept = True
-    return out, kept
+            out.selected = True
+    return out
 
 
 @wp.func
 def reservoir_merge(
     r: Reservoir, other: Reservoir, mis: float, target_shifted: float, jacobian: float, u: float
-):
+) -> Reservoir:
     """Merge reservoir ``other`` into ``r`` as one GRIS candidate (seed 004, Alg. 1 MERGE).
 
     ``target_shifted`` is p̂ of other's sample after the shift into r's domain,
     ``jacobian`` the shift's |∂T/∂x| and ``mis`` its MIS weight; the resampling
-    weight is seed 000's Eq. 9 with W = other.ucw. Returns ``(reservoir, kept)``.
+    weight is seed 000's Eq. 9 with W = other.ucw. ``selected`` as in :func:`reservoir_update`.
     """
     w = resampling_weight(mis, target_shifted, other.ucw, jacobian)
     return reservoir_update(r, w, target_shifted, other.confidence, u)

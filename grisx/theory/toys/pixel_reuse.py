@@ -30,7 +30,7 @@ import numpy as np
 import warp as wp
 
 from grisx.theory.gris import ris_weight
-from grisx.theory.mis import MIS_MODES, mis_weight, target_from
+from grisx.theory.mis import MIS_MODES, MIS_PAIRWISE, mis_weight, target_from
 from grisx.theory.random import random_key, random_subkey, random_uniform
 from grisx.theory.reservoir import (
     Reservoir,
@@ -98,9 +98,8 @@ def make_pixel_reuse_kernel(spec_type: Any, sample_candidate: Any, candidate_pdf
                 x = sample_candidate(spec, j, random_uniform(key, counter))
                 p_hat = target(spec, j, x)
                 w = ris_weight(inv_m, p_hat, candidate_pdf(spec, j, x))
-                kept = bool(False)
-                r, kept = reservoir_update(r, w, p_hat, 1.0, random_uniform(key, counter + 1))
-                if kept:
+                r = reservoir_update(r, w, p_hat, 1.0, random_uniform(key, counter + 1))
+                if r.selected:
                     y = x
             res_a[t, j] = reservoir_finalize(r)
             y_a[t, j] = y
@@ -116,19 +115,20 @@ def make_pixel_reuse_kernel(spec_type: Any, sample_candidate: Any, candidate_pdf
                 for j in range(pixels):
                     src = res_a[t, j]
                     s = shift(spec, j, i, y_a[t, j])
-                    kept = bool(False)
                     if s.valid and src.ucw > 0.0:
                         for l in range(pixels):
-                            targets_from[t, l] = carried_target(spec, l, i, s.x)
+                            # pairwise MIS reads only p̂_{←j} and p̂_i for a neighbour's sample: O(1), not O(K)
+                            if mis_mode != MIS_PAIRWISE or j == i or l == i or l == j:
+                                targets_from[t, l] = carried_target(spec, l, i, s.x)
                         m = mis_weight(mis_mode, j, i, confidence[t], targets_from[t])
                         jacobian = s.jacobian
                         if use_jacobian == 0:
                             jacobian = 1.0  # the ablation: biased wherever |∂T/∂x| ≠ 1
-                        r, kept = reservoir_merge(r, src, m, target(spec, i, s.x), jacobian, random_uniform(pass_key, i * pixels + j))
+                        r = reservoir_merge(r, src, m, target(spec, i, s.x), jacobian, random_uniform(pass_key, i * pixels + j))
                     else:
                         # a failed shift still counts toward the confidence, which stays deterministic
-                        r, kept = reservoir_update(r, 0.0, 0.0, src.confidence, 0.0)
-                    if kept:
+                        r = reservoir_update(r, 0.0, 0.0, src.confidence, 0.0)
+                    if r.selected:
                         y = s.x
                 r = reservoir_finalize(r)
                 r.confidence = confidence_capped(r.confidence, confidence_cap)

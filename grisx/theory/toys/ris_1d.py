@@ -92,9 +92,8 @@ def ris1d_kernel(
             x = sample_interval(random_uniform(key, 2 * i), 0.0, 1.0)
             target = ris1d_target(target_kind, x)
             w = ris_weight(inv_m, target, pdf)  # seed 000, Eq. 6 with m = 1/M
-            kept = bool(False)
-            r, kept = reservoir_update(r, w, target, 1.0, random_uniform(key, 2 * i + 1))
-            if kept:
+            r = reservoir_update(r, w, target, 1.0, random_uniform(key, 2 * i + 1))
+            if r.selected:
                 y = x
         r = reservoir_finalize(r)  # W_y, seed 000 Eq. 8
         value = ris1d_integrand(y) * r.ucw  # seed 000, Eq. 7
