@@ -3,6 +3,7 @@
     grisx demo [--out PATH] [--trials N]
     grisx toy list [--json]
     grisx toy run NAME --method M [--trials N] [--seed S] [--param k=v ...] [--device cpu|cuda] [--json]
+    grisx poisson --primal P.exr --dx DX.exr --dy DY.exr --out I.exr [--norm L1|L2] [--json]
 
 Bad input prints one line ``grisx: error: …`` on stderr and exits with 2.
 """
@@ -97,12 +98,9 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--json", action="store_true", help="print one JSON object")
     run.set_defaults(handler=_toy_run)
 
-    try:
-        from grisx.poisson.cli import add_parser as add_poisson_parser
-    except ImportError:  # the Poisson layer is optional at import time only while it is being built
-        add_poisson_parser = None
-    if add_poisson_parser is not None:
-        add_poisson_parser(sub)
+    from grisx.poisson.cli import add_parser as add_poisson_parser
+
+    add_poisson_parser(sub)
     return parser
 
 

@@ -21,7 +21,9 @@ Images live *planar*, as ``(C, H*W)`` float32 arrays, pixel ``i = y*W + x``;
 each colour channel is an independent system with its own CG scalars. CG needs
 two dot products per iteration; they are fused into the kernels that produce
 their operands (``p·Ap`` into the mat-vec, ``r·z`` and ``r·r`` into the update)
-and reduced per block with Warp tiles, one atomic add per block and channel.
+and reduced per block with Warp tiles, one atomic add per block and channel;
+each lane handles several pixels (``per``) so that a block covers
+``block × per`` pixels (see :mod:`grisx.poisson.cg` for the launch shape).
 The scalars stay on the device: a kernel reads ``ρ_k = r_k·z_k`` and
 ``p_k·Ap_k`` from a small array, so an iteration needs no host round trip. The
 scalars rotate through three slots (iteration ``k`` uses slot ``k % 3``) so that
@@ -50,6 +52,9 @@ from __future__ import annotations
 
 import warp as wp
 
+# Reconstruction needs no adjoints; skipping them halves compile time.
+wp.set_module_options({"enable_backward": False})
+
 __all__ = [
     "SCAL_RZ",
     "SCAL_PAP",
@@ -60,10 +65,10 @@ __all__ = [
 ]
 
 # Rows of the (SCAL_ROWS, C) scalar array a CG solve keeps on the device.
-SCAL_RZ = 0  # rows 0..2: r·z for the three rotating slots
-SCAL_PAP = 3  # rows 3..5: p·Ap
-SCAL_RR = 6  # rows 6..8: r·r (the unpreconditioned residual, for stopping)
-SCAL_BB = 9  # row 9: b·b
+SCAL_RZ = wp.constant(0)  # rows 0..2: r·z for the three rotating slots
+SCAL_PAP = wp.constant(3)  # rows 3..5: p·Ap
+SCAL_RR = wp.constant(6)  # rows 6..8: r·r (the unpreconditioned residual, for stopping)
+SCAL_BB = wp.constant(9)  # row 9: b·b
 SCAL_ROWS = 10
 # Rows of the (MEASURE_ROWS, C) array ``measure`` fills: ‖b-Ax‖², ‖b‖², L2 and L1 energy.
 MEASURE_ROWS = 4
@@ -175,22 +180,23 @@ def planar_to_hwc(src: wp.array2d(dtype=wp.float32), dst: wp.array3d(dtype=wp.fl
 def build_system(primal: wp.array2d(dtype=wp.float32), gx: wp.array2d(dtype=wp.float32),
                  gy: wp.array2d(dtype=wp.float32), wpri: wp.array2d(dtype=wp.float32),
                  wx: wp.array2d(dtype=wp.float32), wy: wp.array2d(dtype=wp.float32),
-                 weighted: int, a2: float, h: int, w: int,
+                 weighted: int, a2: float, h: int, w: int, n: int, block: int, per: int,
                  b: wp.array2d(dtype=wp.float32), dinv: wp.array2d(dtype=wp.float32)):
     """Right-hand side b and the Jacobi preconditioner diag(A)⁻¹."""
-    c, i = wp.tid()
-    b[c, i] = _rhs(primal, gx, gy, wpri, wx, wy, weighted, a2, c, i, h, w)
-    dinv[c, i] = 1.0 / _diagonal(wpri, wx, wy, weighted, a2, c, i, h, w)
+    c, blk, lane = wp.tid()
+    for j in range(per):
+        i = (blk * per + j) * block + lane
+        if i < n:
+            b[c, i] = _rhs(primal, gx, gy, wpri, wx, wy, weighted, a2, c, i, h, w)
+            dinv[c, i] = 1.0 / _diagonal(wpri, wx, wy, weighted, a2, c, i, h, w)
 
 
-@wp.kernel
-def irls_weights(x: wp.array2d(dtype=wp.float32), primal: wp.array2d(dtype=wp.float32),
+@wp.func
+def _irls_weight(x: wp.array2d(dtype=wp.float32), primal: wp.array2d(dtype=wp.float32),
                  gx: wp.array2d(dtype=wp.float32), gy: wp.array2d(dtype=wp.float32),
                  alpha: float, eps: float, h: int, w: int,
                  wpri: wp.array2d(dtype=wp.float32), wx: wp.array2d(dtype=wp.float32),
-                 wy: wp.array2d(dtype=wp.float32)):
-    """IRLS weights 1/max(|ρ_j|, ε) for the residuals ρ = (α(x-P), ∇x-G)."""
-    c, i = wp.tid()
+                 wy: wp.array2d(dtype=wp.float32), c: int, i: int):
     y = i / w
     xx = i - y * w
     xi = x[c, i]
@@ -206,97 +212,122 @@ def irls_weights(x: wp.array2d(dtype=wp.float32), primal: wp.array2d(dtype=wp.fl
     wy[c, i] = wyi
 
 
-# ---- Jacobi-preconditioned CG (tiled kernels: grid (C, blocks), one lane per pixel) ----
+@wp.kernel
+def irls_weights(x: wp.array2d(dtype=wp.float32), primal: wp.array2d(dtype=wp.float32),
+                 gx: wp.array2d(dtype=wp.float32), gy: wp.array2d(dtype=wp.float32),
+                 alpha: float, eps: float, h: int, w: int, n: int, block: int, per: int,
+                 wpri: wp.array2d(dtype=wp.float32), wx: wp.array2d(dtype=wp.float32),
+                 wy: wp.array2d(dtype=wp.float32)):
+    """IRLS weights 1/max(|ρ_j|, ε) for the residuals ρ = (α(x-P), ∇x-G)."""
+    c, blk, lane = wp.tid()
+    for j in range(per):
+        i = (blk * per + j) * block + lane
+        if i < n:
+            _irls_weight(x, primal, gx, gy, alpha, eps, h, w, wpri, wx, wy, c, i)
+
+
+# ---- Jacobi-preconditioned CG ----
+# Tiled kernels on a grid (C, blocks): each lane handles `per` pixels
+# i = (blk*per + j)*block + lane (coalesced), so a block reduces block*per
+# pixels with one atomic add per scalar; on a GPU this cuts both the per-thread
+# index arithmetic and the contention on the scalar slots.
 
 
 @wp.kernel
 def cg_init(x: wp.array2d(dtype=wp.float32), b: wp.array2d(dtype=wp.float32),
             dinv: wp.array2d(dtype=wp.float32), wpri: wp.array2d(dtype=wp.float32),
             wx: wp.array2d(dtype=wp.float32), wy: wp.array2d(dtype=wp.float32),
-            weighted: int, a2: float, h: int, w: int, n: int, block: int,
+            weighted: int, a2: float, h: int, w: int, n: int, block: int, per: int,
             r: wp.array2d(dtype=wp.float32), p: wp.array2d(dtype=wp.float32),
             scal: wp.array2d(dtype=wp.float32)):
     """r = b - Ax, p = z = M⁻¹r; accumulate r·z, r·r, b·b into slot 0 (scal zeroed before)."""
     c, blk, lane = wp.tid()
-    i = blk * block + lane
     rz = float(0.0)
     rr = float(0.0)
     bb = float(0.0)
-    if i < n:
-        bi = b[c, i]
-        ri = bi - _apply(x, wpri, wx, wy, weighted, a2, c, i, h, w)
-        zi = dinv[c, i] * ri
-        r[c, i] = ri
-        p[c, i] = zi
-        rz = ri * zi
-        rr = ri * ri
-        bb = bi * bi
-    wp.tile_atomic_add(scal[0], wp.tile_sum(wp.tile(rz)), offset=c)
-    wp.tile_atomic_add(scal[6], wp.tile_sum(wp.tile(rr)), offset=c)
-    wp.tile_atomic_add(scal[9], wp.tile_sum(wp.tile(bb)), offset=c)
+    for j in range(per):
+        i = (blk * per + j) * block + lane
+        if i < n:
+            bi = b[c, i]
+            ri = bi - _apply(x, wpri, wx, wy, weighted, a2, c, i, h, w)
+            zi = dinv[c, i] * ri
+            r[c, i] = ri
+            p[c, i] = zi
+            rz += ri * zi
+            rr += ri * ri
+            bb += bi * bi
+    wp.tile_atomic_add(scal[SCAL_RZ], wp.tile_sum(wp.tile(rz)), offset=c)
+    wp.tile_atomic_add(scal[SCAL_RR], wp.tile_sum(wp.tile(rr)), offset=c)
+    wp.tile_atomic_add(scal[SCAL_BB], wp.tile_sum(wp.tile(bb)), offset=c)
 
 
 @wp.kernel
 def cg_matvec(p: wp.array2d(dtype=wp.float32), wpri: wp.array2d(dtype=wp.float32),
               wx: wp.array2d(dtype=wp.float32), wy: wp.array2d(dtype=wp.float32),
-              weighted: int, a2: float, h: int, w: int, n: int, block: int,
+              weighted: int, a2: float, h: int, w: int, n: int, block: int, per: int,
               ap: wp.array2d(dtype=wp.float32), scal: wp.array2d(dtype=wp.float32), k: int):
     """Ap = A p and p·Ap into slot k % 3."""
     c, blk, lane = wp.tid()
-    i = blk * block + lane
     pap = float(0.0)
-    if i < n:
-        api = _apply(p, wpri, wx, wy, weighted, a2, c, i, h, w)
-        ap[c, i] = api
-        pap = p[c, i] * api
-    wp.tile_atomic_add(scal[3 + k % 3], wp.tile_sum(wp.tile(pap)), offset=c)
+    for j in range(per):
+        i = (blk * per + j) * block + lane
+        if i < n:
+            api = _apply(p, wpri, wx, wy, weighted, a2, c, i, h, w)
+            ap[c, i] = api
+            pap += p[c, i] * api
+    wp.tile_atomic_add(scal[SCAL_PAP + k % 3], wp.tile_sum(wp.tile(pap)), offset=c)
 
 
 @wp.kernel
 def cg_update(x: wp.array2d(dtype=wp.float32), r: wp.array2d(dtype=wp.float32),
               p: wp.array2d(dtype=wp.float32), ap: wp.array2d(dtype=wp.float32),
-              dinv: wp.array2d(dtype=wp.float32), n: int, block: int,
+              dinv: wp.array2d(dtype=wp.float32), n: int, block: int, per: int,
               scal: wp.array2d(dtype=wp.float32), k: int):
     """x += a p, r -= a Ap with a = (r·z)/(p·Ap); new r·z and r·r into slot (k+1) % 3."""
     c, blk, lane = wp.tid()
-    i = blk * block + lane
     s = k % 3
     s1 = (k + 1) % 3
-    pap = scal[3 + s, c]
+    pap = scal[SCAL_PAP + s, c]
     # A converged (or all-zero) channel has p·Ap = 0: take no step instead of 0/0.
     a = float(0.0)
     if pap > 0.0:
-        a = scal[s, c] / pap
+        a = scal[SCAL_RZ + s, c] / pap
     rz = float(0.0)
     rr = float(0.0)
-    if i < n:
-        x[c, i] = x[c, i] + a * p[c, i]
-        ri = r[c, i] - a * ap[c, i]
-        r[c, i] = ri
-        rz = ri * ri * dinv[c, i]
-        rr = ri * ri
-    wp.tile_atomic_add(scal[s1], wp.tile_sum(wp.tile(rz)), offset=c)
-    wp.tile_atomic_add(scal[6 + s1], wp.tile_sum(wp.tile(rr)), offset=c)
+    for j in range(per):
+        i = (blk * per + j) * block + lane
+        if i < n:
+            x[c, i] = x[c, i] + a * p[c, i]
+            ri = r[c, i] - a * ap[c, i]
+            r[c, i] = ri
+            rz += ri * ri * dinv[c, i]
+            rr += ri * ri
+    wp.tile_atomic_add(scal[SCAL_RZ + s1], wp.tile_sum(wp.tile(rz)), offset=c)
+    wp.tile_atomic_add(scal[SCAL_RR + s1], wp.tile_sum(wp.tile(rr)), offset=c)
 
 
 @wp.kernel
 def cg_direction(r: wp.array2d(dtype=wp.float32), dinv: wp.array2d(dtype=wp.float32),
+                 n: int, block: int, per: int,
                  p: wp.array2d(dtype=wp.float32), scal: wp.array2d(dtype=wp.float32), k: int):
     """p = M⁻¹r + β p; zero the accumulators iteration k+1 will add into."""
-    c, i = wp.tid()
+    c, blk, lane = wp.tid()
     s = k % 3
     s1 = (k + 1) % 3
     s2 = (k + 2) % 3
-    rz_old = scal[s, c]
+    rz_old = scal[SCAL_RZ + s, c]
     beta = float(0.0)
     if rz_old > 0.0:
-        beta = scal[s1, c] / rz_old
-    p[c, i] = dinv[c, i] * r[c, i] + beta * p[c, i]
+        beta = scal[SCAL_RZ + s1, c] / rz_old
+    for j in range(per):
+        i = (blk * per + j) * block + lane
+        if i < n:
+            p[c, i] = dinv[c, i] * r[c, i] + beta * p[c, i]
     # Nobody reads these slots in this kernel, so one lane may clear them.
-    if i == 0:
-        scal[3 + s1, c] = 0.0
-        scal[s2, c] = 0.0
-        scal[6 + s2, c] = 0.0
+    if blk == 0 and lane == 0:
+        scal[SCAL_PAP + s1, c] = 0.0
+        scal[SCAL_RZ + s2, c] = 0.0
+        scal[SCAL_RR + s2, c] = 0.0
 
 
 # ---- measurement ----
@@ -307,34 +338,35 @@ def measure(x: wp.array2d(dtype=wp.float32), b: wp.array2d(dtype=wp.float32),
             primal: wp.array2d(dtype=wp.float32), gx: wp.array2d(dtype=wp.float32),
             gy: wp.array2d(dtype=wp.float32), wpri: wp.array2d(dtype=wp.float32),
             wx: wp.array2d(dtype=wp.float32), wy: wp.array2d(dtype=wp.float32),
-            weighted: int, alpha: float, h: int, w: int, n: int, block: int,
+            weighted: int, alpha: float, h: int, w: int, n: int, block: int, per: int,
             out: wp.array2d(dtype=wp.float32)):
     """‖b - Ax‖², ‖b‖² of the last system and the L2/L1 energies of x, per channel."""
     c, blk, lane = wp.tid()
-    i = blk * block + lane
     rr = float(0.0)
     bb = float(0.0)
     e2 = float(0.0)
     e1 = float(0.0)
-    if i < n:
-        y = i / w
-        xx = i - y * w
-        bi = b[c, i]
-        ri = bi - _apply(x, wpri, wx, wy, weighted, alpha * alpha, c, i, h, w)
-        rr = ri * ri
-        bb = bi * bi
-        xi = x[c, i]
-        rp = alpha * (xi - primal[c, i])
-        e2 = rp * rp
-        e1 = wp.abs(rp)
-        if xx + 1 < w:
-            rx = x[c, i + 1] - xi - gx[c, i]
-            e2 += rx * rx
-            e1 += wp.abs(rx)
-        if y + 1 < h:
-            ry = x[c, i + w] - xi - gy[c, i]
-            e2 += ry * ry
-            e1 += wp.abs(ry)
+    for j in range(per):
+        i = (blk * per + j) * block + lane
+        if i < n:
+            y = i / w
+            xx = i - y * w
+            bi = b[c, i]
+            ri = bi - _apply(x, wpri, wx, wy, weighted, alpha * alpha, c, i, h, w)
+            rr += ri * ri
+            bb += bi * bi
+            xi = x[c, i]
+            rp = alpha * (xi - primal[c, i])
+            e2 += rp * rp
+            e1 += wp.abs(rp)
+            if xx + 1 < w:
+                rx = x[c, i + 1] - xi - gx[c, i]
+                e2 += rx * rx
+                e1 += wp.abs(rx)
+            if y + 1 < h:
+                ry = x[c, i + w] - xi - gy[c, i]
+                e2 += ry * ry
+                e1 += wp.abs(ry)
     wp.tile_atomic_add(out[0], wp.tile_sum(wp.tile(rr)), offset=c)
     wp.tile_atomic_add(out[1], wp.tile_sum(wp.tile(bb)), offset=c)
     wp.tile_atomic_add(out[2], wp.tile_sum(wp.tile(e2)), offset=c)

@@ -1,0 +1,103 @@
+"""Linear float images on disk: OpenEXR read and write.
+
+grisx keeps data images (renders, primal and gradient buffers, references) as
+linear float32 OpenEXR files, read and written with the ``OpenEXR`` package
+[OpenEXR]. Arrays are indexed ``[y, x]`` or ``[y, x, c]`` with row 0 at the top
+of the image, as in the file's data window.
+
+Channel layout
+--------------
+* ``(H, W)`` or ``(H, W, 1)`` ↔ one channel named ``Y`` (on reading, any single
+  channel is accepted, whatever its name);
+* ``(H, W, 3)`` ↔ ``R``, ``G``, ``B``; ``(H, W, 4)`` ↔ ``R``, ``G``, ``B``, ``A``.
+
+Half and uint channels are converted to float32 on reading. Other layouts
+(several unnamed channels, layers) raise :class:`~grisx.errors.GrisxError`
+naming the channels found. Writing goes to a temporary file in the target
+directory that is renamed into place, so a failed write leaves nothing
+half-written behind.
+
+References
+----------
+[OpenEXR] Academy Software Foundation, OpenEXR file format and Python
+          bindings, https://openexr.com (``OpenEXR.File``).
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from grisx.errors import GrisxError
+
+__all__ = ["read_exr", "write_exr"]
+
+
+def _openexr():
+    try:
+        import OpenEXR
+    except ImportError as exc:  # a declared dependency, but say so clearly
+        raise GrisxError(f"reading/writing EXR needs the OpenEXR package (pip install OpenEXR): {exc}") from None
+    return OpenEXR
+
+
+def read_exr(path: str | os.PathLike) -> np.ndarray:
+    """Read an EXR file into a float32 array of shape (H, W) or (H, W, C)."""
+    OpenEXR = _openexr()
+    path = Path(path)
+    if not path.is_file():
+        raise GrisxError(f"cannot read EXR '{path}': no such file")
+    try:
+        with OpenEXR.File(str(path), separate_channels=True) as f:
+            channels = {name: np.asarray(ch.pixels) for name, ch in f.channels().items()}
+    except Exception as exc:  # OpenEXR raises RuntimeError/ValueError with its own text
+        raise GrisxError(f"cannot read EXR '{path}': {exc}") from None
+    names = set(channels)
+    if len(names) == 1:
+        return np.ascontiguousarray(next(iter(channels.values())), dtype=np.float32)
+    for layout in (("R", "G", "B", "A"), ("R", "G", "B")):
+        if names == set(layout):
+            return np.ascontiguousarray(np.stack([channels[n] for n in layout], axis=-1), dtype=np.float32)
+    raise GrisxError(f"cannot read EXR '{path}': unsupported channels {sorted(names)} "
+                     f"(expected one channel, R,G,B or R,G,B,A)")
+
+
+def write_exr(path: str | os.PathLike, array: np.ndarray) -> Path:
+    """Write ``array`` ((H, W) or (H, W, 1|3|4)) as a float32 ZIP-compressed EXR; return the path."""
+    OpenEXR = _openexr()
+    path = Path(path)
+    a = np.asarray(array)
+    if a.dtype.kind not in "fiub":
+        raise GrisxError(f"cannot write EXR '{path}': array must hold real numbers, got dtype {a.dtype}")
+    if a.ndim == 3 and a.shape[2] == 1:
+        a = a[:, :, 0]
+    if a.ndim == 2:
+        names: tuple[str, ...] = ("Y",)
+        planes = [a]
+    elif a.ndim == 3 and a.shape[2] in (3, 4):
+        names = ("R", "G", "B", "A")[: a.shape[2]]
+        planes = [a[:, :, i] for i in range(a.shape[2])]
+    else:
+        raise GrisxError(f"cannot write EXR '{path}': shape {a.shape} is not (H, W) or (H, W, 1|3|4)")
+    if a.shape[0] == 0 or a.shape[1] == 0:
+        raise GrisxError(f"cannot write EXR '{path}': image is empty (shape {a.shape})")
+    if not path.parent.is_dir():
+        raise GrisxError(f"cannot write EXR '{path}': directory '{path.parent}' does not exist")
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    channels = {n: np.ascontiguousarray(p, dtype=np.float32) for n, p in zip(names, planes)}
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp.exr", dir=path.parent)
+    os.close(fd)
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the file the usual permissions
+    try:
+        with OpenEXR.File(header, channels) as f:
+            f.write(tmp)
+        os.replace(tmp, path)
+    except Exception as exc:
+        Path(tmp).unlink(missing_ok=True)
+        raise GrisxError(f"cannot write EXR '{path}': {exc}") from None
+    return path
