@@ -90,6 +90,9 @@ from grisx.theory.toys import get_problem, run_toy  # noqa: E402
 QUICK = os.environ.get("GRISX_QUICK", "").strip().lower() not in ("", "0", "false", "no") or "--quick" in sys.argv
 TRIALS = 20_000 if QUICK else 500_000
 SEED = 0
+# Every kernel and array of this tutorial lives on one device (set GRISX_DEVICE=cuda for a GPU).
+DEVICE = os.environ.get("GRISX_DEVICE", "cpu")
+wp.set_device(DEVICE)
 
 
 def _default_out() -> Path:
@@ -476,7 +479,7 @@ def integrand_in_u(spec: GRISShiftSpec, k: int, us: wp.array(dtype=float), out: 
 def integral_beyond(k: int, u0: float = 0.6, n: int = 4001) -> float:
     """∫_{u > u0} f_k, with the toy's own Warp integrand (trapezoid rule)."""
     params = gris["naive (c/Σc)"].params
-    spec = get_problem("gris-shift").spec(params, wp.get_device("cpu"))
+    spec = get_problem("gris-shift").spec(params, wp.get_device())
     u = np.linspace(u0, 1.0, n, dtype=np.float32)
     out = wp.zeros(n, dtype=float)
     wp.launch(integrand_in_u, dim=n, inputs=[spec, k, wp.array(u), out])
