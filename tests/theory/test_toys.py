@@ -38,7 +38,7 @@ UNBIASED = [
     ("reconnection-flatland", "gris", {"mis": "uniform", "passes": 2, "pixels": 3}),
 ]
 
-BIASED = [(name, method, dict(params)) for name, p in PROBLEMS.items() for method, params, _why in p.biased_variants]
+BIASED = [(name, b.method, dict(b.params)) for name, p in PROBLEMS.items() for b in p.biased_variants]
 
 
 def _label(case):

@@ -17,7 +17,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
@@ -26,7 +26,7 @@ import warp as wp
 from grisx.device import resolve_device, synchronize
 from grisx.errors import InvalidParameterError, InvalidValueError, UnknownNameError
 
-__all__ = ["Param", "Method", "Estimate", "ToyProblem", "TrialBatch", "CHUNK_TRIALS"]
+__all__ = ["Param", "Method", "BiasedVariant", "Estimate", "ToyProblem", "TrialBatch", "CHUNK_TRIALS"]
 
 #: trials launched per kernel call; bounds host memory for per-trial results
 CHUNK_TRIALS = 1 << 20
@@ -99,6 +99,26 @@ class Method:
     name: str
     doc: str
     params: tuple[str, ...] = ()
+
+
+@dataclasses.dataclass(frozen=True)
+class BiasedVariant:
+    """A configuration that is biased by construction, and why.
+
+    It matches a run of ``method`` whose parameters equal ``params``, and,
+    when ``applies`` is given, for which ``applies(all_params)`` is true (the
+    bias may need more than the named switch, e.g. a reuse pass to happen).
+    """
+
+    method: str
+    params: dict[str, Any]
+    why: str
+    applies: Callable[[Mapping[str, Any]], bool] | None = None
+
+    def matches(self, method: str, params: Mapping[str, Any]) -> bool:
+        if method != self.method or any(params.get(k) != v for k, v in self.params.items()):
+            return False
+        return self.applies is None or bool(self.applies(params))
 
 
 @dataclasses.dataclass
@@ -177,8 +197,8 @@ class ToyProblem:
     summary: str = ""
     methods: tuple[Method, ...] = ()
     params: tuple[Param, ...] = ()
-    #: (method, {param: value}, why) triples that are biased by construction
-    biased_variants: tuple[tuple[str, dict[str, Any], str], ...] = ()
+    #: configurations that are biased by construction
+    biased_variants: tuple[BiasedVariant, ...] = ()
     #: trials per kernel launch (smaller for problems with large per-trial scratch)
     chunk_trials: int = CHUNK_TRIALS
 
@@ -222,10 +242,7 @@ class ToyProblem:
         """Cross-parameter checks (override where needed)."""
 
     def is_biased(self, method: str, params: Mapping[str, Any]) -> bool:
-        for m, variant, _why in self.biased_variants:
-            if m == method and all(params.get(k) == v for k, v in variant.items()):
-                return True
-        return False
+        return any(b.matches(method, params) for b in self.biased_variants)
 
     def describe(self) -> dict[str, Any]:
         return {
@@ -235,7 +252,7 @@ class ToyProblem:
                 {"name": m.name, "doc": m.doc, "params": [p.describe() for p in self.params if p.name in m.params]}
                 for m in self.methods
             ],
-            "biased_variants": [{"method": m, "params": v, "why": why} for m, v, why in self.biased_variants],
+            "biased_variants": [{"method": b.method, "params": b.params, "why": b.why} for b in self.biased_variants],
         }
 
     def run(

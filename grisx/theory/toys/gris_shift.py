@@ -29,9 +29,9 @@ import scipy.integrate
 import warp as wp
 
 from grisx.theory.shift import ShiftResult
-from grisx.theory.toys.base import Method
+from grisx.theory.toys.base import BiasedVariant, Method
 from grisx.theory.toys.domains import interval_pdf, sample_interval
-from grisx.theory.toys.pixel_reuse import REUSE_PARAMS, PixelReuseProblem, make_pixel_reuse_kernel, pixel_array
+from grisx.theory.toys.pixel_reuse import REUSE_PARAMS, PixelReuseProblem, make_pixel_reuse_kernel, pixel_array, reuses
 from grisx.theory.toys.shifts import PARTIAL_U_MAX, phi, phi_inverse, phi_u_max, pixel_shift
 
 __all__ = ["GRISShift", "GRISShiftSpec", "pixel_layout"]
@@ -109,21 +109,14 @@ class GRISShift(PixelReuseProblem):
     params = REUSE_PARAMS
     methods = (Method("gris", "initial RIS per pixel, then spatial GRIS passes across all pixels", tuple(p.name for p in REUSE_PARAMS)),)
     biased_variants = (
-        ("gris", {"mis": "naive"}, "c_j/Σc counts the partial-bijection pixel where its shift is undefined"),
-        ("gris", {"jacobian": False}, "resampling weights without |∂T/∂x| (seed 000, Eq. 9)"),
+        BiasedVariant(
+            "gris",
+            {"mis": "naive"},
+            "c_j/Σc counts the partial-bijection pixel (pixel 4, so K >= 5) where its shift is undefined",
+            applies=lambda p: reuses(p) and int(p["pixels"]) >= 5,
+        ),
+        BiasedVariant("gris", {"jacobian": False}, "resampling weights without |∂T/∂x| (seed 000, Eq. 9)", applies=reuses),
     )
-
-    def is_biased(self, method: str, params: Mapping[str, Any]) -> bool:
-        biased = super().is_biased(method, params)
-        if biased and params.get("mis") == "naive" and params.get("jacobian", True):
-            return int(params.get("pixels", 5)) >= 5  # the partial-bijection pixel is pixel 4
-        return biased
-
-    def check_params(self, method: str, params: dict[str, Any]) -> None:
-        from grisx.errors import InvalidParameterError
-
-        if params["passes"] > 0 and params["pixels"] < 2:
-            raise InvalidParameterError("param 'passes' of toy 'gris-shift' needs pixels >= 2 to reuse anything")
 
     def exact(self, params: Mapping[str, Any]) -> np.ndarray:
         layout = pixel_layout(int(params["pixels"]))

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 import warp as wp
 
+from grisx.errors import InvalidParameterError
 from grisx.theory.gris import ris_weight
 from grisx.theory.mis import MIS_MODES, MIS_PAIRWISE, mis_weight, target_from
 from grisx.theory.random import random_key, random_subkey, random_uniform
@@ -42,7 +43,7 @@ from grisx.theory.reservoir import (
 )
 from grisx.theory.toys.base import Param, ToyProblem, TrialBatch
 
-__all__ = ["make_pixel_reuse_kernel", "PixelReuseScratch", "PixelReuseProblem", "REUSE_PARAMS", "pixel_array"]
+__all__ = ["make_pixel_reuse_kernel", "PixelReuseScratch", "PixelReuseProblem", "REUSE_PARAMS", "reuse_params", "reuses", "pixel_array"]
 
 
 def make_pixel_reuse_kernel(spec_type: Any, sample_candidate: Any, candidate_pdf: Any, target: Any, integrand: Any, shift: Any) -> Any:
@@ -172,14 +173,24 @@ class PixelReuseScratch:
 
 # ---- the problem class both pixel-reuse toys derive from --------------------
 
-REUSE_PARAMS = (
-    Param("pixels", 5, "number of pixels K", kind="int", minimum=1, maximum=16),
-    Param("candidates", 4, "initial candidates M per pixel", kind="int", minimum=1, maximum=1024),
-    Param("passes", 1, "spatial GRIS passes (0 = plain RIS per pixel)", kind="int", minimum=0, maximum=16),
-    Param("mis", "balance", "MIS weights of the spatial passes", kind="choice", choices=tuple(MIS_MODES)),
-    Param("jacobian", True, "multiply resampling weights by the shift Jacobian", kind="bool"),
-    Param("cap", 20.0, "confidence cap after each pass (0 = none)", kind="float", minimum=0.0),
-)
+def reuse_params(mis_default: str = "balance") -> tuple[Param, ...]:
+    """The parameters every pixel-reuse problem takes (``mis_default`` differs per paper)."""
+    return (
+        Param("pixels", 5, "number of pixels K", kind="int", minimum=1, maximum=16),
+        Param("candidates", 4, "initial candidates M per pixel", kind="int", minimum=1, maximum=1024),
+        Param("passes", 1, "spatial GRIS passes (0 = plain RIS per pixel)", kind="int", minimum=0, maximum=16),
+        Param("mis", mis_default, "MIS weights of the spatial passes", kind="choice", choices=tuple(MIS_MODES)),
+        Param("jacobian", True, "multiply resampling weights by the shift Jacobian", kind="bool"),
+        Param("cap", 20.0, "confidence cap after each pass (0 = none)", kind="float", minimum=0.0),
+    )
+
+
+REUSE_PARAMS = reuse_params()
+
+
+def reuses(params: Mapping[str, Any]) -> bool:
+    """Does the run make at least one spatial pass? Every reuse bias needs one."""
+    return int(params.get("passes", 1)) > 0
 
 
 class PixelReuseProblem(ToyProblem):
@@ -201,11 +212,9 @@ class PixelReuseProblem(ToyProblem):
     def components(self, params: Mapping[str, Any]) -> int:
         return int(params["pixels"])
 
-    def is_biased(self, method: str, params: Mapping[str, Any]) -> bool:
-        # every declared bias lives in the reuse passes: without one, each pixel is plain RIS
-        if int(params.get("passes", 1)) == 0:
-            return False
-        return super().is_biased(method, params)
+    def check_params(self, method: str, params: dict[str, Any]) -> None:
+        if params["passes"] > 0 and params["pixels"] < 2:
+            raise InvalidParameterError(f"param 'passes' of toy '{self.name}' needs pixels >= 2 to reuse anything")
 
     def kernels(self) -> list[Any]:
         if self._kernel is None:

@@ -34,14 +34,14 @@ import scipy.integrate
 import warp as wp
 
 from grisx.theory.shift import ShiftResult, reconnection_jacobian_2d, shift_failed, shift_result
-from grisx.theory.toys.base import Method, Param
+from grisx.theory.toys.base import BiasedVariant, Method, Param
 from grisx.theory.toys.domains import (
     angle_cosine_pdf,
     angle_uniform_pdf,
     sample_angle_cosine,
     sample_angle_uniform,
 )
-from grisx.theory.toys.pixel_reuse import REUSE_PARAMS, PixelReuseProblem, make_pixel_reuse_kernel, pixel_array
+from grisx.theory.toys.pixel_reuse import PixelReuseProblem, make_pixel_reuse_kernel, pixel_array, reuse_params, reuses
 
 __all__ = ["ReconnectionFlatland", "FlatlandSpec", "flatland_scene"]
 
@@ -157,28 +157,17 @@ def flatland_shift(spec: FlatlandSpec, src: int, dst: int, theta: float) -> Shif
 class ReconnectionFlatland(PixelReuseProblem):
     name = "reconnection-flatland"
     summary = "ReSTIR GI reconnection shift (seed 004, Eq. 11) between visible points in 2D flatland"
-    params = REUSE_PARAMS + (
+    params = reuse_params(mis_default="uniform") + (  # seed 004 uses 1/Z weights
         Param("source", "uniform", "source pdf of initial directions", kind="choice", choices=SOURCES),
         Param("occluder", True, "hang an occluder between the visible points and the emitter", kind="bool"),
     )
-    methods = (Method("gris", "initial RIS per pixel, then spatial reuse by reconnection", tuple(p.name for p in REUSE_PARAMS) + ("source", "occluder")),)
+    methods = (Method("gris", "initial RIS per pixel, then spatial reuse by reconnection", tuple(p.name for p in reuse_params()) + ("source", "occluder")),)
     biased_variants = (
-        ("gris", {"jacobian": False}, "reconnection without the Jacobian of seed 004, Eq. 11 (its Fig. 7)"),
-        ("gris", {"mis": "naive", "occluder": True}, "1/M counts pixels that cannot see the sample point (seed 004, Sec. 4.3)"),
+        BiasedVariant("gris", {"jacobian": False}, "reconnection without the Jacobian of seed 004, Eq. 11 (its Fig. 7)", applies=reuses),
+        BiasedVariant(
+            "gris", {"mis": "naive", "occluder": True}, "1/M counts pixels that cannot see the sample point (seed 004, Sec. 4.3)", applies=reuses
+        ),
     )
-
-    def __init__(self) -> None:
-        super().__init__()
-        # The pixel-reuse defaults fit gris-shift; seed 004 uses 1/Z weights.
-        self.params = tuple(
-            Param(p.name, "uniform", p.doc, kind=p.kind, choices=p.choices) if p.name == "mis" else p for p in type(self).params
-        )
-
-    def check_params(self, method: str, params: dict[str, Any]) -> None:
-        from grisx.errors import InvalidParameterError
-
-        if params["passes"] > 0 and params["pixels"] < 2:
-            raise InvalidParameterError("param 'passes' of toy 'reconnection-flatland' needs pixels >= 2 to reuse anything")
 
     def exact(self, params: Mapping[str, Any]) -> np.ndarray:
         scene = flatland_scene(int(params["pixels"]))

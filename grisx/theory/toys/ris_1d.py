@@ -30,7 +30,7 @@ import warp as wp
 from grisx.theory.gris import ris_weight
 from grisx.theory.random import random_key, random_uniform
 from grisx.theory.reservoir import reservoir_empty, reservoir_finalize, reservoir_update
-from grisx.theory.toys.base import Method, Param, ToyProblem, TrialBatch
+from grisx.theory.toys.base import BiasedVariant, Method, Param, ToyProblem, TrialBatch
 from grisx.theory.toys.domains import interval_pdf, sample_interval
 
 # grisx never differentiates through its kernels: skip adjoint code (halves compile time)
@@ -118,7 +118,7 @@ class RIS1D(ToyProblem):
         Method("ris", "resampled importance sampling: M candidates, one kept", ("candidates", "target")),
     )
     biased_variants = (
-        ("ris", {"target": "narrow"}, "p̂ = 0 on (0.5, 1] where f > 0: RIS never selects there"),
+        BiasedVariant("ris", {"target": "narrow"}, "p̂ = 0 on (0.5, 1] where f > 0: RIS never selects there"),
     )
 
     def exact(self, params: Mapping[str, Any]) -> np.ndarray:
