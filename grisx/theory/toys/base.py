@@ -140,6 +140,8 @@ class Estimate:
     seconds: float
     device: str
     samples: np.ndarray | None = None
+    #: problem-specific run statistics (e.g. Newton iterations per solution), or None
+    stats: dict[str, Any] | None = None
 
     @property
     def z(self) -> np.ndarray | float:
@@ -179,6 +181,7 @@ class Estimate:
             "seconds": self.seconds,
             "trials_per_second": self.trials / self.seconds if self.seconds > 0 else None,
             "device": self.device,
+            **({"stats": dict(self.stats)} if self.stats is not None else {}),
         }
 
 
@@ -188,6 +191,7 @@ class TrialBatch:
 
     values: wp.array  # (n, components) float32: one estimate per trial and component
     samples: wp.array | None  # (n, components) float32 selected samples, or None
+    counters: wp.array | None = None  # (n, len(counter_names)) float32 per-trial tallies, or None
 
 
 class ToyProblem:
@@ -218,6 +222,18 @@ class ToyProblem:
         self, method: str, params: Mapping[str, Any], seed: int, first_trial: int, batch: TrialBatch, device: Any
     ) -> None:
         raise NotImplementedError
+
+    def counter_names(self, method: str, params: Mapping[str, Any]) -> tuple[str, ...]:
+        """Names of per-trial tallies the launcher writes into ``batch.counters`` (none by default).
+
+        ``run`` sums them over all trials in float64 and hands the totals to
+        :meth:`stats`, whose dict becomes ``Estimate.stats``.
+        """
+        return ()
+
+    def stats(self, method: str, params: Mapping[str, Any], totals: Mapping[str, float], trials: int) -> dict[str, Any]:
+        """Run statistics from the summed tallies (override with counter_names)."""
+        return {name: value / trials for name, value in totals.items()}
 
     # ---- public API ----------------------------------------------------------
     def method(self, name: str) -> Method:
@@ -279,6 +295,9 @@ class ToyProblem:
         values = wp.empty((chunk, k), dtype=float, device=dev)
         sample_buf = wp.empty((chunk, k), dtype=float, device=dev) if return_samples else None
         samples = np.empty((trials, k), dtype=np.float32) if return_samples else None
+        counter_names = tuple(self.counter_names(method, resolved))
+        counter_buf = wp.zeros((chunk, len(counter_names)), dtype=float, device=dev) if counter_names else None
+        counter_totals = np.zeros(len(counter_names))
         total = np.zeros(k)
         mean = np.zeros(k)
         m2 = np.zeros(k)
@@ -288,7 +307,11 @@ class ToyProblem:
         done = 0
         while done < trials:
             n = min(chunk, trials - done)
-            batch = TrialBatch(values=values[:n], samples=None if sample_buf is None else sample_buf[:n])
+            batch = TrialBatch(
+                values=values[:n],
+                samples=None if sample_buf is None else sample_buf[:n],
+                counters=None if counter_buf is None else counter_buf[:n],
+            )
             self.launch(method, resolved, int(seed), done, batch, dev)
             v = batch.values.numpy().astype(np.float64)
             bad += int(np.count_nonzero(~np.isfinite(v)))
@@ -302,6 +325,8 @@ class ToyProblem:
             total = new_total
             if samples is not None:
                 samples[done : done + n] = batch.samples.numpy()
+            if counter_buf is not None:
+                counter_totals += batch.counters.numpy().astype(np.float64).sum(axis=0)
             done += n
         synchronize(dev)
         seconds = time.perf_counter() - start
@@ -321,6 +346,9 @@ class ToyProblem:
             seconds=seconds,
             device=str(dev),
             samples=None if samples is None else (samples[:, 0] if scalar else samples),
+            stats=dict(self.stats(method, resolved, dict(zip(counter_names, counter_totals)), trials))
+            if counter_names
+            else None,
         )
 
 
