@@ -4,6 +4,9 @@
     grisx toy list [--json]
     grisx toy run NAME --method M [--trials N] [--seed S] [--param k=v ...] [--device cpu|cuda] [--json]
     grisx poisson --primal P.exr --dx DX.exr --dy DY.exr --out I.exr [--norm L1|L2] [--json]
+    grisx scenes [--json]
+    grisx render SCENE_OR_FILE --method M [--spp N] [--frames F [--accumulate]] [--res WxH]
+                 [--device cpu|cuda] [--seed S] [--param k=v ...] [--out PATH.exr] [--json]
 
 Bad input prints one line ``grisx: error: …`` on stderr and exits with 2.
 """
@@ -99,8 +102,10 @@ def build_parser() -> argparse.ArgumentParser:
     run.set_defaults(handler=_toy_run)
 
     from grisx.poisson.cli import add_parser as add_poisson_parser
+    from grisx.scene.cli import add_parsers as add_scene_parsers
 
     add_poisson_parser(sub)
+    add_scene_parsers(sub, _key_value, _count, _seed)
     return parser
 
 

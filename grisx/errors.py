@@ -14,6 +14,7 @@ __all__ = [
     "InvalidParameterError",
     "InvalidValueError",
     "DeviceError",
+    "SceneFileError",
 ]
 
 
@@ -39,3 +40,20 @@ class InvalidValueError(GrisxError):
 
 class DeviceError(GrisxError):
     """A device that is not available (e.g. ``cuda`` on a machine without a GPU)."""
+
+
+class SceneFileError(GrisxError):
+    """A scene file that is malformed or uses something grisx does not support.
+
+    The message starts with ``file:line:`` and names the element and, where
+    one is at fault, the attribute or parameter; the fields hold them too.
+    """
+
+    def __init__(self, message: str, *, path: str | None = None, line: int | None = None,
+                 element: str | None = None, attribute: str | None = None):
+        self.path, self.line, self.element, self.attribute = path, line, element, attribute
+        where = path or "<string>"
+        if line is not None:
+            where += f":{line}"
+        what = f" <{element}>" if element else ""
+        super().__init__(f"{where}:{what} {message}")

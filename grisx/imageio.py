@@ -33,7 +33,7 @@ import numpy as np
 
 from grisx.errors import GrisxError
 
-__all__ = ["read_exr", "write_exr"]
+__all__ = ["read_exr", "write_exr", "write_png", "srgb_encode"]
 
 
 def _openexr():
@@ -100,4 +100,44 @@ def write_exr(path: str | os.PathLike, array: np.ndarray) -> Path:
     except Exception as exc:
         Path(tmp).unlink(missing_ok=True)
         raise GrisxError(f"cannot write EXR '{path}': {exc}") from None
+    return path
+
+
+def srgb_encode(linear: np.ndarray) -> np.ndarray:
+    """The sRGB transfer curve (IEC 61966-2-1) of linear values clipped to [0, 1]."""
+    x = np.clip(np.nan_to_num(np.asarray(linear, dtype=np.float64), nan=0.0, posinf=1.0, neginf=0.0), 0.0, 1.0)
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+
+
+def write_png(path: str | os.PathLike, linear: np.ndarray, exposure: float = 0.0, encode: bool = True) -> Path:
+    """Write a linear image as an 8-bit sRGB PNG (clip after scaling by 2^exposure).
+
+    ``encode=False`` writes values in [0, 1] as they are (for false-colour
+    views that are already display-referred). Written to a temporary file and
+    renamed into place.
+    """
+    from PIL import Image
+
+    path = Path(path)
+    a = np.asarray(linear, dtype=np.float64)
+    if a.ndim == 3 and a.shape[2] == 1:
+        a = a[:, :, 0]
+    if not (a.ndim == 2 or (a.ndim == 3 and a.shape[2] in (3, 4))):
+        raise GrisxError(f"cannot write PNG '{path}': shape {a.shape} is not (H, W) or (H, W, 3|4)")
+    if a.ndim == 3 and a.shape[2] == 4:
+        a = a[:, :, :3]
+    a = a * (2.0**exposure)
+    out = srgb_encode(a) if encode else np.clip(np.nan_to_num(a), 0.0, 1.0)
+    img = Image.fromarray(np.round(out * 255).astype(np.uint8))
+    if not path.parent.is_dir():
+        raise GrisxError(f"cannot write PNG '{path}': directory '{path.parent}' does not exist")
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp.png", dir=path.parent)
+    os.close(fd)
+    try:
+        img.save(tmp, format="PNG")
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, path)
+    except Exception as exc:
+        Path(tmp).unlink(missing_ok=True)
+        raise GrisxError(f"cannot write PNG '{path}': {exc}") from None
     return path

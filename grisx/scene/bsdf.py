@@ -1,0 +1,621 @@
+"""BSDFs: the sampling triple (sample, eval, pdf) of every material kind, with Mitsuba 3's conventions.
+
+Every function works in the **local shading frame** (z = shading normal, see
+``grisx.scene.frame``). ``wo`` points away from the surface toward the viewer
+(the previous path vertex), ``wi`` toward the next vertex or a light. As in
+Mitsuba 3 (whose ``si.wi`` is our ``wo``):
+
+* ``bsdf_eval(m, wo, wi)`` returns f(wo, wi)·|cos θ_i| — the cosine is folded
+  in, so a path throughput is a product of evals over pdfs;
+* ``bsdf_pdf(m, wo, wi)`` is the solid-angle density of ``bsdf_sample``;
+* ``bsdf_sample(m, wo, u_lobe, u)`` returns a ``BsdfSample`` record whose
+  ``weight`` = eval/pdf for non-delta lobes. Delta lobes (smooth conductor and
+  dielectric) have ``delta = 1``, eval = pdf = 0 for every given direction,
+  ``pdf`` = the probability of the chosen lobe (1, F or 1 − F, as Mitsuba)
+  and ``weight`` = their throughput factor;
+* transport is of **radiance**: a refracted sample's weight and a
+  transmission eval carry Mitsuba's 1/η_it² (= η_ti²) factor for the solid
+  angle compression across the interface (Veach 1997, §5.2), so that
+  f(wi, wo) = η² f(wo, wi)/… is not symmetric — see the reciprocity note below.
+
+Lobes (equations in ``grisx.scene.microfacet``):
+
+* **Lambertian** (``diffuse``): f = ρ/π; cosine-weighted sampling, pdf = cos θ_i/π,
+  weight = ρ. Concentric-disk (Shirley–Chiu) mapping, invertible
+  (``invert_cosine_hemisphere``) for random-replay shifts.
+* **Smooth conductor** (``conductor``): wi = (−wo_x, −wo_y, wo_z), weight =
+  specular_reflectance · F_c(cos θ_o; η, k) per channel.
+* **Rough conductor** (``roughconductor``, GGX): m ~ D_wo (visible normals),
+  wi = reflect(wo, m); f·cos θ_i = F D G2 / (4 cos θ_o) (Walter et al. 2007,
+  Eq. 20), pdf = D_wo(m)/(4 |wi·m|) = D G1(wo) /(4 cos θ_o), weight = F G1(wi, m).
+* **Smooth dielectric** (``dielectric``): reflect with probability F,
+  otherwise refract (Snell); weight = specular_reflectance, or
+  specular_transmittance · η_ti² (radiance).
+* **Rough dielectric** (``roughdielectric``, GGX; Walter et al. 2007, Eqs. 16–21 with
+  Mitsuba's radiance scaling): the half vector m ∝ wo + η wi (η = η_i/η_o of
+  the two sides), f_r·|cos θ_i| = F D G2/(4|cos θ_o|),
+  f_t·|cos θ_i| = η_ti² (1 − F) D G2 η² |(wo·m)(wi·m)| / (|cos θ_o| (wo·m + η wi·m)²),
+  sampled by D_wo then reflection with probability F; pdf = D_wo(m) ·
+  {F, 1 − F} · |∂ω_m/∂ω_i| with the Jacobians 1/(4 |wi·m|) and
+  η² |wi·m| / (wo·m + η wi·m)² (Walter et al. 2007, Eqs. 14 and 17).
+
+**Two-sided.** Reflection-only kinds are one-sided, as Mitsuba's: seen from
+the back (cos θ_o ≤ 0) they are black and sample nothing. With
+``two_sided = 1`` (Mitsuba's ``twosided`` wrapper) the frame is mirrored —
+wo_z and wi_z are negated, the front BSDF evaluated, and a sampled wi_z negated
+back. Dielectrics are always two-sided: the back side is the interior and η
+is inverted.
+
+**Reciprocity.** Reflection lobes satisfy f(wo, wi) = f(wi, wo). With the
+radiance scaling, transmission satisfies f(wi, wo) = η² f(wo, wi) where
+η = η(wi's side)/η(wo's side) (Veach 1997, Eq. 5.23).
+
+**Specialization.** ``make_bsdf(kinds)`` builds a ``BsdfFuncs`` record whose
+dispatch compiles only the listed kinds (branches are pruned with
+``wp.static`` at code generation); the module-level ``bsdf_*`` functions are
+the all-kinds dispatch. Scenes pass ``material_kinds(descs)`` so that a scene
+without glass compiles no dielectric code.
+
+**Albedo and roughness** (for seed 002, Eq. 9 and the hybrid shift):
+``bsdf_albedo(m)`` is the bi-hemispherical average reflectance (cosine-weighted
+over both directions) of the single-scattering model: ρ for diffuse,
+specular_reflectance · F̄ for conductors (F̄ = 2∫F(μ)μ dμ, the average Fresnel
+term), F̄ specular_reflectance + (1 − F̄) specular_transmittance for
+dielectrics (from outside); ``bsdf_roughness(m)`` is 0 for smooth kinds, α for
+GGX and 1 for diffuse.
+
+References: W. Jakob et al., Mitsuba 3 ``src/bsdfs/{diffuse,conductor,
+roughconductor,dielectric,roughdielectric,twosided}.cpp``; B. Walter et al.,
+"Microfacet models for refraction through rough surfaces", EGSR 2007;
+E. Heitz, "Sampling the GGX distribution of visible normals", JCGT 7(4) 2018;
+E. Veach, PhD thesis (1997), §5.2; P. Shirley, K. Chiu, "A low distortion map
+between disk and square", JGT 2(3) 1997.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Iterable
+
+import warp as wp
+
+from grisx.errors import InvalidParameterError
+from grisx.scene.material import (
+    MATERIAL_CONDUCTOR,
+    MATERIAL_DIELECTRIC,
+    MATERIAL_DIFFUSE,
+    MATERIAL_KIND_NAMES,
+    MATERIAL_KINDS,
+    MATERIAL_ROUGH_CONDUCTOR,
+    MATERIAL_ROUGH_DIELECTRIC,
+    Material,
+)
+from grisx.scene.microfacet import (
+    fresnel_conductor,
+    fresnel_dielectric,
+    ggx_d,
+    ggx_g1,
+    ggx_g2,
+    ggx_vndf_pdf,
+    reflect,
+    refract,
+    sample_ggx_vndf,
+)
+
+wp.set_module_options({"enable_backward": False})
+
+__all__ = [
+    "BsdfSample",
+    "BsdfFuncs",
+    "make_bsdf",
+    "bsdf_sample",
+    "bsdf_eval",
+    "bsdf_pdf",
+    "bsdf_albedo",
+    "bsdf_roughness",
+    "bsdf_is_delta",
+    "sample_cosine_hemisphere",
+    "cosine_hemisphere_pdf",
+    "invert_cosine_hemisphere",
+    "average_fresnel_conductor",
+    "average_fresnel_dielectric",
+    "diffuse_sample",
+    "diffuse_eval",
+    "diffuse_pdf",
+    "conductor_sample",
+    "rough_conductor_sample",
+    "rough_conductor_eval",
+    "rough_conductor_pdf",
+    "dielectric_sample",
+    "rough_dielectric_sample",
+    "rough_dielectric_eval",
+    "rough_dielectric_pdf",
+]
+
+_PI = wp.constant(math.pi)
+_INV_PI = wp.constant(1.0 / math.pi)
+_PI_OVER_4 = wp.constant(math.pi / 4.0)
+_PI_OVER_2 = wp.constant(math.pi / 2.0)
+_FOUR_OVER_PI = wp.constant(4.0 / math.pi)
+#: quadrature nodes of the average-Fresnel integral 2∫F(μ)μ dμ (midpoint rule in μ)
+_ALBEDO_NODES = wp.constant(32)
+
+
+@wp.struct
+class BsdfSample:
+    """A sampled direction: ``wi`` (local), ``weight`` (eval/pdf, or the delta throughput),
+    ``pdf`` (solid angle; the lobe probability for delta lobes), ``delta`` (1 for a delta lobe),
+    ``eta`` (relative IOR η_it crossed; 1 when reflected), ``valid`` (0: nothing sampled, weight 0)."""
+
+    wi: wp.vec3
+    weight: wp.vec3
+    pdf: float
+    delta: int
+    eta: float
+    valid: int
+
+
+@wp.func
+def _no_sample() -> BsdfSample:
+    s = BsdfSample()
+    s.wi = wp.vec3(0.0, 0.0, 1.0)
+    s.weight = wp.vec3(0.0, 0.0, 0.0)
+    s.pdf = 0.0
+    s.delta = 0
+    s.eta = 1.0
+    s.valid = 0
+    return s
+
+
+# ---- cosine-weighted hemisphere (concentric disk) ----
+
+
+@wp.func
+def sample_cosine_hemisphere(u: wp.vec2) -> wp.vec3:
+    """Cosine-weighted direction: Shirley–Chiu concentric disk lifted to the hemisphere (Malley's method)."""
+    r1 = 2.0 * u[0] - 1.0
+    r2 = 2.0 * u[1] - 1.0
+    r = float(0.0)
+    phi = float(0.0)
+    if r1 * r1 > r2 * r2:
+        r = r1
+        phi = _PI_OVER_4 * (r2 / r1)
+    elif r2 != 0.0:
+        r = r2
+        phi = _PI_OVER_2 - _PI_OVER_4 * (r1 / r2)
+    x = r * wp.cos(phi)
+    y = r * wp.sin(phi)
+    return wp.vec3(x, y, wp.sqrt(wp.max(0.0, 1.0 - x * x - y * y)))
+
+
+@wp.func
+def cosine_hemisphere_pdf(w: wp.vec3) -> float:
+    """Density cos θ/π of ``sample_cosine_hemisphere`` (0 below the horizon)."""
+    return wp.max(w[2], 0.0) * _INV_PI
+
+
+@wp.func
+def invert_cosine_hemisphere(w: wp.vec3) -> wp.vec2:
+    """u with ``sample_cosine_hemisphere(u) = w`` (inverse concentric map of (w_x, w_y))."""
+    x = w[0]
+    y = w[1]
+    quadrant = wp.abs(x) < wp.abs(y)
+    r_sign = x
+    if quadrant:
+        r_sign = y
+    r = wp.sqrt(x * x + y * y)
+    sgn = wp.sign(r_sign)
+    r = r * sgn
+    t = _FOUR_OVER_PI * wp.atan2(y * sgn, x * sgn)
+    a = r
+    b = r * t
+    if quadrant:
+        t = 2.0 - t
+        a = r * t
+        b = r
+    return wp.vec2(0.5 * (a + 1.0), 0.5 * (b + 1.0))
+
+
+# ---- Lambertian ----
+
+
+@wp.func
+def diffuse_eval(m: Material, wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
+    """ρ cos θ_i / π for wo, wi both above the surface (one-sided)."""
+    if wo[2] <= 0.0 or wi[2] <= 0.0:
+        return wp.vec3(0.0, 0.0, 0.0)
+    return m.reflectance * (wi[2] * _INV_PI)
+
+
+@wp.func
+def diffuse_pdf(m: Material, wo: wp.vec3, wi: wp.vec3) -> float:
+    """cos θ_i / π (one-sided)."""
+    if wo[2] <= 0.0 or wi[2] <= 0.0:
+        return 0.0
+    return wi[2] * _INV_PI
+
+
+@wp.func
+def diffuse_sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2) -> BsdfSample:
+    """Cosine-weighted wi; weight = ρ."""
+    s = _no_sample()
+    if wo[2] <= 0.0:
+        return s
+    wi = sample_cosine_hemisphere(u)
+    pdf = cosine_hemisphere_pdf(wi)
+    if pdf <= 0.0:
+        return s
+    s.wi = wi
+    s.pdf = pdf
+    s.weight = m.reflectance
+    s.valid = 1
+    return s
+
+
+# ---- conductors ----
+
+
+@wp.func
+def conductor_sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2) -> BsdfSample:
+    """Mirror direction; weight = specular_reflectance · F_c(cos θ_o) per channel (delta)."""
+    s = _no_sample()
+    if wo[2] <= 0.0:
+        return s
+    s.wi = wp.vec3(-wo[0], -wo[1], wo[2])
+    s.weight = wp.cw_mul(m.reflectance, fresnel_conductor(wo[2], m.eta, m.k))
+    s.pdf = 1.0
+    s.delta = 1
+    s.valid = 1
+    return s
+
+
+@wp.func
+def rough_conductor_eval(m: Material, wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
+    """F D G2 / (4 cos θ_o) (= f cos θ_i, Walter et al. 2007, Eq. 20)."""
+    if wo[2] <= 0.0 or wi[2] <= 0.0:
+        return wp.vec3(0.0, 0.0, 0.0)
+    h = wp.normalize(wo + wi)
+    dg = ggx_d(h, m.alpha) * ggx_g2(wo, wi, h, m.alpha) / (4.0 * wo[2])
+    f = fresnel_conductor(wp.dot(wo, h), m.eta, m.k)
+    return wp.cw_mul(m.reflectance, f) * dg
+
+
+@wp.func
+def rough_conductor_pdf(m: Material, wo: wp.vec3, wi: wp.vec3) -> float:
+    """D_wo(h) / (4 wi·h) = D(h) G1(wo, h) / (4 cos θ_o)."""
+    if wo[2] <= 0.0 or wi[2] <= 0.0:
+        return 0.0
+    h = wp.normalize(wo + wi)
+    return ggx_d(h, m.alpha) * ggx_g1(wo, h, m.alpha) / (4.0 * wo[2])
+
+
+@wp.func
+def rough_conductor_sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2) -> BsdfSample:
+    """Visible-normal sample reflected about m; weight = F(wo·m) G1(wi, m) · specular_reflectance."""
+    s = _no_sample()
+    if wo[2] <= 0.0:
+        return s
+    mn = sample_ggx_vndf(wo, m.alpha, u)
+    wi = reflect(wo, mn)
+    dot_i = wp.dot(wi, mn)
+    if wi[2] <= 0.0 or dot_i <= 0.0:
+        return s
+    pdf = ggx_vndf_pdf(wo, mn, m.alpha) / (4.0 * dot_i)
+    g1 = ggx_g1(wi, mn, m.alpha)
+    if not (pdf > 0.0) or g1 <= 0.0:
+        return s
+    s.wi = wi
+    s.pdf = pdf
+    s.weight = wp.cw_mul(m.reflectance, fresnel_conductor(wp.dot(wo, mn), m.eta, m.k)) * g1
+    s.valid = 1
+    return s
+
+
+# ---- dielectrics ----
+
+
+@wp.func
+def dielectric_sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2) -> BsdfSample:
+    """Reflect with probability F, else refract (delta); radiance weight of refraction η_ti²."""
+    s = _no_sample()
+    cos_o = wo[2]
+    if cos_o == 0.0:
+        return s
+    fr = fresnel_dielectric(cos_o, m.eta[0])
+    s.delta = 1
+    s.valid = 1
+    if u_lobe < fr.f:
+        s.wi = wp.vec3(-wo[0], -wo[1], cos_o)
+        s.pdf = fr.f
+        s.weight = m.reflectance
+    else:
+        s.wi = wp.vec3(-fr.eta_ti * wo[0], -fr.eta_ti * wo[1], fr.cos_t)
+        s.pdf = 1.0 - fr.f
+        s.weight = m.transmittance * (fr.eta_ti * fr.eta_ti)
+        s.eta = fr.eta_it
+    return s
+
+
+@wp.func
+def _half_vector(m: Material, wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
+    # generalized half vector m ∝ wo + η wi (Walter et al. 2007, Eq. 16), oriented to the macro normal
+    eta = m.eta[0]
+    if wo[2] < 0.0:
+        eta = 1.0 / eta
+    scale = eta
+    if wo[2] * wi[2] > 0.0:
+        scale = 1.0
+    h = wp.normalize(wo + wi * scale)
+    return h * wp.sign(h[2])
+
+
+@wp.func
+def rough_dielectric_eval(m: Material, wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
+    """GGX reflection + transmission (Walter et al. 2007, Eqs. 20–21) times |cos θ_i|, radiance-scaled."""
+    cos_o = wo[2]
+    cos_i = wi[2]
+    if cos_o == 0.0:
+        return wp.vec3(0.0, 0.0, 0.0)
+    eta = m.eta[0]
+    if cos_o < 0.0:
+        eta = 1.0 / eta
+    h = _half_vector(m, wo, wi)
+    dot_o = wp.dot(wo, h)
+    dot_i = wp.dot(wi, h)
+    d = ggx_d(h, m.alpha)
+    g = ggx_g2(wo, wi, h, m.alpha)
+    f = fresnel_dielectric(dot_o, m.eta[0]).f
+    if cos_o * cos_i > 0.0:
+        return m.reflectance * (f * d * g / (4.0 * wp.abs(cos_o)))
+    denom = dot_o + eta * dot_i
+    if denom == 0.0:
+        return wp.vec3(0.0, 0.0, 0.0)
+    # (1/η²) · η²: Mitsuba's radiance scaling times Walter's Eq. 21; kept apart to mirror both sources
+    value = (1.0 / (eta * eta)) * (1.0 - f) * d * g * eta * eta * dot_o * dot_i / (cos_o * denom * denom)
+    return m.transmittance * wp.abs(value)
+
+
+@wp.func
+def rough_dielectric_pdf(m: Material, wo: wp.vec3, wi: wp.vec3) -> float:
+    """D_wo(m) · {F, 1 − F} · |∂ω_m/∂ω_i| (Walter et al. 2007, Eqs. 14, 17; Heitz 2018, Eq. 1)."""
+    cos_o = wo[2]
+    cos_i = wi[2]
+    if cos_o == 0.0:
+        return 0.0
+    eta = m.eta[0]
+    if cos_o < 0.0:
+        eta = 1.0 / eta
+    h = _half_vector(m, wo, wi)
+    dot_o = wp.dot(wo, h)
+    dot_i = wp.dot(wi, h)
+    # the micro and macro surface must agree on each direction's side (as G1 demands)
+    if dot_o * cos_o <= 0.0 or dot_i * cos_i <= 0.0:
+        return 0.0
+    f = fresnel_dielectric(dot_o, m.eta[0]).f
+    pm = ggx_vndf_pdf(wo * wp.sign(cos_o), h, m.alpha)
+    if cos_o * cos_i > 0.0:
+        return pm * f / (4.0 * wp.abs(dot_i))
+    denom = dot_o + eta * dot_i
+    if denom == 0.0:
+        return 0.0
+    return pm * (1.0 - f) * wp.abs(eta * eta * dot_i / (denom * denom))
+
+
+@wp.func
+def rough_dielectric_sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2) -> BsdfSample:
+    """m ~ D_wo, reflect with probability F(wo·m) else refract; weight = G1(wi, m) (× η_ti² if refracted)."""
+    s = _no_sample()
+    cos_o = wo[2]
+    if cos_o == 0.0:
+        return s
+    side = wp.sign(cos_o)
+    mn = sample_ggx_vndf(wo * side, m.alpha, u)
+    pm = ggx_vndf_pdf(wo * side, mn, m.alpha)
+    dot_o = wp.dot(wo, mn)
+    fr = fresnel_dielectric(dot_o, m.eta[0])
+    wi = wp.vec3(0.0, 0.0, 1.0)
+    pdf = float(0.0)
+    weight = wp.vec3(0.0, 0.0, 0.0)
+    if u_lobe < fr.f:
+        wi = reflect(wo, mn)
+        if wi[2] * cos_o <= 0.0:
+            return s
+        pdf = pm * fr.f / (4.0 * wp.abs(wp.dot(wi, mn)))
+        weight = m.reflectance
+    else:
+        wi = refract(wo, mn, fr.cos_t, fr.eta_ti)
+        if wi[2] * cos_o >= 0.0:
+            return s
+        dot_i = wp.dot(wi, mn)
+        denom = dot_o + fr.eta_it * dot_i
+        pdf = pm * (1.0 - fr.f) * wp.abs(fr.eta_it * fr.eta_it * dot_i / (denom * denom))
+        weight = m.transmittance * (fr.eta_ti * fr.eta_ti)
+        s.eta = fr.eta_it
+    g1 = ggx_g1(wi, mn, m.alpha)
+    if not (pdf > 0.0) or g1 <= 0.0:
+        return _no_sample()
+    s.wi = wi
+    s.pdf = pdf
+    s.weight = weight * g1
+    s.valid = 1
+    return s
+
+
+# ---- albedo (average reflectance) ----
+
+
+@wp.func
+def average_fresnel_conductor(eta: wp.vec3, k: wp.vec3) -> wp.vec3:
+    """F̄ = 2∫₀¹ F_c(μ) μ dμ per channel (midpoint rule, 32 nodes)."""
+    acc = wp.vec3(0.0, 0.0, 0.0)
+    h = 1.0 / float(_ALBEDO_NODES)
+    for j in range(_ALBEDO_NODES):
+        mu = (float(j) + 0.5) * h
+        acc += fresnel_conductor(mu, eta, k) * (2.0 * mu * h)
+    return acc
+
+
+@wp.func
+def average_fresnel_dielectric(eta: float) -> float:
+    """F̄ = 2∫₀¹ F(μ) μ dμ seen from outside (midpoint rule, 32 nodes)."""
+    acc = float(0.0)
+    h = 1.0 / float(_ALBEDO_NODES)
+    for j in range(_ALBEDO_NODES):
+        mu = (float(j) + 0.5) * h
+        acc += fresnel_dielectric(mu, eta).f * (2.0 * mu * h)
+    return acc
+
+
+# ---- dispatch (specialized per set of kinds) ----
+
+
+@dataclasses.dataclass(frozen=True)
+class BsdfFuncs:
+    """Warp funcs of one specialized dispatch: ``sample(m, wo, u_lobe, u)``, ``eval(m, wo, wi)``,
+    ``pdf(m, wo, wi)``, ``albedo(m)``, ``roughness(m)``, ``is_delta(m)``; ``kinds`` compiled in.
+    A material of a kind not compiled in is black: invalid samples, zero eval/pdf/albedo."""
+
+    kinds: frozenset[int]
+    sample: wp.Function
+    eval: wp.Function
+    pdf: wp.Function
+    albedo: wp.Function
+    roughness: wp.Function
+    is_delta: wp.Function
+
+
+_DISPATCH_CACHE: dict[frozenset[int], BsdfFuncs] = {}
+
+
+def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
+    """The BSDF dispatch compiled for exactly ``kinds`` (MATERIAL_* constants; cached per set)."""
+    key = frozenset(int(k) for k in kinds)
+    unknown = sorted(key - set(MATERIAL_KINDS))
+    if unknown:
+        raise InvalidParameterError(f"unknown material kind(s) {unknown} (known: {dict(MATERIAL_KIND_NAMES)})")
+    if key in _DISPATCH_CACHE:
+        return _DISPATCH_CACHE[key]
+
+    has_diffuse = MATERIAL_DIFFUSE in key
+    has_conductor = MATERIAL_CONDUCTOR in key
+    has_rough_conductor = MATERIAL_ROUGH_CONDUCTOR in key
+    has_dielectric = MATERIAL_DIELECTRIC in key
+    has_rough_dielectric = MATERIAL_ROUGH_DIELECTRIC in key
+    has_reflective = has_diffuse or has_conductor or has_rough_conductor
+
+    @wp.func
+    def sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2) -> BsdfSample:
+        if wp.static(has_dielectric):
+            if m.kind == MATERIAL_DIELECTRIC:
+                return dielectric_sample(m, wo, u_lobe, u)
+        if wp.static(has_rough_dielectric):
+            if m.kind == MATERIAL_ROUGH_DIELECTRIC:
+                return rough_dielectric_sample(m, wo, u_lobe, u)
+        s = _no_sample()
+        if wp.static(has_reflective):
+            # Mitsuba twosided: mirror the frame when seen from the back
+            flip = m.two_sided != 0 and wo[2] < 0.0
+            w = wo
+            if flip:
+                w = wp.vec3(wo[0], wo[1], -wo[2])
+            if wp.static(has_diffuse):
+                if m.kind == MATERIAL_DIFFUSE:
+                    s = diffuse_sample(m, w, u_lobe, u)
+            if wp.static(has_conductor):
+                if m.kind == MATERIAL_CONDUCTOR:
+                    s = conductor_sample(m, w, u_lobe, u)
+            if wp.static(has_rough_conductor):
+                if m.kind == MATERIAL_ROUGH_CONDUCTOR:
+                    s = rough_conductor_sample(m, w, u_lobe, u)
+            if flip:
+                s.wi = wp.vec3(s.wi[0], s.wi[1], -s.wi[2])
+        return s
+
+    @wp.func
+    def eval(m: Material, wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
+        if wp.static(has_rough_dielectric):
+            if m.kind == MATERIAL_ROUGH_DIELECTRIC:
+                return rough_dielectric_eval(m, wo, wi)
+        r = wp.vec3(0.0, 0.0, 0.0)
+        if wp.static(has_diffuse or has_rough_conductor):
+            a = wo
+            b = wi
+            if m.two_sided != 0 and wo[2] < 0.0:
+                a = wp.vec3(wo[0], wo[1], -wo[2])
+                b = wp.vec3(wi[0], wi[1], -wi[2])
+            if wp.static(has_diffuse):
+                if m.kind == MATERIAL_DIFFUSE:
+                    r = diffuse_eval(m, a, b)
+            if wp.static(has_rough_conductor):
+                if m.kind == MATERIAL_ROUGH_CONDUCTOR:
+                    r = rough_conductor_eval(m, a, b)
+        return r  # delta kinds: 0
+
+    @wp.func
+    def pdf(m: Material, wo: wp.vec3, wi: wp.vec3) -> float:
+        if wp.static(has_rough_dielectric):
+            if m.kind == MATERIAL_ROUGH_DIELECTRIC:
+                return rough_dielectric_pdf(m, wo, wi)
+        p = float(0.0)
+        if wp.static(has_diffuse or has_rough_conductor):
+            a = wo
+            b = wi
+            if m.two_sided != 0 and wo[2] < 0.0:
+                a = wp.vec3(wo[0], wo[1], -wo[2])
+                b = wp.vec3(wi[0], wi[1], -wi[2])
+            if wp.static(has_diffuse):
+                if m.kind == MATERIAL_DIFFUSE:
+                    p = diffuse_pdf(m, a, b)
+            if wp.static(has_rough_conductor):
+                if m.kind == MATERIAL_ROUGH_CONDUCTOR:
+                    p = rough_conductor_pdf(m, a, b)
+        return p  # delta kinds: 0
+
+    @wp.func
+    def albedo(m: Material) -> wp.vec3:
+        if wp.static(has_diffuse):
+            if m.kind == MATERIAL_DIFFUSE:
+                return m.reflectance
+        if wp.static(has_conductor or has_rough_conductor):
+            if m.kind == MATERIAL_CONDUCTOR or m.kind == MATERIAL_ROUGH_CONDUCTOR:
+                return wp.cw_mul(m.reflectance, average_fresnel_conductor(m.eta, m.k))
+        if wp.static(has_dielectric or has_rough_dielectric):
+            if m.kind == MATERIAL_DIELECTRIC or m.kind == MATERIAL_ROUGH_DIELECTRIC:
+                f = average_fresnel_dielectric(m.eta[0])
+                return m.reflectance * f + m.transmittance * (1.0 - f)
+        return wp.vec3(0.0, 0.0, 0.0)
+
+    @wp.func
+    def roughness(m: Material) -> float:
+        if m.kind == MATERIAL_DIFFUSE:
+            return 1.0
+        if m.kind == MATERIAL_ROUGH_CONDUCTOR or m.kind == MATERIAL_ROUGH_DIELECTRIC:
+            return m.alpha
+        return 0.0
+
+    @wp.func
+    def is_delta(m: Material) -> int:
+        if m.kind == MATERIAL_CONDUCTOR or m.kind == MATERIAL_DIELECTRIC:
+            return 1
+        return 0
+
+    funcs = BsdfFuncs(kinds=key, sample=sample, eval=eval, pdf=pdf, albedo=albedo, roughness=roughness, is_delta=is_delta)
+    _DISPATCH_CACHE[key] = funcs
+    return funcs
+
+
+_ALL_KINDS = make_bsdf(MATERIAL_KINDS)
+
+#: all-kinds dispatch: ``bsdf_sample(m, wo, u_lobe, u) -> BsdfSample``
+bsdf_sample = _ALL_KINDS.sample
+#: all-kinds dispatch: ``bsdf_eval(m, wo, wi) -> vec3`` = f(wo, wi)|cos θ_i| (0 for delta kinds)
+bsdf_eval = _ALL_KINDS.eval
+#: all-kinds dispatch: ``bsdf_pdf(m, wo, wi) -> float`` (solid angle; 0 for delta kinds)
+bsdf_pdf = _ALL_KINDS.pdf
+#: all-kinds dispatch: ``bsdf_albedo(m) -> vec3`` (bi-hemispherical average reflectance)
+bsdf_albedo = _ALL_KINDS.albedo
+#: all-kinds dispatch: ``bsdf_roughness(m) -> float`` (0 smooth, α GGX, 1 diffuse)
+bsdf_roughness = _ALL_KINDS.roughness
+#: all-kinds dispatch: ``bsdf_is_delta(m) -> int``
+bsdf_is_delta = _ALL_KINDS.is_delta

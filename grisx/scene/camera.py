@@ -1,0 +1,237 @@
+"""Cameras: Mitsuba's perspective sensor, thin lens, keyframed paths, and reprojection.
+
+A camera is a frame ``to_world`` (camera → world, 4×4) and a field of view.
+grisx follows Mitsuba 3's ``perspective`` sensor exactly, so a scene file
+renders the same framing in both:
+
+* camera space looks down **+z**, with **+y up** and **+x to the left**
+  (``lookat(origin, target, up)`` builds the columns ``[left, up', dir, origin]``);
+* film coordinates ``(sx, sy) ∈ [0,1]²`` run left→right and top→bottom; the
+  film point ``(sx, sy)`` looks along camera direction
+  ``((1 − 2 sx)·tan(fov_x/2), (1 − 2 sy)·tan(fov_y/2), 1)``;
+* ``fov_axis`` (default ``"x"``) says which extent ``fov`` measures: ``x``,
+  ``y``, ``diagonal``, ``smaller`` or ``larger``.
+
+A thin lens (``aperture_radius > 0``) samples the lens disk concentrically
+and focuses at ``focus_distance`` (Mitsuba's ``thinlens``).
+
+:func:`camera_project` is the inverse of :func:`camera_ray` for pinhole
+cameras: it maps a world point to continuous pixel coordinates, which is what
+motion vectors into the previous frame need (seed 000 uses fractional motion
+vectors for pixel pairs; seed 004's temporal reuse uses the integer ones).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Sequence
+
+import numpy as np
+import warp as wp
+
+from grisx.errors import InvalidParameterError
+
+wp.set_module_options({"enable_backward": False})
+
+__all__ = [
+    "Camera",
+    "CameraPath",
+    "CameraData",
+    "CameraRay",
+    "PixelProjection",
+    "lookat",
+    "camera_ray",
+    "camera_project",
+    "FOV_AXES",
+]
+
+FOV_AXES = ("x", "y", "diagonal", "smaller", "larger")
+
+
+def lookat(origin: Sequence[float], target: Sequence[float], up: Sequence[float]) -> np.ndarray:
+    """Mitsuba's ``lookat`` transform (camera → world): columns left, up', dir, origin."""
+    o, t, u = (np.asarray(v, dtype=np.float64) for v in (origin, target, up))
+    d = t - o
+    if not np.all(np.isfinite(d)) or np.linalg.norm(d) == 0:
+        raise InvalidParameterError(f"lookat: origin {o.tolist()} and target {t.tolist()} must differ")
+    d /= np.linalg.norm(d)
+    left = np.cross(u, d)
+    if np.linalg.norm(left) < 1e-12:
+        raise InvalidParameterError(f"lookat: up {u.tolist()} is parallel to the view direction {d.tolist()}")
+    left /= np.linalg.norm(left)
+    new_up = np.cross(d, left)
+    m = np.eye(4)
+    m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = left, new_up, d, o
+    return m
+
+
+@dataclasses.dataclass
+class Camera:
+    """A perspective camera as Mitsuba's ``perspective``/``thinlens`` sensor describes it."""
+
+    to_world: np.ndarray = dataclasses.field(default_factory=lambda: np.eye(4))
+    fov: float = 39.3077
+    fov_axis: str = "x"
+    near_clip: float = 1e-2
+    far_clip: float = 1e4
+    aperture_radius: float = 0.0
+    focus_distance: float = 0.0
+
+    def __post_init__(self) -> None:
+        self.to_world = np.asarray(self.to_world, dtype=np.float64).reshape(4, 4)
+        if not np.all(np.isfinite(self.to_world)):
+            raise InvalidParameterError("camera to_world must be finite")
+        if not (0.0 < float(self.fov) < 180.0):
+            raise InvalidParameterError(f"camera fov must be in (0, 180) degrees, got {self.fov}")
+        if self.fov_axis not in FOV_AXES:
+            raise InvalidParameterError(f"camera fov_axis must be one of {', '.join(FOV_AXES)}, got {self.fov_axis!r}")
+        if self.aperture_radius < 0 or (self.aperture_radius > 0 and self.focus_distance <= 0):
+            raise InvalidParameterError("thin lens needs aperture_radius >= 0 and a positive focus_distance")
+
+    def tan_half_fov(self, width: int, height: int) -> tuple[float, float]:
+        """(tan(fov_x/2), tan(fov_y/2)) for a film of ``width``×``height`` (Mitsuba's fov_axis rules)."""
+        aspect = width / height
+        t = math.tan(math.radians(self.fov) / 2)
+        axis = self.fov_axis
+        if axis == "smaller":
+            axis = "x" if width <= height else "y"
+        elif axis == "larger":
+            axis = "x" if width >= height else "y"
+        if axis == "x":
+            return t, t / aspect
+        if axis == "y":
+            return t * aspect, t
+        # diagonal: t is the half-diagonal tangent
+        diag = math.hypot(aspect, 1.0)
+        return t * aspect / diag, t / diag
+
+    def data(self, width: int, height: int) -> CameraData:
+        tx, ty = self.tan_half_fov(width, height)
+        c = CameraData()
+        c.to_world = wp.mat44(*self.to_world.astype(np.float32).ravel())
+        c.to_camera = wp.mat44(*np.linalg.inv(self.to_world).astype(np.float32).ravel())
+        c.tan_half = wp.vec2(tx, ty)
+        c.width = int(width)
+        c.height = int(height)
+        c.aperture_radius = float(self.aperture_radius)
+        c.focus_distance = float(self.focus_distance) if self.aperture_radius > 0 else 1.0
+        c.near_clip = float(self.near_clip)
+        c.far_clip = float(self.far_clip)
+        return c
+
+
+@dataclasses.dataclass
+class CameraPath:
+    """Keyframed camera: ``(origin, target, up)`` keys interpolated linearly, ``frames_per_key`` frames apart.
+
+    The path loops back to its first key, so it can be rendered for any
+    number of frames. Interpolating origin and target (rather than matrices)
+    keeps every in-between frame a proper ``lookat``.
+    """
+
+    keys: list[tuple[Sequence[float], Sequence[float], Sequence[float]]]
+    frames_per_key: float = 30.0
+    loop: bool = True
+
+    def __post_init__(self) -> None:
+        if len(self.keys) < 1:
+            raise InvalidParameterError("a camera path needs at least one key")
+        if self.frames_per_key <= 0:
+            raise InvalidParameterError("frames_per_key must be positive")
+
+    def to_world(self, frame: float) -> np.ndarray:
+        keys = [tuple(np.asarray(v, dtype=np.float64) for v in k) for k in self.keys]
+        if len(keys) == 1:
+            return lookat(*keys[0])
+        s = frame / self.frames_per_key
+        if self.loop:
+            s %= len(keys)
+            i = int(math.floor(s)) % len(keys)
+        else:
+            s = min(max(s, 0.0), len(keys) - 1.0)
+            i = min(int(math.floor(s)), len(keys) - 2)
+        f = s - i
+        a, b = keys[i], keys[(i + 1) % len(keys)]
+        # smoothstep easing: velocity is continuous at keys
+        f = f * f * (3 - 2 * f)
+        return lookat(*(a[j] * (1 - f) + b[j] * f for j in range(3)))
+
+
+@wp.struct
+class CameraData:
+    to_world: wp.mat44  # camera → world
+    to_camera: wp.mat44  # world → camera
+    tan_half: wp.vec2  # tan(fov_x/2), tan(fov_y/2)
+    width: int
+    height: int
+    aperture_radius: float
+    focus_distance: float
+    near_clip: float
+    far_clip: float
+
+
+@wp.struct
+class CameraRay:
+    o: wp.vec3
+    d: wp.vec3  # unit
+
+
+@wp.struct
+class PixelProjection:
+    pixel: wp.vec2  # continuous pixel coordinates (x right, y down; pixel centers at +0.5)
+    depth: float  # camera-space z
+    valid: int  # in front of the camera and inside the film
+
+
+@wp.func
+def _concentric_disk(u: wp.vec2) -> wp.vec2:
+    # Shirley–Chiu concentric mapping (pbrt-v4 SampleUniformDiskConcentric)
+    a = 2.0 * u[0] - 1.0
+    b = 2.0 * u[1] - 1.0
+    if a == 0.0 and b == 0.0:
+        return wp.vec2(0.0, 0.0)
+    r = float(0.0)
+    theta = float(0.0)
+    if wp.abs(a) > wp.abs(b):
+        r = a
+        theta = (wp.pi / 4.0) * (b / a)
+    else:
+        r = b
+        theta = wp.pi / 2.0 - (wp.pi / 4.0) * (a / b)
+    return wp.vec2(r * wp.cos(theta), r * wp.sin(theta))
+
+
+@wp.func
+def camera_ray(cam: CameraData, px: float, py: float, u_lens: wp.vec2) -> CameraRay:
+    """The primary ray through continuous pixel position (px, py) (Mitsuba's perspective/thinlens)."""
+    sx = px / float(cam.width)
+    sy = py / float(cam.height)
+    d_cam = wp.vec3((1.0 - 2.0 * sx) * cam.tan_half[0], (1.0 - 2.0 * sy) * cam.tan_half[1], 1.0)
+    o_cam = wp.vec3(0.0, 0.0, 0.0)
+    if cam.aperture_radius > 0.0:
+        lens = cam.aperture_radius * _concentric_disk(u_lens)
+        focus = d_cam * cam.focus_distance
+        o_cam = wp.vec3(lens[0], lens[1], 0.0)
+        d_cam = focus - o_cam
+    r = CameraRay()
+    r.o = wp.transform_point(cam.to_world, o_cam)
+    r.d = wp.normalize(wp.transform_vector(cam.to_world, d_cam))
+    return r
+
+
+@wp.func
+def camera_project(cam: CameraData, p: wp.vec3) -> PixelProjection:
+    """Continuous pixel coordinates of world point ``p`` (inverse of the pinhole ``camera_ray``)."""
+    q = wp.transform_point(cam.to_camera, p)
+    out = PixelProjection()
+    out.depth = q[2]
+    out.valid = 0
+    if q[2] <= 1.0e-8:
+        return out
+    sx = 0.5 * (1.0 - q[0] / (q[2] * cam.tan_half[0]))
+    sy = 0.5 * (1.0 - q[1] / (q[2] * cam.tan_half[1]))
+    out.pixel = wp.vec2(sx * float(cam.width), sy * float(cam.height))
+    if sx >= 0.0 and sx < 1.0 and sy >= 0.0 and sy < 1.0:
+        out.valid = 1
+    return out

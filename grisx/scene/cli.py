@@ -1,0 +1,196 @@
+"""``grisx scenes`` and ``grisx render``.
+
+::
+
+    grisx scenes [--json]
+    grisx render SCENE_OR_FILE --method M [--spp N] [--frames F [--accumulate]] [--res WxH]
+                 [--device cpu|cuda] [--seed S] [--param k=v ...] [--out PATH.exr] [--json]
+
+``render`` writes the linear EXR, a tonemapped sRGB PNG beside it and a JSON
+sidecar (settings, grisx version, device, seed, timings). ``--method
+gbuffer`` writes one EXR per G-buffer field (``PATH.<field>.exr``) and a
+contact-sheet PNG. ``--json`` prints one object with ``method``, ``scene``,
+``width``, ``height``, ``frames``, ``spp``, ``seconds`` (total and per pass),
+``device`` and ``output`` (the paths written).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = ["add_parsers", "write_outputs"]
+
+
+def add_parsers(sub: Any, key_value: Any, count: Any, seed: Any) -> None:
+    """Register ``scenes`` and ``render`` on the top-level subparsers."""
+    from grisx.scene.render import METHODS
+
+    scenes = sub.add_parser("scenes", help="list the built-in scenes")
+    scenes.add_argument("--json", action="store_true", help="print one JSON object")
+    scenes.set_defaults(handler=_scenes)
+
+    methods = "; ".join(
+        f"{m.name}: {m.summary}" + (f" (params: {', '.join(f'{p.name}={p.default}' for p in m.params)})" if m.params else "")
+        for m in METHODS.values()
+    )
+    r = sub.add_parser(
+        "render",
+        help="render a built-in scene or a Mitsuba XML file",
+        description="Render a scene. Methods — " + methods,
+    )
+    r.add_argument("scene", help="built-in scene name (see 'grisx scenes') or a Mitsuba XML file")
+    r.add_argument("--method", required=True, help="render method: " + ", ".join(METHODS))
+    r.add_argument("--spp", type=count, default=None, help="samples per pixel per frame (default: the scene's)")
+    r.add_argument("--frames", type=count, default=1, help="frames to render along the scene's camera path (default 1)")
+    r.add_argument("--accumulate", action="store_true", help="average all frames into the output")
+    r.add_argument("--res", default=None, help="WxH, overrides the scene's film size")
+    r.add_argument("--device", default="cpu", help="cpu (default) or cuda")
+    r.add_argument("--seed", type=seed, default=0, help="seed (default 0)")
+    r.add_argument("--param", type=key_value, action="append", default=[], metavar="K=V", help="method option (repeatable)")
+    r.add_argument("--out", default=None, help="output EXR path (default SCENE-METHOD.exr)")
+    r.add_argument("--json", action="store_true", help="print one JSON object")
+    r.set_defaults(handler=_render)
+
+
+def _scenes(args: argparse.Namespace) -> int:
+    from grisx.scene.builtin import scene_summaries
+
+    summaries = scene_summaries()
+    if args.json:
+        print(json.dumps({"scenes": [{"name": k, "summary": v} for k, v in summaries.items()]}))
+        return 0
+    width = max(len(k) for k in summaries)
+    for name, text in summaries.items():
+        print(f"{name:<{width}}  {text}")
+    return 0
+
+
+class _Progress:
+    """A one-line progress bar on stderr, only when it is a terminal."""
+
+    def __init__(self, label: str) -> None:
+        self.label = label
+        self.active = sys.stderr.isatty()
+
+    def __call__(self, done: int, total: int) -> None:
+        if not self.active or total <= 1:
+            return
+        bar = "#" * int(30 * done / total)
+        sys.stderr.write(f"\r{self.label} [{bar:<30}] {done}/{total}")
+        if done == total:
+            sys.stderr.write("\n")
+        sys.stderr.flush()
+
+
+def write_outputs(result: Any, out: Path, method: str) -> list[str]:
+    """Write EXR(s), PNG and the JSON sidecar of a render; returns the paths."""
+    from grisx import __version__
+    from grisx.errors import GrisxError
+    from grisx.imageio import write_exr, write_png
+    from grisx.scene.render import METHODS
+    from grisx.scene.views import display_image
+
+    if out.suffix.lower() != ".exr":
+        raise GrisxError(f"--out must name an .exr file, got '{out}'")
+    if not out.parent.is_dir():
+        raise GrisxError(f"cannot write '{out}': directory '{out.parent}' does not exist")
+    written = [str(write_exr(out, result.image))]
+    png = out.with_suffix(".png")
+    if METHODS[method].kind == "debug":
+        if method == "gbuffer":
+            tiles = []
+            for name, img in result.extra.items():
+                written.append(str(write_exr(out.with_suffix(f".{name}.exr"), img)))
+                view = {"normal_geo": "normal", "tri": "tri", "material": "material", "hit": "material"}.get(name, name)
+                disp, encode = display_image(view, img if img.ndim == 3 else np.repeat(img[:, :, None], 3, axis=2))
+                from grisx.imageio import srgb_encode
+
+                tiles.append(srgb_encode(disp) if encode else np.clip(disp, 0, 1))
+            cols = 4
+            rows = -(-len(tiles) // cols)
+            h, w = tiles[0].shape[:2]
+            sheet = np.zeros((rows * h, cols * w, 3))
+            for i, t in enumerate(tiles):
+                r, c = divmod(i, cols)
+                sheet[r * h : (r + 1) * h, c * w : (c + 1) * w] = t[:, :, :3]
+            written.append(str(write_png(png, sheet, encode=False)))
+        else:
+            disp, encode = display_image(method, result.image)
+            written.append(str(write_png(png, disp, encode=encode)))
+    else:
+        written.append(str(write_png(png, result.image)))
+    sidecar = out.with_suffix(".json")
+    meta = {
+        "grisx_version": __version__,
+        "device": result.device,
+        "seconds": result.seconds,
+        "pass_seconds": result.pass_seconds,
+        **result.settings,
+    }
+    sidecar.write_text(json.dumps(meta, indent=2, default=_plain))
+    written.append(str(sidecar))
+    return written
+
+
+def _plain(v: Any) -> Any:
+    if isinstance(v, (np.integer, np.floating)):
+        return v.item()
+    if isinstance(v, np.ndarray):
+        return v.tolist()
+    return str(v)
+
+
+def _render(args: argparse.Namespace) -> int:
+    from grisx.errors import InvalidParameterError
+    from grisx.scene.render import parse_res, render
+
+    params: dict[str, Any] = {}
+    for key, value in args.param:
+        if key in params:
+            raise InvalidParameterError(f"--param '{key}' given twice")
+        params[key] = value
+    res = parse_res(args.res) if args.res else None
+    stem = Path(args.scene).stem if args.scene.lower().endswith(".xml") else args.scene
+    out = Path(args.out) if args.out else Path(f"{stem}-{args.method}.exr")
+    if out.suffix.lower() != ".exr":
+        raise InvalidParameterError(f"--out must name an .exr file, got '{out}'")
+    if not out.parent.is_dir():
+        raise InvalidParameterError(f"--out: directory '{out.parent}' does not exist")
+    result = render(
+        args.scene,
+        args.method,
+        spp=args.spp,
+        frames=args.frames,
+        accumulate=args.accumulate,
+        res=res,
+        device=args.device,
+        seed=args.seed,
+        params=params,
+        progress=_Progress(f"{stem} {args.method}"),
+    )
+    written = write_outputs(result, out, args.method)
+    if args.json:
+        s = result.settings
+        print(json.dumps({
+            "method": args.method,
+            "scene": s["scene"],
+            "width": s["width"],
+            "height": s["height"],
+            "frames": result.frames,
+            "spp": result.spp,
+            "seconds": {"total": result.seconds, **result.pass_seconds},
+            "device": result.device,
+            "seed": args.seed,
+            "params": s["params"],
+            "output": written,
+        }, default=_plain))
+    else:
+        print(f"{result.settings['scene']}: {args.method}, {result.settings['width']}x{result.settings['height']}, "
+              f"{result.frames} frame(s) x {result.spp} spp in {result.seconds:.3f} s on {result.device} -> {written[0]}")
+    return 0

@@ -1,0 +1,157 @@
+"""The G-buffer: what every ReSTIR pass reads about each pixel's primary hit.
+
+One pixel-center ray per pixel fills structure-of-arrays buffers with the
+primary hit's position, geometric and shading normals, albedo (the BSDF's
+average reflectance, which ReSTCV's α heuristic needs — seed 002, Eq. 9),
+roughness (which the hybrid shift tests against 0.2), material id, linear
+(camera-space) depth, triangle and barycentrics, emitted radiance, and the
+**motion vector into the previous frame**: the hit point is carried back
+through its object's rigid motion and projected with the previous camera,
+giving a fractional pixel offset (seed 000's pixel pairs are reprojected
+with subpixel motion vectors) and its rounded integer version (seed 004's
+temporal reuse looks up one pixel).
+
+:class:`GBuffer` keeps the previous frame's buffers beside the current ones
+(``swap`` at the start of each frame) for temporal reuse and for the
+similarity tests (normals within 25°, normalized depth within 0.05;
+seed 004, Sec. 5).
+"""
+
+from __future__ import annotations
+
+import warp as wp
+
+from grisx.scene.bsdf import bsdf_albedo, bsdf_roughness
+from grisx.scene.camera import CameraData, camera_project, camera_ray
+from grisx.scene.lights import emitter_radiance, environment_eval
+from grisx.scene.scene import BuiltScene, SceneData, intersect, surface_material
+
+wp.set_module_options({"enable_backward": False})
+
+__all__ = ["GBufferData", "GBuffer", "GBUFFER_FIELDS"]
+
+#: field name → (Warp dtype, channels in an image dump)
+GBUFFER_FIELDS = {
+    "position": (wp.vec3, 3),
+    "normal_geo": (wp.vec3, 3),
+    "normal": (wp.vec3, 3),
+    "albedo": (wp.vec3, 3),
+    "roughness": (float, 1),
+    "material": (wp.int32, 1),
+    "depth": (float, 1),
+    "tri": (wp.int32, 1),
+    "bary": (wp.vec2, 2),
+    "motion": (wp.vec2, 2),
+    "motion_int": (wp.vec2i, 2),
+    "emission": (wp.vec3, 3),
+    "hit": (wp.int32, 1),
+}
+
+
+@wp.struct
+class GBufferData:
+    position: wp.array2d(dtype=wp.vec3)
+    normal_geo: wp.array2d(dtype=wp.vec3)
+    normal: wp.array2d(dtype=wp.vec3)  # shading normal
+    albedo: wp.array2d(dtype=wp.vec3)
+    roughness: wp.array2d(dtype=float)
+    material: wp.array2d(dtype=wp.int32)  # −1: no hit
+    depth: wp.array2d(dtype=float)  # camera-space z; 0 where nothing was hit
+    tri: wp.array2d(dtype=wp.int32)
+    bary: wp.array2d(dtype=wp.vec2)
+    motion: wp.array2d(dtype=wp.vec2)  # previous-frame pixel position minus this pixel's, fractional
+    motion_int: wp.array2d(dtype=wp.vec2i)  # the same, rounded to whole pixels
+    emission: wp.array2d(dtype=wp.vec3)  # radiance emitted toward the camera (environment where nothing was hit)
+    hit: wp.array2d(dtype=wp.int32)
+
+
+@wp.kernel
+def gbuffer_kernel(
+    scene: SceneData,
+    cam: CameraData,
+    cam_prev: CameraData,
+    transforms: wp.array(dtype=wp.mat44),
+    transforms_prev: wp.array(dtype=wp.mat44),
+    g: GBufferData,
+):
+    y, x = wp.tid()
+    px = float(x) + 0.5
+    py = float(y) + 0.5
+    ray = camera_ray(cam, px, py, wp.vec2(0.5, 0.5))
+    si = intersect(scene, ray.o, ray.d, cam.far_clip)
+    zero3 = wp.vec3(0.0, 0.0, 0.0)
+    if si.valid == 0:
+        g.position[y, x] = zero3
+        g.normal_geo[y, x] = zero3
+        g.normal[y, x] = zero3
+        g.albedo[y, x] = zero3
+        g.roughness[y, x] = 0.0
+        g.material[y, x] = -1
+        g.depth[y, x] = 0.0
+        g.tri[y, x] = -1
+        g.bary[y, x] = wp.vec2(0.0, 0.0)
+        g.motion[y, x] = wp.vec2(0.0, 0.0)
+        g.motion_int[y, x] = wp.vec2i(0, 0)
+        g.emission[y, x] = environment_eval(scene.lights, ray.d)
+        g.hit[y, x] = 0
+        return
+    m = surface_material(scene, si)
+    g.position[y, x] = si.p
+    g.normal_geo[y, x] = si.ng
+    g.normal[y, x] = si.ns
+    g.albedo[y, x] = bsdf_albedo(m)
+    g.roughness[y, x] = bsdf_roughness(m)
+    g.material[y, x] = si.material
+    g.depth[y, x] = wp.transform_point(cam.to_camera, si.p)[2]
+    g.tri[y, x] = si.tri
+    g.bary[y, x] = si.bary
+    g.emission[y, x] = emitter_radiance(scene.lights, si.tri, si.ng, -ray.d)
+    g.hit[y, x] = 1
+    # ---- motion vector: back through the object's motion, then the previous camera ----
+    p_base = wp.transform_point(wp.inverse(transforms[si.object]), si.p)
+    p_prev = wp.transform_point(transforms_prev[si.object], p_base)
+    proj = camera_project(cam_prev, p_prev)
+    mv = wp.vec2(0.0, 0.0)
+    if proj.valid != 0:
+        mv = proj.pixel - wp.vec2(px, py)
+    g.motion[y, x] = mv
+    g.motion_int[y, x] = wp.vec2i(int(wp.floor(mv[0] + 0.5)), int(wp.floor(mv[1] + 0.5)))
+
+
+def _alloc(width: int, height: int, device: wp.context.Device) -> GBufferData:
+    g = GBufferData()
+    for name, (dtype, _) in GBUFFER_FIELDS.items():
+        setattr(g, name, wp.zeros((height, width), dtype=dtype, device=device))
+    return g
+
+
+class GBuffer:
+    """Current and previous G-buffers of a film, filled per frame from a built scene."""
+
+    def __init__(self, width: int, height: int, device: wp.context.Device) -> None:
+        self.width = int(width)
+        self.height = int(height)
+        self.device = device
+        self.current = _alloc(self.width, self.height, device)
+        self.previous = _alloc(self.width, self.height, device)
+
+    def swap(self) -> None:
+        self.current, self.previous = self.previous, self.current
+
+    def fill(self, built: BuiltScene, frame: float) -> GBufferData:
+        """Swap, then trace this frame's primary hits (the scene must already be at ``frame``)."""
+        self.swap()
+        cam = built.camera_data(frame, self.width, self.height)
+        cam_prev = built.camera_data(frame - 1.0, self.width, self.height)
+        wp.launch(
+            gbuffer_kernel,
+            dim=(self.height, self.width),
+            inputs=[built.data, cam, cam_prev, built.object_transforms, built.object_transforms_prev],
+            outputs=[self.current],
+            device=self.device,
+        )
+        return self.current
+
+    def numpy(self, which: str = "current") -> dict[str, object]:
+        g = getattr(self, which)
+        return {name: getattr(g, name).numpy() for name in GBUFFER_FIELDS}

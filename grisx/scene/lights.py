@@ -1,0 +1,745 @@
+"""Light sources and next-event estimation: which light, which point, with what density.
+
+Direct lighting at a point x with normal n estimates
+
+    E = ∫ L_e(y → x) |cos θ_x| dω  ≈  L_e(y → x) |cos θ_x| / p_ω(y),
+
+so a light sampler must return a direction ``wi`` (x → light), the radiance
+arriving along it and its density ``pdf`` *in solid angle, including the choice
+of light* — and a BSDF-sampled ray that hits a light must be able to ask for
+the same density (:func:`light_pdf_emitter`, :func:`environment_pdf`) for MIS.
+The conventions are Mitsuba 3's, so a scene file means the same light here.
+
+Light selection
+    All lights share one alias table (:mod:`grisx.scene.distribution`) with
+    probability proportional to power: an emissive triangle of area A and
+    radiance L emits Φ = π A lum(L) (one-sided Lambertian); a point light of
+    intensity I emits 4π lum(I); an environment of radiance L(ω) delivers
+    Φ = π R² ∫ lum(L) dω through the scene's bounding sphere of radius R
+    (pbrt-v4's estimate). ``lum`` is Mitsuba's luminance
+    (0.212671, 0.715160, 0.072169). Selection indices: emissive triangles
+    first (emitter order), then point lights, then the environment.
+
+Emissive triangles (Mitsuba ``area``)
+    A point is drawn uniformly on the chosen triangle (Mitsuba's
+    ``square_to_uniform_triangle``: b₁ = 1 − √(1 − u₀), b₂ = √(1 − u₀) u₁),
+    density 1 / A in area, converted to solid angle by the Jacobian
+
+        p_ω = p_A · ‖y − x‖² / |cos θ_y|        (PBR 4th ed., Eq. 4.12)
+
+    with θ_y between the light's geometric normal and the direction to x.
+    Emission is one-sided: L_e toward w is the emitter's radiance only when
+    w is on the normal's side (the normal follows the winding,
+    (p₁ − p₀) × (p₂ − p₀)), else 0 — the density does not care about sides.
+    Triangle areas are read from the live positions, so a rigid motion of the
+    scene (which moves ``positions`` in place) keeps pdfs exact.
+
+Point lights (Mitsuba ``point``)
+    Intensity I in W/sr; a delta light: ``delta = 1``, ``radiance`` = I / d²,
+    ``pdf`` = its selection probability (a discrete, not a solid-angle, density).
+
+Constant environment (Mitsuba ``constant``)
+    Radiance L from every direction, sampled uniformly on the sphere
+    (Mitsuba's ``square_to_uniform_sphere``), p_ω = 1 / 4π.
+
+Image environment (Mitsuba ``envmap``)
+    An equirectangular H × W image; in the emitter's local frame (+Y up) a
+    direction d maps to
+
+        u = atan2(d_x, −d_z) / 2π,   v = acos(d_y) / π,
+        d = (sin φ sin θ, cos θ, −cos φ sin θ),  φ = 2π u, θ = π v,
+
+    and world directions go through ``to_world`` (a rotation). As in Mitsuba 3,
+    pixel column x is centred at u = (x + ½) / W and row y lies at
+    v = y / (H − 1) (row 0 at the north pole +Y, row H − 1 at the south pole),
+    radiance is interpolated bilinearly between them (wrapping in u) and
+    multiplied by ``scale``. Importance sampling uses a piecewise-constant 2D
+    distribution over the (W) × (H − 1) cells between pixel centres, each
+    weighted by the cell mean of the bilinear luminance (the mean of its four
+    corners: nonzero wherever the radiance is) times the band mean of sin θ;
+    the density in (u, v) becomes a solid-angle density by
+
+        p_ω = p_uv / (2π² sin θ)               (PBR 4th ed., Eq. 12.8).
+
+``world_dir`` arguments of the environment functions point from the scene
+out toward the environment (a ray's direction).
+
+Directions in :class:`LightSample` are unit vectors from the reference point
+toward the light; ``dist`` is 1e30 for the environment (whose ``p`` holds the
+direction). A sample with ``pdf == 0`` is invalid (no light, zero power,
+degenerate geometry) and must be skipped.
+
+References: M. Pharr, W. Jakob, G. Humphreys, *Physically Based Rendering*,
+4th ed. (2023), §4.2 (solid angle ↔ area), §12.2–12.5 (light sampling,
+``PowerLightSampler``, ``ImageInfiniteLight``); W. Jakob et al., Mitsuba 3,
+``src/emitters/{area,point,constant,envmap}.cpp`` and ``warp.h``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import warp as wp
+
+from grisx.errors import InvalidParameterError, InvalidValueError
+from grisx.scene.distribution import (
+    AliasTable,
+    PiecewiseConstant2D,
+    alias_pmf,
+    build_alias_table,
+    build_piecewise_constant_2d,
+    piecewise_constant_2d_pdf,
+    sample_alias,
+    sample_piecewise_constant_2d,
+)
+
+wp.set_module_options({"enable_backward": False})
+
+__all__ = [
+    "PointLight",
+    "ConstantEnvironment",
+    "EnvMap",
+    "ENV_NONE",
+    "ENV_CONSTANT",
+    "ENV_ENVMAP",
+    "LUMINANCE_WEIGHTS",
+    "LightSet",
+    "LightSample",
+    "build_light_set",
+    "load_envmap_image",
+    "luminance",
+    "sample_uniform_triangle",
+    "invert_uniform_triangle",
+    "sample_uniform_sphere",
+    "uniform_sphere_pdf",
+    "pdf_area_to_solid_angle",
+    "envmap_direction_to_uv",
+    "envmap_uv_to_direction",
+    "sample_light",
+    "light_pdf_emitter",
+    "emitter_radiance",
+    "environment_eval",
+    "environment_pdf",
+]
+
+ENV_NONE = wp.constant(0)
+ENV_CONSTANT = wp.constant(1)
+ENV_ENVMAP = wp.constant(2)
+
+#: Mitsuba's (Rec. 709) luminance weights of linear RGB
+LUMINANCE_WEIGHTS = (0.212671, 0.715160, 0.072169)
+_LUM = wp.constant(wp.vec3(*LUMINANCE_WEIGHTS))
+#: ``dist`` of an environment sample (an infinitely distant light)
+_ENV_DIST = wp.constant(1.0e30)
+_INV_FOUR_PI = wp.constant(1.0 / (4.0 * math.pi))
+_INV_TWO_PI_SQ = wp.constant(1.0 / (2.0 * math.pi * math.pi))
+
+
+# ---- Python records --------------------------------------------------------------------
+
+
+@dataclasses.dataclass(frozen=True)
+class PointLight:
+    """Mitsuba ``point``: isotropic point light of RGB ``intensity`` (W/sr) at ``position``."""
+
+    position: tuple[float, float, float] | np.ndarray
+    intensity: tuple[float, float, float] | np.ndarray | float
+
+
+@dataclasses.dataclass(frozen=True)
+class ConstantEnvironment:
+    """Mitsuba ``constant``: RGB ``radiance`` arriving from every direction."""
+
+    radiance: tuple[float, float, float] | np.ndarray | float
+
+
+@dataclasses.dataclass(frozen=True)
+class EnvMap:
+    """Mitsuba ``envmap``: equirectangular radiance ``image`` (H×W×3 linear array, or an EXR/PNG path).
+
+    ``scale`` multiplies the radiance; ``to_world`` (4×4, its upper 3×3 a
+    rotation) places the map's +Y-up frame in the world.
+    """
+
+    image: Any
+    scale: float = 1.0
+    to_world: Any = None
+
+
+# ---- validation helpers --------------------------------------------------------------
+
+
+def _rgb(value: Any, what: str) -> np.ndarray:
+    a = np.asarray(value, dtype=np.float64)
+    if a.ndim == 0:
+        a = np.full(3, float(a))
+    if a.shape != (3,):
+        raise InvalidParameterError(f"{what} must be an RGB triple or a scalar, got shape {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise InvalidValueError(f"{what} contains NaN or Inf: {a.tolist()}")
+    if np.any(a < 0):
+        raise InvalidValueError(f"{what} must be non-negative, got {a.tolist()}")
+    return a
+
+
+def _lum(rgb: np.ndarray) -> np.ndarray:
+    return np.asarray(rgb, dtype=np.float64) @ np.asarray(LUMINANCE_WEIGHTS)
+
+
+def _srgb_decode(c: np.ndarray) -> np.ndarray:
+    """sRGB-encoded values in [0, 1] → linear (IEC 61966-2-1), as Mitsuba linearises 8-bit bitmaps."""
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+def load_envmap_image(source: Any) -> np.ndarray:
+    """An envmap image as float64 (H, W, 3) linear RGB, from an array or an EXR / PNG / JPEG file."""
+    if isinstance(source, (str, os.PathLike)):
+        path = Path(source)
+        if not path.is_file():
+            raise InvalidParameterError(f"envmap image '{path}': no such file")
+        suffix = path.suffix.lower()
+        if suffix == ".exr":
+            from grisx.imageio import read_exr
+
+            img = np.asarray(read_exr(path), dtype=np.float64)
+        elif suffix in (".png", ".jpg", ".jpeg"):
+            from PIL import Image
+
+            with Image.open(path) as im:
+                raw = np.asarray(im.convert("RGB"), dtype=np.float64) / 255.0
+            img = _srgb_decode(raw)
+        else:
+            raise InvalidParameterError(f"envmap image '{path}': unsupported format '{suffix}' (use .exr, .png or .jpg)")
+        what = f"envmap image '{path}'"
+    else:
+        img = np.asarray(source, dtype=np.float64)
+        what = "envmap image"
+    if img.ndim == 2:
+        img = np.repeat(img[:, :, None], 3, axis=2)
+    if img.ndim != 3 or img.shape[2] not in (1, 3, 4):
+        raise InvalidParameterError(f"{what} must have shape (H, W), (H, W, 3) or (H, W, 4), got {img.shape}")
+    if img.shape[2] == 1:
+        img = np.repeat(img, 3, axis=2)
+    img = img[:, :, :3]
+    h, w = img.shape[:2]
+    if w < 2 or h < 3:
+        raise InvalidParameterError(f"{what}: the resolution must be at least 2x3 pixels (W x H), got {w}x{h}")
+    if not np.all(np.isfinite(img)):
+        raise InvalidValueError(f"{what} contains NaN or Inf")
+    if np.any(img < 0):
+        raise InvalidValueError(f"{what} contains negative radiance (min {img.min():g})")
+    return img
+
+
+def _rotation(to_world: Any) -> np.ndarray:
+    if to_world is None:
+        return np.eye(3)
+    m = np.asarray(to_world, dtype=np.float64)
+    if m.shape not in ((4, 4), (3, 3)):
+        raise InvalidParameterError(f"EnvMap.to_world must be a 4x4 (or 3x3) matrix, got shape {m.shape}")
+    if not np.all(np.isfinite(m)):
+        raise InvalidValueError("EnvMap.to_world contains NaN or Inf")
+    r = m[:3, :3]
+    if not np.allclose(r.T @ r, np.eye(3), atol=1e-4):
+        raise InvalidParameterError("EnvMap.to_world must be a rotation (orthonormal upper 3x3); scaling or shearing an environment is not supported")
+    return r
+
+
+# ---- Warp records ------------------------------------------------------------------------
+
+
+@wp.struct
+class LightSet:
+    """Every light of a scene and the alias table that selects among them (see the module docstring)."""
+
+    selection: AliasTable  # over [emissive triangles | point lights | environment]
+    num_lights: int
+    num_emitters: int
+    num_points: int
+    env_light: int  # selection index of the environment, −1 if none
+    # emissive triangles, reading the scene's live world-space geometry
+    positions: wp.array(dtype=wp.vec3)
+    indices: wp.array(dtype=wp.int32)  # 3 per scene triangle
+    tri_emitter: wp.array(dtype=wp.int32)  # per scene triangle: emitter index or −1
+    emitter_tri: wp.array(dtype=wp.int32)  # per emitter: scene triangle
+    emitter_radiance: wp.array(dtype=wp.vec3)
+    # point lights
+    point_position: wp.array(dtype=wp.vec3)
+    point_intensity: wp.array(dtype=wp.vec3)
+    # environment
+    env_kind: int  # ENV_NONE, ENV_CONSTANT, ENV_ENVMAP
+    env_radiance: wp.vec3  # constant environment
+    env_scale: float
+    env_image: wp.array(dtype=wp.vec3)  # H × (W + 1): Mitsuba's copy of column 0 appended for periodicity
+    env_width: int  # W (without the extra column)
+    env_height: int  # H
+    env_distribution: PiecewiseConstant2D  # over the W × (H − 1) cells between pixel centres
+    env_to_world: wp.mat33
+    env_to_local: wp.mat33
+    scene_radius: float
+
+
+@wp.struct
+class LightSample:
+    """One next-event sample: point, direction ref → light, arriving radiance and its density."""
+
+    p: wp.vec3  # point on the light (the direction itself for the environment)
+    n: wp.vec3  # light normal at p (−wi for point lights and the environment)
+    wi: wp.vec3  # unit, reference point → light
+    dist: float  # distance to p (1e30 for the environment)
+    radiance: wp.vec3  # L_e toward the reference point (0 if back-facing); I / d² for point lights
+    pdf: float  # solid angle, including selection (selection probability alone for delta lights); 0 = invalid
+    pdf_area: float  # area density incl. selection (triangles); = pdf otherwise
+    delta: int
+    is_env: int
+    light: int  # selection index, −1 if invalid
+    tri: int  # scene triangle of an emissive-triangle sample, −1 otherwise
+
+
+# ---- small samplers and conversions ---------------------------------------------------
+
+
+@wp.func
+def luminance(c: wp.vec3) -> float:
+    """Mitsuba's luminance of linear RGB."""
+    return wp.dot(c, _LUM)
+
+
+@wp.func
+def sample_uniform_triangle(u: wp.vec2) -> wp.vec3:
+    """Barycentrics (b₀, b₁, b₂) uniform on a triangle (Mitsuba's square_to_uniform_triangle)."""
+    t = wp.sqrt(wp.max(1.0 - u[0], 0.0))
+    b1 = 1.0 - t
+    b2 = t * u[1]
+    return wp.vec3(1.0 - b1 - b2, b1, b2)
+
+
+@wp.func
+def invert_uniform_triangle(b: wp.vec3) -> wp.vec2:
+    """The u that :func:`sample_uniform_triangle` maps to barycentrics b."""
+    t = 1.0 - b[1]
+    u1 = 0.0
+    if t > 0.0:
+        u1 = b[2] / t
+    return wp.vec2(1.0 - t * t, u1)
+
+
+@wp.func
+def sample_uniform_sphere(u: wp.vec2) -> wp.vec3:
+    """Uniform direction on the unit sphere (Mitsuba's square_to_uniform_sphere); pdf 1 / 4π."""
+    z = 1.0 - 2.0 * u[1]
+    r = wp.sqrt(wp.max(1.0 - z * z, 0.0))
+    phi = 2.0 * wp.pi * u[0]
+    return wp.vec3(r * wp.cos(phi), r * wp.sin(phi), z)
+
+
+@wp.func
+def uniform_sphere_pdf() -> float:
+    return _INV_FOUR_PI
+
+
+@wp.func
+def pdf_area_to_solid_angle(pdf_area: float, dist_sq: float, cos_light: float) -> float:
+    """p_ω = p_A · d² / |cos θ_y| (PBR 4th ed., Eq. 4.12); 0 at grazing angles instead of ∞."""
+    c = wp.abs(cos_light)
+    if c <= 0.0:
+        return 0.0
+    return pdf_area * dist_sq / c
+
+
+@wp.func
+def envmap_direction_to_uv(d: wp.vec3) -> wp.vec2:
+    """Mitsuba envmap mapping, local frame (+Y up): u = atan2(d_x, −d_z) / 2π wrapped to [0, 1), v = acos(d_y) / π."""
+    u = wp.atan2(d[0], -d[2]) * (0.5 / wp.pi)
+    u = u - wp.floor(u)
+    v = wp.acos(wp.clamp(d[1], -1.0, 1.0)) / wp.pi
+    return wp.vec2(u, v)
+
+
+@wp.func
+def envmap_uv_to_direction(uv: wp.vec2) -> wp.vec3:
+    """Inverse of :func:`envmap_direction_to_uv`: (sin φ sin θ, cos θ, −cos φ sin θ), φ = 2π u, θ = π v."""
+    theta = uv[1] * wp.pi
+    phi = uv[0] * 2.0 * wp.pi
+    st = wp.sin(theta)
+    return wp.vec3(wp.sin(phi) * st, wp.cos(theta), -wp.cos(phi) * st)
+
+
+@wp.func
+def _env_pixel(ls: LightSet, x: int, y: int) -> wp.vec3:
+    return ls.env_image[y * (ls.env_width + 1) + x]
+
+
+@wp.func
+def _envmap_lookup(ls: LightSet, uv: wp.vec2) -> wp.vec3:
+    """Mitsuba 3's envmap eval_spectrum: bilinear between pixel centres (u wraps, v clamps), times scale."""
+    w = ls.env_width
+    h = ls.env_height
+    gu = uv[0] - 0.5 / float(w)  # pixel centres sit half a texel right of the grid lines
+    gu = gu - wp.floor(gu)
+    x = gu * float(w)
+    y = wp.clamp(uv[1], 0.0, 1.0) * float(h - 1)
+    px = wp.min(int(x), w - 1)
+    py = wp.min(int(y), h - 2)
+    fx = x - float(px)
+    fy = y - float(py)
+    a = _env_pixel(ls, px, py) * (1.0 - fx) + _env_pixel(ls, px + 1, py) * fx
+    b = _env_pixel(ls, px, py + 1) * (1.0 - fx) + _env_pixel(ls, px + 1, py + 1) * fx
+    return (a * (1.0 - fy) + b * fy) * ls.env_scale
+
+
+@wp.func
+def _envmap_uv_pdf_to_solid_angle(pdf_uv: float, d_local: wp.vec3) -> float:
+    sin_theta = wp.sqrt(d_local[0] * d_local[0] + d_local[2] * d_local[2])
+    if sin_theta <= 0.0:
+        return 0.0
+    return pdf_uv * _INV_TWO_PI_SQ / sin_theta
+
+
+@wp.func
+def _envmap_pdf_local(ls: LightSet, d_local: wp.vec3) -> float:
+    uv = envmap_direction_to_uv(d_local)
+    g = wp.vec2(uv[0] - 0.5 / float(ls.env_width), uv[1])
+    g = wp.vec2(g[0] - wp.floor(g[0]), wp.min(g[1], 0.99999994))
+    return _envmap_uv_pdf_to_solid_angle(piecewise_constant_2d_pdf(ls.env_distribution, g), d_local)
+
+
+# ---- queries ----------------------------------------------------------------------------
+
+
+@wp.func
+def _triangle_vertex(ls: LightSet, tri: int, k: int) -> wp.vec3:
+    return ls.positions[ls.indices[3 * tri + k]]
+
+
+@wp.func
+def _triangle_area(ls: LightSet, tri: int) -> float:
+    p0 = _triangle_vertex(ls, tri, 0)
+    return 0.5 * wp.length(wp.cross(_triangle_vertex(ls, tri, 1) - p0, _triangle_vertex(ls, tri, 2) - p0))
+
+
+@wp.func
+def emitter_radiance(ls: LightSet, tri: int, n_geo: wp.vec3, w: wp.vec3) -> wp.vec3:
+    """Radiance that scene triangle ``tri`` emits toward w (pointing away from it): one-sided, front = n_geo's side."""
+    if tri < 0:
+        return wp.vec3(0.0)
+    e = ls.tri_emitter[tri]
+    if e < 0 or wp.dot(n_geo, w) <= 0.0:
+        return wp.vec3(0.0)
+    return ls.emitter_radiance[e]
+
+
+@wp.func
+def light_pdf_emitter(ls: LightSet, tri: int, ref_p: wp.vec3, light_p: wp.vec3, light_n: wp.vec3) -> float:
+    """Solid-angle density (incl. selection) with which :func:`sample_light` picks light_p on ``tri`` from ref_p."""
+    if tri < 0:
+        return 0.0
+    e = ls.tri_emitter[tri]
+    if e < 0:
+        return 0.0
+    area = _triangle_area(ls, tri)
+    if area <= 0.0:
+        return 0.0
+    d = light_p - ref_p
+    dist_sq = wp.dot(d, d)
+    if dist_sq <= 0.0:
+        return 0.0
+    cos_light = wp.dot(light_n, d) / (wp.length(light_n) * wp.sqrt(dist_sq))
+    return pdf_area_to_solid_angle(alias_pmf(ls.selection, e) / area, dist_sq, cos_light)
+
+
+@wp.func
+def environment_eval(ls: LightSet, world_dir: wp.vec3) -> wp.vec3:
+    """Radiance arriving from the environment along ``world_dir`` (scene → environment)."""
+    if ls.env_kind == ENV_CONSTANT:
+        return ls.env_radiance
+    if ls.env_kind == ENV_ENVMAP:
+        return _envmap_lookup(ls, envmap_direction_to_uv(wp.normalize(ls.env_to_local * world_dir)))
+    return wp.vec3(0.0)
+
+
+@wp.func
+def environment_pdf(ls: LightSet, world_dir: wp.vec3) -> float:
+    """Solid-angle density (incl. selection) with which :func:`sample_light` picks ``world_dir`` on the environment."""
+    if ls.env_light < 0:
+        return 0.0
+    pmf = alias_pmf(ls.selection, ls.env_light)
+    if ls.env_kind == ENV_CONSTANT:
+        return pmf * uniform_sphere_pdf()
+    if ls.env_kind == ENV_ENVMAP:
+        return pmf * _envmap_pdf_local(ls, wp.normalize(ls.env_to_local * world_dir))
+    return 0.0
+
+
+@wp.func
+def _invalid_sample() -> LightSample:
+    s = LightSample()
+    s.dist = 0.0
+    s.pdf = 0.0
+    s.pdf_area = 0.0
+    s.delta = 0
+    s.is_env = 0
+    s.light = -1
+    s.tri = -1
+    return s
+
+
+@wp.func
+def sample_light(ls: LightSet, ref_p: wp.vec3, u_select: float, u: wp.vec2) -> LightSample:
+    """Pick a light ∝ power with u_select, then a point/direction on it with u (see the module docstring)."""
+    s = _invalid_sample()
+    light = sample_alias(ls.selection, u_select)
+    if light < 0:
+        return s
+    pmf = alias_pmf(ls.selection, light)
+    if pmf <= 0.0:
+        return s
+    s.light = light
+    if light < ls.num_emitters:
+        # ---- emissive triangle: uniform in area, then area → solid angle ----
+        tri = ls.emitter_tri[light]
+        p0 = _triangle_vertex(ls, tri, 0)
+        p1 = _triangle_vertex(ls, tri, 1)
+        p2 = _triangle_vertex(ls, tri, 2)
+        b = sample_uniform_triangle(u)
+        p = p0 * b[0] + p1 * b[1] + p2 * b[2]
+        c = wp.cross(p1 - p0, p2 - p0)
+        twice_area = wp.length(c)
+        d = p - ref_p
+        dist_sq = wp.dot(d, d)
+        if twice_area <= 0.0 or dist_sq <= 0.0:
+            s.light = -1
+            return s
+        n = c / twice_area
+        dist = wp.sqrt(dist_sq)
+        wi = d / dist
+        cos_light = -wp.dot(n, wi)
+        s.p = p
+        s.n = n
+        s.wi = wi
+        s.dist = dist
+        s.tri = tri
+        s.pdf_area = pmf / (0.5 * twice_area)
+        s.pdf = pdf_area_to_solid_angle(s.pdf_area, dist_sq, cos_light)
+        if cos_light > 0.0:
+            s.radiance = ls.emitter_radiance[light]
+        if s.pdf <= 0.0:
+            s.light = -1
+        return s
+    if light < ls.num_emitters + ls.num_points:
+        # ---- point light: a delta in direction ----
+        k = light - ls.num_emitters
+        p = ls.point_position[k]
+        d = p - ref_p
+        dist_sq = wp.dot(d, d)
+        if dist_sq <= 0.0:
+            s.light = -1
+            return s
+        dist = wp.sqrt(dist_sq)
+        s.p = p
+        s.wi = d / dist
+        s.n = -s.wi
+        s.dist = dist
+        s.radiance = ls.point_intensity[k] / dist_sq
+        s.pdf = pmf
+        s.pdf_area = pmf
+        s.delta = 1
+        return s
+    # ---- environment ----
+    s.is_env = 1
+    s.dist = _ENV_DIST
+    wi = wp.vec3(0.0)
+    if ls.env_kind == ENV_CONSTANT:
+        wi = sample_uniform_sphere(u)
+        s.radiance = ls.env_radiance
+        s.pdf = pmf * uniform_sphere_pdf()
+    else:
+        g = sample_piecewise_constant_2d(ls.env_distribution, u)
+        gu = g.uv[0] + 0.5 / float(ls.env_width)  # back from cell grid to Mitsuba's u (half-texel shift)
+        uv = wp.vec2(gu - wp.floor(gu), g.uv[1])
+        d_local = envmap_uv_to_direction(uv)
+        wi = ls.env_to_world * d_local
+        s.radiance = _envmap_lookup(ls, uv)
+        s.pdf = pmf * _envmap_uv_pdf_to_solid_angle(g.pdf, d_local)
+    s.wi = wi
+    s.p = wi
+    s.n = -wi
+    s.pdf_area = s.pdf
+    if s.pdf <= 0.0:
+        s.light = -1
+        s.radiance = wp.vec3(0.0)
+    return s
+
+
+# ---- building -----------------------------------------------------------------------------
+
+
+def _envmap_cell_weights(img: np.ndarray) -> np.ndarray:
+    """(H − 1) × W cell weights: mean corner luminance of the bilinear radiance × band mean of sin θ."""
+    h, w = img.shape[:2]
+    lum = _lum(img)
+    lum = np.concatenate([lum, lum[:, :1]], axis=1)  # Mitsuba's periodic column
+    corners = 0.25 * (lum[:-1, :-1] + lum[:-1, 1:] + lum[1:, :-1] + lum[1:, 1:])
+    theta = np.arange(h) * (math.pi / (h - 1))
+    band_sin = (np.cos(theta[:-1]) - np.cos(theta[1:])) / (math.pi / (h - 1))
+    return corners * band_sin[:, None]
+
+
+def _as_vec3_array(value: Any, device: str | None, what: str) -> wp.array:
+    if isinstance(value, wp.array):
+        if value.dtype != wp.vec3:
+            raise InvalidParameterError(f"{what} must be a Warp array of vec3, got dtype {value.dtype}")
+        return value
+    a = np.asarray(value, dtype=np.float64)
+    if a.ndim != 2 or a.shape[1] != 3:
+        raise InvalidParameterError(f"{what} must have shape (n, 3), got {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise InvalidValueError(f"{what} contains NaN or Inf")
+    return wp.array(a.astype(np.float32), dtype=wp.vec3, device=device)
+
+
+def _as_index_array(value: Any, device: str | None) -> wp.array:
+    if isinstance(value, wp.array):
+        if value.dtype != wp.int32:
+            raise InvalidParameterError(f"indices must be a Warp array of int32, got dtype {value.dtype}")
+        return value
+    a = np.asarray(value)
+    if a.dtype.kind not in "iu" or not (a.ndim == 1 and a.size % 3 == 0 or a.ndim == 2 and a.shape[1] == 3):
+        raise InvalidParameterError(f"indices must be integers of shape (m, 3) or (3m,), got {a.dtype} {a.shape}")
+    return wp.array(a.astype(np.int32).ravel(), dtype=wp.int32, device=device)
+
+
+def build_light_set(
+    device: str | None,
+    positions: Any,
+    indices: Any,
+    emitter_tris: Any = (),
+    emitter_radiance: Any = (),
+    point_lights: Any = (),
+    environment: ConstantEnvironment | EnvMap | None = None,
+    scene_radius: float = 1.0,
+) -> LightSet:
+    """Pack a scene's lights into a :class:`LightSet`.
+
+    ``positions`` (n, 3) world-space vertices and ``indices`` ((m, 3) or flat
+    3m) are numpy arrays or the scene's own Warp arrays (``vec3`` / ``int32``;
+    then referenced, not copied, so in-place rigid motion is seen).
+    ``emitter_tris`` lists the emissive scene triangles and
+    ``emitter_radiance`` their RGB radiance ((k, 3), or one triple for all).
+    ``point_lights`` is a sequence of :class:`PointLight`; ``environment`` a
+    :class:`ConstantEnvironment`, an :class:`EnvMap` or None; ``scene_radius``
+    the radius of the scene's bounding sphere (the environment's power).
+    """
+    pos = _as_vec3_array(positions, device, "positions")
+    idx = _as_index_array(indices, device)
+    device = pos.device
+    pos_np = pos.numpy().astype(np.float64)
+    idx_np = idx.numpy().astype(np.int64).reshape(-1, 3)
+    num_tris = idx_np.shape[0]
+    if idx_np.size and (idx_np.min() < 0 or idx_np.max() >= pos_np.shape[0]):
+        raise InvalidParameterError(f"indices must lie in [0, {pos_np.shape[0]}), got range [{idx_np.min()}, {idx_np.max()}]")
+
+    # ---- emissive triangles ----
+    tris = np.asarray(emitter_tris if emitter_tris is not None else (), dtype=np.float64).ravel()
+    if tris.size and (np.any(tris != np.round(tris)) or tris.min() < 0 or tris.max() >= num_tris):
+        raise InvalidParameterError(f"emitter_tris must be triangle indices in [0, {num_tris})")
+    tris = tris.astype(np.int64)
+    if np.unique(tris).size != tris.size:
+        raise InvalidParameterError("emitter_tris lists a triangle twice")
+    rad = np.asarray(emitter_radiance if emitter_radiance is not None else (), dtype=np.float64)
+    if tris.size:
+        if rad.shape == (3,) or rad.ndim == 0:
+            rad = np.broadcast_to(_rgb(rad, "emitter_radiance"), (tris.size, 3))
+        if rad.shape != (tris.size, 3):
+            raise InvalidParameterError(f"emitter_radiance must have shape ({tris.size}, 3) or (3,), got {rad.shape}")
+        if not np.all(np.isfinite(rad)):
+            raise InvalidValueError("emitter_radiance contains NaN or Inf")
+        if np.any(rad < 0):
+            raise InvalidValueError(f"emitter_radiance must be non-negative (min {rad.min():g})")
+        p = pos_np[idx_np[tris]]
+        areas = 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
+        emitter_power = math.pi * areas * _lum(rad)  # one-sided Lambertian: Φ = π A L
+    else:
+        rad = np.zeros((0, 3))
+        emitter_power = np.zeros(0)
+    tri_emitter = np.full(max(num_tris, 1), -1, dtype=np.int32)
+    tri_emitter[tris] = np.arange(tris.size, dtype=np.int32)
+
+    # ---- point lights ----
+    points = list(point_lights or ())
+    pp = np.zeros((len(points), 3))
+    pi_ = np.zeros((len(points), 3))
+    for k, light in enumerate(points):
+        if not isinstance(light, PointLight):
+            raise InvalidParameterError(f"point_lights[{k}] must be a PointLight, got {type(light).__name__}")
+        position = np.asarray(light.position, dtype=np.float64)
+        if position.shape != (3,) or not np.all(np.isfinite(position)):
+            raise InvalidValueError(f"point_lights[{k}].position must be 3 finite numbers, got {position.tolist()}")
+        pp[k] = position
+        pi_[k] = _rgb(light.intensity, f"point_lights[{k}].intensity")
+    point_power = 4.0 * math.pi * _lum(pi_) if len(points) else np.zeros(0)
+
+    # ---- environment ----
+    ls = LightSet()
+    ls.env_kind = 0
+    ls.env_radiance = wp.vec3(0.0)
+    ls.env_scale = 1.0
+    ls.env_to_world = wp.mat33(np.eye(3, dtype=np.float32))
+    ls.env_to_local = wp.mat33(np.eye(3, dtype=np.float32))
+    image = np.zeros((3, 2, 3))
+    env_power: list[float] = []
+    if environment is not None:
+        r = float(scene_radius)
+        if not math.isfinite(r) or r <= 0:
+            raise InvalidParameterError(f"scene_radius must be positive and finite with an environment light, got {scene_radius}")
+        if isinstance(environment, ConstantEnvironment):
+            L = _rgb(environment.radiance, "ConstantEnvironment.radiance")
+            ls.env_kind = 1
+            ls.env_radiance = wp.vec3(*L.astype(np.float32))
+            env_power = [math.pi * r * r * 4.0 * math.pi * float(_lum(L))]
+        elif isinstance(environment, EnvMap):
+            scale = float(environment.scale)
+            if not math.isfinite(scale) or scale < 0:
+                raise InvalidValueError(f"EnvMap.scale must be finite and non-negative, got {environment.scale}")
+            image = load_envmap_image(environment.image)
+            rot = _rotation(environment.to_world)
+            ls.env_kind = 2
+            ls.env_scale = scale
+            ls.env_to_world = wp.mat33(rot.astype(np.float32))
+            ls.env_to_local = wp.mat33(rot.T.astype(np.float32))
+            weights = _envmap_cell_weights(image)
+            # ∫ lum(L) dω = 2π² ∫∫ lum · sin θ du dv over the unit square of cells
+            env_power = [math.pi * r * r * scale * 2.0 * math.pi**2 * float(weights.mean())]
+        else:
+            raise InvalidParameterError(f"environment must be ConstantEnvironment, EnvMap or None, got {type(environment).__name__}")
+    h, w = image.shape[:2]
+    padded = np.concatenate([image, image[:, :1]], axis=1)
+    ls.env_image = wp.array(padded.reshape(-1, 3).astype(np.float32), dtype=wp.vec3, device=device)
+    ls.env_width = int(w)
+    ls.env_height = int(h)
+    ls.env_distribution = build_piecewise_constant_2d(_envmap_cell_weights(image) if ls.env_kind == 2 else np.ones((1, 1)), device)
+    ls.scene_radius = float(scene_radius)
+
+    # ---- selection over all lights ----
+    power = np.concatenate([emitter_power, point_power, np.asarray(env_power, dtype=np.float64)])
+    ls.num_emitters = int(tris.size)
+    ls.num_points = len(points)
+    ls.env_light = int(tris.size + len(points)) if env_power else -1
+    ls.num_lights = int(power.size)
+    ls.selection = build_alias_table(power if power.size else np.zeros(1), device)
+    if not power.size:
+        ls.selection.size = 0
+
+    ls.positions = pos
+    ls.indices = idx
+    ls.tri_emitter = wp.array(tri_emitter, dtype=wp.int32, device=device)
+    ls.emitter_tri = wp.array(tris.astype(np.int32) if tris.size else np.zeros(1, np.int32), dtype=wp.int32, device=device)
+    ls.emitter_radiance = wp.array(rad.astype(np.float32) if tris.size else np.zeros((1, 3), np.float32), dtype=wp.vec3, device=device)
+    ls.point_position = wp.array(pp.astype(np.float32) if len(points) else np.zeros((1, 3), np.float32), dtype=wp.vec3, device=device)
+    ls.point_intensity = wp.array(pi_.astype(np.float32) if len(points) else np.zeros((1, 3), np.float32), dtype=wp.vec3, device=device)
+    return ls

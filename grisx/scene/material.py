@@ -1,0 +1,318 @@
+"""Materials: Python records with Mitsuba 3's names and defaults, packed into one Warp struct per material.
+
+A scene describes its surfaces with frozen records that mirror Mitsuba 3's
+BSDF plugins parameter by parameter, so that the XML loader is a plain
+mapping and a scene renders the same picture in both systems:
+
+=====================  ==========================  =========================================
+record                 Mitsuba plugin              lobes (see ``grisx.scene.bsdf``)
+=====================  ==========================  =========================================
+``Diffuse``            ``diffuse``                 Lambertian reflection
+``Conductor``          ``conductor``               delta reflection, complex Fresnel
+``RoughConductor``     ``roughconductor`` (GGX)    microfacet reflection
+``Dielectric``         ``dielectric``              delta reflection + refraction
+``RoughDielectric``    ``roughdielectric`` (GGX)   microfacet reflection + refraction
+=====================  ==========================  =========================================
+
+Every record carries ``two_sided`` (set by the loader for Mitsuba's
+``twosided`` wrapper): a one-sided reflecting BSDF is black seen from the back,
+a two-sided one mirrors the frame. Dielectrics are two-sided by nature (their
+back side is the interior, with η inverted) and ignore the flag, as Mitsuba
+refuses to wrap them.
+
+Differences from Mitsuba that the loader must respect: only the GGX
+distribution with isotropic ``alpha`` is implemented (Mitsuba's rough plugins
+default to ``beckmann``; a loader should map ``distribution="ggx"`` and reject
+the rest), and ``sample_visible`` is always on.
+
+Conductor indices come from ``conductor_material(name)``: RGB η and k for
+Mitsuba's measured presets (the spectral ``data/ior/<name>.{eta,k}.spd`` tables
+integrated to linear sRGB, as tabulated by Tungsten's ``ComplexIorData`` and
+pbrt-v3), and ``"none"`` = η 0, k 1, a perfect mirror (Mitsuba 3's default).
+
+``pack_materials`` turns a list of records into ``wp.array(dtype=Material)``
+indexed by material id; ``material_kinds`` gives the set of kinds present,
+which ``grisx.scene.bsdf.make_bsdf`` uses to compile only the needed lobes.
+
+Fields of ``Material`` beyond the contract: none besides those listed in the
+struct docstring; ``eta`` of a dielectric holds the relative index
+int_ior/ext_ior in all three channels, ``reflectance`` of conductors and
+dielectrics holds ``specular_reflectance`` and ``transmittance`` holds
+``specular_transmittance``.
+
+References: W. Jakob et al., Mitsuba 3 plugin documentation (``diffuse``,
+``conductor``, ``roughconductor``, ``dielectric``, ``roughdielectric``,
+``twosided``); W. Jakob, Tungsten renderer ``ComplexIorData.hpp``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Iterable, Sequence
+
+import numpy as np
+import warp as wp
+
+from grisx.errors import InvalidParameterError, InvalidValueError, UnknownNameError
+
+wp.set_module_options({"enable_backward": False})
+
+__all__ = [
+    "MATERIAL_DIFFUSE",
+    "MATERIAL_CONDUCTOR",
+    "MATERIAL_ROUGH_CONDUCTOR",
+    "MATERIAL_DIELECTRIC",
+    "MATERIAL_ROUGH_DIELECTRIC",
+    "MATERIAL_KINDS",
+    "MATERIAL_KIND_NAMES",
+    "TextureRef",
+    "Diffuse",
+    "Conductor",
+    "RoughConductor",
+    "Dielectric",
+    "RoughDielectric",
+    "MaterialDesc",
+    "CONDUCTOR_PRESETS",
+    "conductor_material",
+    "Material",
+    "material_kind",
+    "material_kinds",
+    "pack_materials",
+]
+
+MATERIAL_DIFFUSE = wp.constant(0)
+MATERIAL_CONDUCTOR = wp.constant(1)
+MATERIAL_ROUGH_CONDUCTOR = wp.constant(2)
+MATERIAL_DIELECTRIC = wp.constant(3)
+MATERIAL_ROUGH_DIELECTRIC = wp.constant(4)
+
+#: every kind, in id order
+MATERIAL_KINDS: tuple[int, ...] = (
+    MATERIAL_DIFFUSE,
+    MATERIAL_CONDUCTOR,
+    MATERIAL_ROUGH_CONDUCTOR,
+    MATERIAL_DIELECTRIC,
+    MATERIAL_ROUGH_DIELECTRIC,
+)
+#: Mitsuba plugin name of each kind
+MATERIAL_KIND_NAMES: dict[int, str] = {
+    MATERIAL_DIFFUSE: "diffuse",
+    MATERIAL_CONDUCTOR: "conductor",
+    MATERIAL_ROUGH_CONDUCTOR: "roughconductor",
+    MATERIAL_DIELECTRIC: "dielectric",
+    MATERIAL_ROUGH_DIELECTRIC: "roughdielectric",
+}
+
+RGB = tuple[float, float, float]
+
+# RGB (linear sRGB) complex IOR of Mitsuba's measured conductor presets: eta, k.
+CONDUCTOR_PRESETS: dict[str, tuple[RGB, RGB]] = {
+    "none": ((0.0, 0.0, 0.0), (1.0, 1.0, 1.0)),
+    "Ag": ((0.1552646489, 0.1167232965, 0.1383806959), (4.8283433224, 3.1222459278, 2.1469504455)),
+    "Al": ((1.6574599595, 0.8803689579, 0.5212287346), (9.2238691996, 6.2695232477, 4.8370012281)),
+    "Au": ((0.1431189557, 0.3749570432, 1.4424785571), (3.9831604247, 2.3857207478, 1.6032152899)),
+    "Cr": ((4.3696828663, 2.9167024892, 1.6547005413), (5.2064337956, 4.2313645277, 3.7549467933)),
+    "Cu": ((0.2004376970, 0.9240334304, 1.1022119527), (3.9129485033, 2.4528477015, 2.1421879552)),
+}
+
+
+def conductor_material(name: str) -> tuple[RGB, RGB]:
+    """RGB ``(eta, k)`` of Mitsuba's conductor preset ``name`` (Au, Ag, Cu, Al, Cr, or none = perfect mirror)."""
+    if name not in CONDUCTOR_PRESETS:
+        raise UnknownNameError("conductor material", name, list(CONDUCTOR_PRESETS))
+    return CONDUCTOR_PRESETS[name]
+
+
+@dataclasses.dataclass(frozen=True)
+class TextureRef:
+    """A texture registered on the Scene (``Scene.add_texture`` returns the id)."""
+
+    texture_id: int
+
+
+_NONE_ETA, _NONE_K = CONDUCTOR_PRESETS["none"]
+
+
+@dataclasses.dataclass(frozen=True)
+class Diffuse:
+    """Mitsuba ``diffuse``: Lambertian reflection of ``reflectance`` (RGB or a texture)."""
+
+    reflectance: RGB | float | TextureRef = (0.5, 0.5, 0.5)
+    two_sided: bool = False
+    bump_amplitude: float = 0.0
+    bump_frequency: float = 0.0
+
+
+@dataclasses.dataclass(frozen=True)
+class Conductor:
+    """Mitsuba ``conductor``: a smooth metal (delta reflection); default material ``none`` = perfect mirror."""
+
+    eta: RGB | float = _NONE_ETA
+    k: RGB | float = _NONE_K
+    specular_reflectance: RGB | float = (1.0, 1.0, 1.0)
+    two_sided: bool = False
+    bump_amplitude: float = 0.0
+    bump_frequency: float = 0.0
+
+
+@dataclasses.dataclass(frozen=True)
+class RoughConductor:
+    """Mitsuba ``roughconductor`` with ``distribution="ggx"``: GGX microfacet metal of roughness ``alpha``."""
+
+    alpha: float = 0.1
+    eta: RGB | float = _NONE_ETA
+    k: RGB | float = _NONE_K
+    specular_reflectance: RGB | float = (1.0, 1.0, 1.0)
+    two_sided: bool = False
+    bump_amplitude: float = 0.0
+    bump_frequency: float = 0.0
+
+
+@dataclasses.dataclass(frozen=True)
+class Dielectric:
+    """Mitsuba ``dielectric``: smooth glass (delta reflection + refraction); BK7 in air by default."""
+
+    int_ior: float = 1.5046
+    ext_ior: float = 1.000277
+    specular_reflectance: RGB | float = (1.0, 1.0, 1.0)
+    specular_transmittance: RGB | float = (1.0, 1.0, 1.0)
+    two_sided: bool = False  # ignored: dielectrics have two sides by nature
+    bump_amplitude: float = 0.0
+    bump_frequency: float = 0.0
+
+
+@dataclasses.dataclass(frozen=True)
+class RoughDielectric:
+    """Mitsuba ``roughdielectric`` with ``distribution="ggx"``: GGX reflection + refraction (Walter et al. 2007)."""
+
+    alpha: float = 0.1
+    int_ior: float = 1.5046
+    ext_ior: float = 1.000277
+    specular_reflectance: RGB | float = (1.0, 1.0, 1.0)
+    specular_transmittance: RGB | float = (1.0, 1.0, 1.0)
+    two_sided: bool = False  # ignored: dielectrics have two sides by nature
+    bump_amplitude: float = 0.0
+    bump_frequency: float = 0.0
+
+
+MaterialDesc = Diffuse | Conductor | RoughConductor | Dielectric | RoughDielectric
+
+_KIND_OF: dict[type, int] = {
+    Diffuse: MATERIAL_DIFFUSE,
+    Conductor: MATERIAL_CONDUCTOR,
+    RoughConductor: MATERIAL_ROUGH_CONDUCTOR,
+    Dielectric: MATERIAL_DIELECTRIC,
+    RoughDielectric: MATERIAL_ROUGH_DIELECTRIC,
+}
+
+
+@wp.struct
+class Material:
+    """One material as kernels see it (index = material id).
+
+    ``kind``: a MATERIAL_* constant. ``reflectance``: diffuse reflectance, or
+    ``specular_reflectance`` of conductors/dielectrics (for a textured diffuse
+    material the caller replaces it with the texture's value before calling a
+    BSDF). ``texture``: texture id or −1. ``alpha``: GGX roughness (0 for smooth
+    kinds). ``eta``, ``k``: conductor complex index per channel; for
+    dielectrics ``eta`` = int_ior/ext_ior in every channel and ``k`` = 0.
+    ``transmittance``: ``specular_transmittance`` of dielectrics. ``two_sided``:
+    1 if the frame is mirrored on the back side. ``bump_amplitude``,
+    ``bump_frequency``: procedural normal perturbation (0 = none), applied by
+    the scene to the shading normal before any BSDF call.
+    """
+
+    kind: int
+    reflectance: wp.vec3
+    texture: int
+    alpha: float
+    eta: wp.vec3
+    k: wp.vec3
+    transmittance: wp.vec3
+    two_sided: int
+    bump_amplitude: float
+    bump_frequency: float
+
+
+def material_kind(desc: MaterialDesc) -> int:
+    """MATERIAL_* kind of one record."""
+    kind = _KIND_OF.get(type(desc))
+    if kind is None:
+        raise InvalidParameterError(f"not a material record: {desc!r} (expected one of {', '.join(t.__name__ for t in _KIND_OF)})")
+    return kind
+
+
+def material_kinds(descs: Iterable[MaterialDesc]) -> set[int]:
+    """The set of MATERIAL_* kinds used by ``descs`` (for ``make_bsdf`` specialization)."""
+    return {material_kind(d) for d in descs}
+
+
+def _rgb(value: RGB | float, what: str, *, nonneg: bool = True) -> RGB:
+    a = np.broadcast_to(np.asarray(value, dtype=np.float64), (3,)) if np.ndim(value) == 0 else np.asarray(value, dtype=np.float64)
+    if a.shape != (3,):
+        raise InvalidParameterError(f"{what} must be a scalar or 3 values (RGB), got {value!r}")
+    if not np.all(np.isfinite(a)):
+        raise InvalidValueError(f"{what} contains NaN or Inf: {value!r}")
+    if nonneg and np.any(a < 0):
+        raise InvalidValueError(f"{what} must be non-negative, got {value!r}")
+    return (float(a[0]), float(a[1]), float(a[2]))
+
+
+def _positive(value: float, what: str) -> float:
+    v = float(value)
+    if not math.isfinite(v) or v <= 0.0:
+        raise InvalidParameterError(f"{what} must be a finite positive number, got {value!r}")
+    return v
+
+
+def _pack_one(desc: MaterialDesc, index: int) -> Material:
+    kind = material_kind(desc)
+    where = f"material {index} ({MATERIAL_KIND_NAMES[kind]})"
+    m = Material()
+    m.kind = kind
+    m.texture = -1
+    m.alpha = 0.0
+    m.eta = wp.vec3(1.0, 1.0, 1.0)
+    m.k = wp.vec3(0.0, 0.0, 0.0)
+    m.transmittance = wp.vec3(0.0, 0.0, 0.0)
+    m.two_sided = 1 if desc.two_sided else 0
+    for name in ("bump_amplitude", "bump_frequency"):
+        v = float(getattr(desc, name))
+        if not math.isfinite(v) or v < 0.0:
+            raise InvalidParameterError(f"{where}: {name} must be finite and >= 0, got {v!r}")
+        setattr(m, name, v)
+    if isinstance(desc, Diffuse):
+        if isinstance(desc.reflectance, TextureRef):
+            if int(desc.reflectance.texture_id) < 0:
+                raise InvalidParameterError(f"{where}: texture id must be >= 0, got {desc.reflectance.texture_id}")
+            m.texture = int(desc.reflectance.texture_id)
+            m.reflectance = wp.vec3(1.0, 1.0, 1.0)  # replaced by the texture's value at the hit
+        else:
+            m.reflectance = wp.vec3(*_rgb(desc.reflectance, f"{where}: reflectance"))
+        return m
+    m.reflectance = wp.vec3(*_rgb(desc.specular_reflectance, f"{where}: specular_reflectance"))
+    if isinstance(desc, (Conductor, RoughConductor)):
+        m.eta = wp.vec3(*_rgb(desc.eta, f"{where}: eta"))
+        m.k = wp.vec3(*_rgb(desc.k, f"{where}: k"))
+        if any(e == 0.0 and kk == 0.0 for e, kk in zip(m.eta, m.k)):
+            raise InvalidParameterError(f"{where}: eta and k must not both be 0 in a channel")
+    else:
+        int_ior = _positive(desc.int_ior, f"{where}: int_ior")
+        ext_ior = _positive(desc.ext_ior, f"{where}: ext_ior")
+        if int_ior == ext_ior:
+            raise InvalidParameterError(f"{where}: int_ior and ext_ior must differ (got {int_ior} for both)")
+        eta = int_ior / ext_ior
+        m.eta = wp.vec3(eta, eta, eta)
+        m.transmittance = wp.vec3(*_rgb(desc.specular_transmittance, f"{where}: specular_transmittance"))
+    if isinstance(desc, (RoughConductor, RoughDielectric)):
+        m.alpha = _positive(desc.alpha, f"{where}: alpha")
+    return m
+
+
+def pack_materials(descs: Sequence[MaterialDesc], device: str | wp.context.Device | None = None) -> wp.array:
+    """``wp.array(dtype=Material)`` of ``descs`` in order (material id = list index), validated."""
+    if len(descs) == 0:
+        raise InvalidParameterError("pack_materials needs at least one material")
+    packed = [_pack_one(d, i) for i, d in enumerate(descs)]
+    return wp.array(packed, dtype=Material, device=device)

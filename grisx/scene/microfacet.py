@@ -1,0 +1,222 @@
+"""Microfacet theory: the GGX distribution, Smith masking, visible-normal sampling, Fresnel.
+
+A rough surface is modelled as a field of tiny perfect mirrors whose normals
+m follow a distribution D(m) (per unit projected area, ∫ D(m) cos θ_m dm = 1).
+All formulas are in the local shading frame (z = macro normal) with an
+isotropic roughness α.
+
+**GGX / Trowbridge–Reitz** (Walter et al. 2007, Eq. 33):
+
+    D(m) = 1 / (π α² (m_x²/α² + m_y²/α² + m_z²)²)      for m_z > 0.
+
+**Smith masking** for a direction v (Walter et al. 2007, Eq. 34; Heitz 2014,
+Eq. 43 with Λ of GGX), with the orientation test that the back of a facet is
+never seen:
+
+    G1(v, m) = 2 / (1 + sqrt(1 + α² tan²θ_v))     if (v·m)(v·n) > 0, else 0,
+
+and the separable two-direction form G2(wo, wi, m) = G1(wo, m) G1(wi, m)
+(Mitsuba's ``G``).
+
+**Visible normals** (Heitz 2018): the normals seen from wo have density
+
+    D_wo(m) = G1(wo, m) max(0, wo·m) D(m) / cos θ_o               (Heitz 2018, Eq. 1)
+
+and are sampled exactly by stretching wo to the α = 1 configuration, sampling
+a point on the projected hemisphere (a disk whose lower half is squashed by
+½(1 + cos θ)) and unstretching (Heitz 2018, Listing 1). Sampling D_wo instead
+of D cos θ_m keeps the weight of a reflected sample to F·G1(wi, m) ≤ 1.
+
+**Fresnel.** A conductor with complex index η + i k (per RGB channel) reflects
+the unpolarized fraction F_c(cos θ) of K. D. Möller's closed form (Mitsuba 3's
+``fresnel_conductor``); η = 0, k = 1 reflects everything (a perfect mirror).
+A dielectric with relative index η = η_int/η_ext (the normal points to the
+exterior) reflects
+
+    F = ½ (r_s² + r_p²),   r_s = (cos θ_i − η_it cos θ_t)/(cos θ_i + η_it cos θ_t),
+                           r_p = (cos θ_t − η_it cos θ_i)/(cos θ_t + η_it cos θ_i),
+
+with η_it = η seen from outside (cos θ_i ≥ 0) and 1/η from inside, and F = 1
+under total internal reflection (``fresnel_dielectric`` returns F with the
+signed cos θ_t and η_it, η_ti = 1/η_it as a ``FresnelDielectric`` record,
+Mitsuba 3's ``fresnel``).
+
+References: B. Walter, S. Marschner, H. Li, K. Torrance, "Microfacet models
+for refraction through rough surfaces", EGSR 2007; E. Heitz, "Understanding
+the masking-shadowing function in microfacet-based BRDFs", JCGT 3(2), 2014;
+E. Heitz, "Sampling the GGX distribution of visible normals", JCGT 7(4), 2018;
+K. D. Möller, "Optics", 1988; W. Jakob et al., Mitsuba 3
+``include/mitsuba/render/{microfacet,fresnel}.h``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import warp as wp
+
+wp.set_module_options({"enable_backward": False})
+
+__all__ = [
+    "ALPHA_MIN",
+    "FresnelDielectric",
+    "ggx_d",
+    "ggx_g1",
+    "ggx_g2",
+    "sample_ggx_vndf",
+    "ggx_vndf_pdf",
+    "fresnel_conductor",
+    "fresnel_dielectric",
+    "reflect",
+    "refract",
+]
+
+#: smallest roughness used in kernels (Mitsuba clamps α to 1e-4 as well)
+ALPHA_MIN = wp.constant(1.0e-4)
+_PI = wp.constant(math.pi)
+_INV_PI = wp.constant(1.0 / math.pi)
+
+
+@wp.func
+def ggx_d(m: wp.vec3, alpha: float) -> float:
+    """GGX normal distribution D(m) (Walter et al. 2007, Eq. 33); 0 below the macro surface."""
+    a = wp.max(alpha, ALPHA_MIN)
+    x = m[0] / a
+    y = m[1] / a
+    s = x * x + y * y + m[2] * m[2]
+    d = _INV_PI / (a * a * s * s)
+    # Mitsuba's guard: drop denormal-sized values and the lower hemisphere
+    if d * m[2] > 1.0e-20:
+        return d
+    return 0.0
+
+
+@wp.func
+def ggx_g1(v: wp.vec3, m: wp.vec3, alpha: float) -> float:
+    """Smith masking G1(v, m) of GGX (Walter et al. 2007, Eq. 34), 0 when v sees the back of m."""
+    if wp.dot(v, m) * v[2] <= 0.0:
+        return 0.0
+    a = wp.max(alpha, ALPHA_MIN)
+    xy = a * a * (v[0] * v[0] + v[1] * v[1])
+    if xy == 0.0:
+        return 1.0  # normal incidence: no masking
+    tan2 = xy / (v[2] * v[2])  # α² tan²θ_v
+    return 2.0 / (1.0 + wp.sqrt(1.0 + tan2))
+
+
+@wp.func
+def ggx_g2(wo: wp.vec3, wi: wp.vec3, m: wp.vec3, alpha: float) -> float:
+    """Separable shadowing-masking G1(wo, m) G1(wi, m) (Mitsuba's ``G``)."""
+    return ggx_g1(wo, m, alpha) * ggx_g1(wi, m, alpha)
+
+
+@wp.func
+def sample_ggx_vndf(wo: wp.vec3, alpha: float, u: wp.vec2) -> wp.vec3:
+    """Microfacet normal m ~ D_wo (Heitz 2018, Listing 1); ``wo`` must lie in the upper hemisphere."""
+    a = wp.max(alpha, ALPHA_MIN)
+    # stretch to the hemisphere configuration (α = 1)
+    vh = wp.normalize(wp.vec3(a * wo[0], a * wo[1], wo[2]))
+    # orthonormal basis around vh (T1 = (1, 0, 0) when vh is the pole)
+    lensq = vh[0] * vh[0] + vh[1] * vh[1]
+    t1 = wp.vec3(1.0, 0.0, 0.0)
+    if lensq > 0.0:
+        t1 = wp.vec3(-vh[1], vh[0], 0.0) / wp.sqrt(lensq)
+    t2 = wp.cross(vh, t1)
+    # uniform point on the unit disk, lower half squashed to the projected hemisphere
+    r = wp.sqrt(u[0])
+    phi = 2.0 * _PI * u[1]
+    p1 = r * wp.cos(phi)
+    p2 = r * wp.sin(phi)
+    s = 0.5 * (1.0 + vh[2])
+    p2 = (1.0 - s) * wp.sqrt(wp.max(0.0, 1.0 - p1 * p1)) + s * p2
+    # reproject onto the hemisphere and unstretch
+    nh = p1 * t1 + p2 * t2 + wp.sqrt(wp.max(0.0, 1.0 - p1 * p1 - p2 * p2)) * vh
+    return wp.normalize(wp.vec3(a * nh[0], a * nh[1], wp.max(0.0, nh[2])))
+
+
+@wp.func
+def ggx_vndf_pdf(wo: wp.vec3, m: wp.vec3, alpha: float) -> float:
+    """Density D_wo(m) = G1(wo, m) max(0, wo·m) D(m) / cos θ_o of ``sample_ggx_vndf`` (Heitz 2018, Eq. 1)."""
+    if wo[2] <= 0.0:
+        return 0.0
+    return ggx_g1(wo, m, alpha) * wp.max(0.0, wp.dot(wo, m)) * ggx_d(m, alpha) / wo[2]
+
+
+@wp.func
+def _fresnel_conductor_1(cos_i: float, eta_r: float, eta_i: float) -> float:
+    # K. D. Möller, "Optics" (1988), as Mitsuba 3's fresnel_conductor; cos_i ≥ 0
+    c2 = cos_i * cos_i
+    s2 = 1.0 - c2
+    s4 = s2 * s2
+    temp1 = eta_r * eta_r - eta_i * eta_i - s2
+    a2pb2 = wp.sqrt(wp.max(0.0, temp1 * temp1 + 4.0 * eta_i * eta_i * eta_r * eta_r))
+    a = wp.sqrt(wp.max(0.0, 0.5 * (a2pb2 + temp1)))
+    term1 = a2pb2 + c2
+    term2 = 2.0 * cos_i * a
+    r_s = (term1 - term2) / (term1 + term2)
+    term3 = a2pb2 * c2 + s4
+    term4 = term2 * s2
+    r_p = r_s * (term3 - term4) / (term3 + term4)
+    return 0.5 * (r_s + r_p)
+
+
+@wp.func
+def fresnel_conductor(cos_i: float, eta: wp.vec3, k: wp.vec3) -> wp.vec3:
+    """Unpolarized reflectance of a conductor with complex index η + i k, per RGB channel (cos_i ≥ 0)."""
+    c = wp.clamp(cos_i, 0.0, 1.0)
+    return wp.vec3(
+        _fresnel_conductor_1(c, eta[0], k[0]),
+        _fresnel_conductor_1(c, eta[1], k[1]),
+        _fresnel_conductor_1(c, eta[2], k[2]),
+    )
+
+
+@wp.struct
+class FresnelDielectric:
+    """Result of ``fresnel_dielectric``: reflectance ``f``, signed ``cos_t`` (opposite side to cos_i), ``eta_it``, ``eta_ti``."""
+
+    f: float
+    cos_t: float
+    eta_it: float
+    eta_ti: float
+
+
+@wp.func
+def fresnel_dielectric(cos_i: float, eta: float) -> FresnelDielectric:
+    """Unpolarized dielectric Fresnel term for relative index η = η_int/η_ext (Mitsuba 3's ``fresnel``)."""
+    r = FresnelDielectric()
+    eta_it = eta
+    eta_ti = 1.0 / eta
+    if cos_i < 0.0:
+        eta_it = 1.0 / eta
+        eta_ti = eta
+    # Snell's law: squared cosine of the transmitted ray (negative under total internal reflection)
+    cos_t_sqr = 1.0 - (1.0 - cos_i * cos_i) * eta_ti * eta_ti
+    ci = wp.abs(cos_i)
+    ct = wp.sqrt(wp.max(0.0, cos_t_sqr))
+    a_s = (ci - eta_it * ct) / (ci + eta_it * ct)
+    a_p = (ct - eta_it * ci) / (ct + eta_it * ci)
+    f = 0.5 * (a_s * a_s + a_p * a_p)
+    if eta == 1.0:
+        f = 0.0  # index-matched: no interface
+    elif ci == 0.0:
+        f = 1.0  # grazing: everything reflects
+    r.f = f
+    r.cos_t = ct
+    if cos_i >= 0.0:
+        r.cos_t = -ct
+    r.eta_it = eta_it
+    r.eta_ti = eta_ti
+    return r
+
+
+@wp.func
+def reflect(v: wp.vec3, m: wp.vec3) -> wp.vec3:
+    """Mirror ``v`` about the (micro)normal ``m``: 2 (v·m) m − v."""
+    return 2.0 * wp.dot(v, m) * m - v
+
+
+@wp.func
+def refract(v: wp.vec3, m: wp.vec3, cos_t: float, eta_ti: float) -> wp.vec3:
+    """Refract ``v`` through ``m`` given ``cos_t`` and ``eta_ti`` from ``fresnel_dielectric`` (Mitsuba's ``refract``)."""
+    return m * (wp.dot(v, m) * eta_ti + cos_t) - v * eta_ti

@@ -1,0 +1,257 @@
+"""Rendering: named methods over named or loaded scenes, frame by frame.
+
+:func:`render` is the one driver behind ``grisx render`` and the benchmark
+runner. It resolves the scene (a built-in name from :mod:`grisx.scene.builtin`
+or a Mitsuba XML file), uploads it, and runs a *method* — a renderer object
+with ``render_frame(frame) -> wp.array2d(vec3)`` — for ``frames`` frames,
+moving the scene and camera along their paths, optionally averaging all
+frames (``accumulate``: how a reuse method converges under a static camera).
+Per-pass timings come from a :class:`PassTimer` that synchronizes the device
+before reading the clock, so GPU times are real.
+
+Methods register in :data:`METHODS` with their options (``--param k=v``,
+parsed by :class:`~grisx.theory.toys.base.Param`). The debug views
+(``gbuffer``, ``albedo``, ``normal``, ``depth``, ``motion``) show the
+G-buffer every renderer reads.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib
+import time
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import warp as wp
+
+from grisx.device import resolve_device, synchronize
+from grisx.errors import InvalidParameterError, InvalidValueError, UnknownNameError
+from grisx.theory.toys.base import Param
+
+__all__ = ["METHODS", "RenderMethod", "RenderContext", "RenderResult", "PassTimer", "render", "load_scene", "parse_res", "method_params"]
+
+
+class PassTimer:
+    """Wall-clock seconds per named pass, measured between device synchronizations."""
+
+    def __init__(self, device: wp.context.Device) -> None:
+        self.device = device
+        self.seconds: dict[str, float] = {}
+
+    def __call__(self, name: str) -> _PassScope:
+        return _PassScope(self, name)
+
+
+class _PassScope:
+    def __init__(self, timer: PassTimer, name: str) -> None:
+        self.timer, self.name = timer, name
+
+    def __enter__(self) -> None:
+        synchronize(self.timer.device)
+        self.start = time.perf_counter()
+
+    def __exit__(self, *exc: Any) -> None:
+        synchronize(self.timer.device)
+        self.timer.seconds[self.name] = self.timer.seconds.get(self.name, 0.0) + time.perf_counter() - self.start
+
+
+@dataclasses.dataclass
+class RenderContext:
+    """What a renderer is created with."""
+
+    built: Any  # BuiltScene
+    width: int
+    height: int
+    params: dict[str, Any]  # the method's params, resolved, plus "spp"
+    seed: int
+    timer: PassTimer
+    method: str
+
+
+@dataclasses.dataclass(frozen=True)
+class RenderMethod:
+    """A named renderer: ``module.factory(ctx: RenderContext)`` → object with ``render_frame(frame)``."""
+
+    name: str
+    summary: str
+    module: str  # imported lazily: compiling a renderer's kernels costs only when it is used
+    factory: str
+    params: tuple[Param, ...] = ()
+    kind: str = "radiance"  # "radiance" (linear RGB) or "debug" (a G-buffer view)
+
+    def create(self, ctx: RenderContext) -> Any:
+        return getattr(importlib.import_module(self.module), self.factory)(ctx)
+
+
+METHODS: dict[str, RenderMethod] = {}
+
+
+def register(method: RenderMethod) -> RenderMethod:
+    METHODS[method.name] = method
+    return method
+
+
+for _view, _doc in (
+    ("gbuffer", "every G-buffer field (one EXR per field) and a contact sheet PNG"),
+    ("albedo", "albedo at the primary hit"),
+    ("normal", "shading normal at the primary hit (n/2 + 1/2 in the PNG)"),
+    ("depth", "camera-space depth of the primary hit"),
+    ("motion", "motion vector into the previous frame, in pixels (EXR: dx, dy, 0)"),
+):
+    register(RenderMethod(_view, _doc, "grisx.scene.views", "create_view", kind="debug"))
+
+
+def method_params(method: str, params: Mapping[str, Any] | None) -> dict[str, Any]:
+    """Defaults of ``method`` merged with ``params``, parsed and range-checked."""
+    if method not in METHODS:
+        raise UnknownNameError("render method", method, sorted(METHODS))
+    m = METHODS[method]
+    known = {p.name: p for p in m.params}
+    out = {name: p.default for name, p in known.items()}
+    for key, value in (params or {}).items():
+        if key not in known:
+            raise UnknownNameError(f"param of render method '{method}'", key, sorted(known))
+        out[key] = known[key].parse(value, method)
+    return out
+
+
+def parse_res(text: str) -> tuple[int, int]:
+    """'WxH' → (W, H)."""
+    try:
+        w, h = (int(v) for v in str(text).lower().split("x"))
+    except ValueError:
+        raise InvalidParameterError(f"--res expects WxH (e.g. 640x480), got '{text}'") from None
+    if not (1 <= w <= 16384 and 1 <= h <= 16384):
+        raise InvalidParameterError(f"--res must be between 1x1 and 16384x16384, got '{text}'")
+    return w, h
+
+
+def load_scene(scene: str, params: Mapping[str, Any] | None = None) -> Any:
+    """A :class:`~grisx.scene.scene.Scene` from a built-in name or a Mitsuba XML path."""
+    from grisx.scene.builtin import BUILTIN_SCENES, build_builtin
+
+    if scene in BUILTIN_SCENES:
+        return build_builtin(scene)
+    path = Path(scene)
+    if path.suffix.lower() == ".xml" or path.exists():
+        if not path.is_file():
+            raise InvalidParameterError(f"scene file '{scene}' does not exist")
+        from grisx.scene.mitsuba import load_mitsuba
+
+        return load_mitsuba(path, params)
+    raise UnknownNameError("scene", scene, sorted(BUILTIN_SCENES) + ["<file.xml>"])
+
+
+@dataclasses.dataclass
+class RenderResult:
+    """What :func:`render` returns."""
+
+    image: np.ndarray  # (H, W, 3) float32 linear (or the view's channels for debug methods)
+    frames: int
+    spp: int
+    seconds: float
+    pass_seconds: dict[str, float]
+    device: str
+    settings: dict[str, Any]
+    extra: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)  # e.g. every G-buffer field
+
+
+def render(
+    scene: str | Any,
+    method: str,
+    *,
+    spp: int | None = None,
+    frames: int = 1,
+    accumulate: bool = False,
+    res: tuple[int, int] | None = None,
+    device: str = "cpu",
+    seed: int = 0,
+    params: Mapping[str, Any] | None = None,
+    on_frame: Callable[[int, np.ndarray, float], None] | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    camera: str = "auto",
+) -> RenderResult:
+    """Render ``scene`` with ``method`` for ``frames`` frames; see the module docstring.
+
+    ``scene`` is a built-in name, a path to a Mitsuba XML file, or a
+    :class:`~grisx.scene.scene.Scene`. ``spp`` defaults to the scene's
+    (a file's ``sampler`` ``sample_count``). ``on_frame(i, image, seconds)``
+    is called after each frame with the device synchronized (the image is the
+    running average when ``accumulate``). ``camera``: ``"static"`` (the
+    scene's default camera), ``"path"`` (its camera path, frame by frame) or
+    ``"auto"``: the path when several frames are rendered without
+    ``accumulate`` (averaging frames only converges under a static camera).
+    """
+    from grisx.scene.scene import Scene
+
+    if method not in METHODS:
+        raise UnknownNameError("render method", method, sorted(METHODS))
+    spec = METHODS[method]
+    resolved = method_params(method, params)
+    if isinstance(frames, bool) or not isinstance(frames, (int, np.integer)) or frames < 1:
+        raise InvalidParameterError(f"frames must be a positive integer, got {frames!r}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not (0 <= seed < 2**31):
+        raise InvalidParameterError(f"seed must be an integer in [0, 2^31), got {seed!r}")
+    sc = scene if isinstance(scene, Scene) else load_scene(str(scene))
+    spp = int(sc.defaults.get("spp", 16)) if spp is None else spp
+    if isinstance(spp, bool) or not isinstance(spp, (int, np.integer)) or spp < 1:
+        raise InvalidParameterError(f"spp must be a positive integer, got {spp!r}")
+    width, height = res if res is not None else (sc.film.width, sc.film.height)
+    dev = resolve_device(device)
+    if camera not in ("auto", "static", "path"):
+        raise InvalidParameterError(f"camera must be auto, static or path, got {camera!r}")
+    built = sc.build(dev)
+    built.animate_camera = camera == "path" or (camera == "auto" and frames > 1 and not accumulate)
+    timer = PassTimer(dev)
+    renderer = spec.create(RenderContext(built, width, height, {**resolved, "spp": int(spp)}, int(seed), timer, method))
+    acc = None
+    image = None
+    synchronize(dev)
+    start = time.perf_counter()
+    for f in range(frames):
+        with timer("scene_update"):
+            built.set_frame(float(f))
+        frame_img = renderer.render_frame(f)
+        synchronize(dev)
+        host = frame_img.numpy() if isinstance(frame_img, wp.array) else np.asarray(frame_img)
+        if accumulate:
+            acc = host.astype(np.float64) if acc is None else acc + host
+            image = (acc / (f + 1)).astype(np.float32)
+        else:
+            image = host.astype(np.float32)
+        if on_frame is not None:
+            on_frame(f, image, time.perf_counter() - start)
+        if progress is not None:
+            progress(f + 1, frames)
+    seconds = time.perf_counter() - start
+    bad = int(np.count_nonzero(~np.isfinite(image)))
+    if bad:
+        raise InvalidValueError(f"render '{method}' of '{sc.name}' produced {bad} NaN/Inf values")
+    extra = renderer.extra() if hasattr(renderer, "extra") else {}
+    settings = {
+        "scene": sc.name,
+        "method": method,
+        "params": resolved,
+        "width": width,
+        "height": height,
+        "spp": int(spp),
+        "frames": int(frames),
+        "accumulate": bool(accumulate),
+        "camera": "path" if built.animate_camera else "static",
+        "seed": int(seed),
+        "features": built.features.to_dict(),
+        "triangles": built.num_triangles,
+    }
+    return RenderResult(
+        image=image,
+        frames=int(frames),
+        spp=int(spp),
+        seconds=seconds,
+        pass_seconds=dict(timer.seconds),
+        device=str(dev),
+        settings=settings,
+        extra=extra,
+    )

@@ -1,0 +1,594 @@
+"""Scenes: a builder on the host and a :class:`SceneData` record on the device.
+
+A grisx scene is everything a renderer in the seeds needs at a surface point:
+
+* **geometry** — all triangles of all objects in *one* world-space
+  ``wp.Mesh`` (one BVH), with per-triangle material id, object id and flags,
+  per-vertex shading normals and UVs. Rigid motion (:class:`RigidMotion`)
+  moves an object's vertices each frame; the BVH is then *refit* (topology
+  does not change under rigid motion, so a rebuild is never needed), and
+  nothing is done at all on frames where no object moved;
+* **materials** (:mod:`grisx.scene.material`) with optional albedo textures
+  (:mod:`grisx.scene.texture`) and procedural normal perturbation (bumpy
+  and wavy surfaces: seed 003's caustic casters);
+* **lights** (:mod:`grisx.scene.lights`): emissive triangles, point lights
+  and an environment;
+* a **camera** (:mod:`grisx.scene.camera`), static or on a keyframed path,
+  and a film size; ``defaults`` carries a scene file's sample count and
+  maximum depth.
+
+:class:`Scene` is the builder the Mitsuba loader and the built-in scenes
+use; :meth:`Scene.build` uploads it and returns a :class:`BuiltScene` whose
+``data`` is the :class:`SceneData` struct kernels take. Surface queries
+(:func:`intersect`, :func:`occluded`, :func:`surface_material`) live here so
+every renderer reads surfaces the same way.
+
+:class:`SceneFeatures` records what a scene uses (material kinds, delta
+BSDFs, textures, bump, light types, motion) so that renderers compile only
+the code a scene needs (DESIGN.md, "Skip what a scene doesn't need").
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+import warp as wp
+
+from grisx.device import resolve_device
+from grisx.errors import InvalidParameterError, InvalidValueError
+from grisx.scene.camera import Camera, CameraData, CameraPath
+from grisx.scene.lights import ConstantEnvironment, EnvMap, LightSet, PointLight, build_light_set
+from grisx.scene.material import (
+    MATERIAL_CONDUCTOR,
+    MATERIAL_DIELECTRIC,
+    MATERIAL_ROUGH_DIELECTRIC,
+    Material,
+    material_kinds,
+    pack_materials,
+)
+from grisx.scene.texture import TextureSet, pack_textures, texture_lookup
+from grisx.scene.transform import rotate, translate
+
+wp.set_module_options({"enable_backward": False})
+
+__all__ = [
+    "Scene",
+    "BuiltScene",
+    "SceneData",
+    "SceneFeatures",
+    "SurfaceInteraction",
+    "RigidMotion",
+    "Film",
+    "intersect",
+    "occluded",
+    "surface_material",
+    "spawn_origin",
+    "TRI_HAS_NORMALS",
+    "TRI_HAS_UVS",
+]
+
+TRI_HAS_NORMALS = wp.constant(1)
+TRI_HAS_UVS = wp.constant(2)
+
+
+# ---- host-side records ---------------------------------------------------------
+
+
+@dataclasses.dataclass(frozen=True)
+class Film:
+    """Mitsuba's ``hdrfilm``: the output size."""
+
+    width: int = 256
+    height: int = 256
+
+    def __post_init__(self) -> None:
+        for name in ("width", "height"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not (1 <= v <= 16384):
+                raise InvalidParameterError(f"film {name} must be an integer in [1, 16384], got {v!r}")
+
+
+@dataclasses.dataclass(frozen=True)
+class RigidMotion:
+    """Rigid per-frame motion of an object on top of its ``to_world``.
+
+    M(t) = T(pivot + velocity·s(t)) · R(axis, angular_velocity·s(t)) · T(−pivot),
+    with s(t) = t, or ``period/(2π)·sin(2π t/period)`` when ``period`` is set
+    (a back-and-forth motion that returns to the start).
+    """
+
+    velocity: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    angular_velocity: float = 0.0  # degrees per frame
+    axis: tuple[float, float, float] = (0.0, 1.0, 0.0)
+    pivot: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    period: float | None = None
+
+    def transform(self, frame: float) -> np.ndarray:
+        s = frame if not self.period else self.period / (2 * math.pi) * math.sin(2 * math.pi * frame / self.period)
+        pivot = np.asarray(self.pivot, dtype=np.float64)
+        moved = translate(pivot + np.asarray(self.velocity, dtype=np.float64) * s)
+        return moved @ rotate(self.axis, self.angular_velocity * s) @ translate(-pivot)
+
+
+@dataclasses.dataclass
+class _Object:
+    name: str
+    vertices: np.ndarray  # world space at frame 0 (to_world applied)
+    faces: np.ndarray
+    normals: np.ndarray | None
+    uvs: np.ndarray | None
+    material: int
+    emission: np.ndarray | None
+    motion: RigidMotion | None
+
+
+@dataclasses.dataclass(frozen=True)
+class SceneFeatures:
+    """What a scene uses; renderers specialize their kernels on it."""
+
+    material_kinds: frozenset[int]
+    has_textures: bool
+    has_bump: bool
+    has_area_lights: bool
+    has_point_lights: bool
+    environment: str  # "none", "constant" or "envmap"
+    has_delta: bool
+    has_dielectric: bool
+    has_caustic_casters: bool  # delta or near-specular surfaces that can focus light (seed 003)
+    animated_camera: bool
+    animated_objects: bool
+
+    def to_dict(self) -> dict[str, Any]:
+        d = dataclasses.asdict(self)
+        d["material_kinds"] = sorted(self.material_kinds)
+        return d
+
+
+# ---- device-side records -------------------------------------------------------
+
+
+@wp.struct
+class SceneData:
+    mesh: wp.uint64
+    positions: wp.array(dtype=wp.vec3)  # world space, this frame
+    indices: wp.array(dtype=wp.int32)  # 3 per triangle
+    normals: wp.array(dtype=wp.vec3)  # world-space vertex normals (unused where the flag is clear)
+    uvs: wp.array(dtype=wp.vec2)
+    tri_material: wp.array(dtype=wp.int32)
+    tri_object: wp.array(dtype=wp.int32)
+    tri_flags: wp.array(dtype=wp.int32)
+    materials: wp.array(dtype=Material)
+    textures: TextureSet
+    lights: LightSet
+    ray_epsilon: float  # scaled to the scene's size
+    scene_radius: float
+
+
+@wp.struct
+class SurfaceInteraction:
+    valid: int
+    t: float
+    p: wp.vec3
+    ng: wp.vec3  # geometric normal (winding order)
+    ns: wp.vec3  # shading normal (interpolated, perturbed), same side as ng
+    uv: wp.vec2
+    bary: wp.vec2  # Warp's (u, v): p = u·p0 + v·p1 + (1−u−v)·p2
+    tri: int
+    material: int
+    object: int
+    front: int  # 1 when the ray arrived on the side ng points to
+
+
+@wp.func
+def spawn_origin(scene: SceneData, p: wp.vec3, ng: wp.vec3, d: wp.vec3) -> wp.vec3:
+    """Offset ``p`` off the surface to the side ``d`` leaves on (avoids self-intersection)."""
+    if wp.dot(d, ng) >= 0.0:
+        return p + ng * scene.ray_epsilon
+    return p - ng * scene.ray_epsilon
+
+
+@wp.func
+def _bump_gradient(p: wp.vec3, amplitude: float, frequency: float) -> wp.vec3:
+    # ∇h for h(p) = A·[sin(f a₁·p) + sin(f a₂·p) + ½ sin(2.1 f a₃·p)] over world position p, three fixed
+    # directions a_k: A·f sets the slope, f the wavelength; smooth, so manifold walks (seed 003) converge on it
+    a1 = wp.vec3(0.8, 0.1, 0.59)
+    a2 = wp.vec3(-0.36, 0.2, 0.91)
+    a3 = wp.vec3(0.55, -0.6, -0.58)
+    f = frequency
+    g = a1 * wp.cos(f * wp.dot(a1, p)) + a2 * wp.cos(f * wp.dot(a2, p)) + a3 * (1.05 * wp.cos(2.1 * f * wp.dot(a3, p)))
+    return g * (amplitude * f)
+
+
+@wp.func
+def perturb_normal(n: wp.vec3, p: wp.vec3, amplitude: float, frequency: float) -> wp.vec3:
+    """The shading normal of the height field h over the surface with normal ``n`` (the material's bump_* fields)."""
+    g = _bump_gradient(p, amplitude, frequency)
+    g_t = g - n * wp.dot(g, n)  # tangential part
+    return wp.normalize(n - g_t)
+
+
+@wp.func
+def intersect(scene: SceneData, o: wp.vec3, d: wp.vec3, tmax: float) -> SurfaceInteraction:
+    """Closest hit of the ray o + t·d (d unit), 0 < t < tmax."""
+    si = SurfaceInteraction()
+    si.valid = 0
+    q = wp.mesh_query_ray(scene.mesh, o, d, tmax)
+    if not q.result:
+        return si
+    tri = q.face
+    i0 = scene.indices[3 * tri + 0]
+    i1 = scene.indices[3 * tri + 1]
+    i2 = scene.indices[3 * tri + 2]
+    b0 = q.u
+    b1 = q.v
+    b2 = 1.0 - b0 - b1
+    si.valid = 1
+    si.t = q.t
+    si.tri = tri
+    si.bary = wp.vec2(b0, b1)
+    si.p = o + d * q.t
+    p0 = scene.positions[i0]
+    p1 = scene.positions[i1]
+    p2 = scene.positions[i2]
+    ng = wp.normalize(wp.cross(p1 - p0, p2 - p0))
+    si.ng = ng
+    flags = scene.tri_flags[tri]
+    ns = ng
+    if (flags & TRI_HAS_NORMALS) != 0:
+        nn = scene.normals[i0] * b0 + scene.normals[i1] * b1 + scene.normals[i2] * b2
+        if wp.length(nn) > 1.0e-12:
+            ns = wp.normalize(nn)
+    uv = wp.vec2(b1, b2)  # Mitsuba's default parametrization for meshes without UVs
+    if (flags & TRI_HAS_UVS) != 0:
+        uv = scene.uvs[i0] * b0 + scene.uvs[i1] * b1 + scene.uvs[i2] * b2
+    si.uv = uv
+    mat_id = scene.tri_material[tri]
+    si.material = mat_id
+    si.object = scene.tri_object[tri]
+    mat = scene.materials[mat_id]
+    if mat.bump_amplitude > 0.0:
+        ns = perturb_normal(ns, si.p, mat.bump_amplitude, mat.bump_frequency)
+    if wp.dot(ns, ng) < 0.0:
+        ns = -ns
+    si.ns = ns
+    si.front = int(wp.dot(d, ng) < 0.0)
+    return si
+
+
+@wp.func
+def occluded(scene: SceneData, o: wp.vec3, d: wp.vec3, dist: float) -> bool:
+    """Whether anything blocks the segment o → o + dist·d (d unit); the end point's surface is excluded."""
+    return wp.mesh_query_ray_anyhit(scene.mesh, o, d, dist * (1.0 - 1.0e-4) - scene.ray_epsilon)
+
+
+@wp.func
+def surface_material(scene: SceneData, si: SurfaceInteraction) -> Material:
+    """The material at ``si`` with its texture (if any) resolved into ``reflectance``."""
+    m = scene.materials[si.material]
+    if m.texture >= 0:
+        m.reflectance = texture_lookup(scene.textures, m.texture, si.uv)
+    return m
+
+
+@wp.kernel
+def _move_vertices(
+    base_positions: wp.array(dtype=wp.vec3),
+    base_normals: wp.array(dtype=wp.vec3),
+    vertex_object: wp.array(dtype=wp.int32),
+    transforms: wp.array(dtype=wp.mat44),
+    positions: wp.array(dtype=wp.vec3),
+    normals: wp.array(dtype=wp.vec3),
+):
+    i = wp.tid()
+    m = transforms[vertex_object[i]]
+    positions[i] = wp.transform_point(m, base_positions[i])
+    # rigid motion: the rotation part maps normals too
+    n = wp.transform_vector(m, base_normals[i])
+    if wp.length(n) > 0.0:
+        n = wp.normalize(n)
+    normals[i] = n
+
+
+# ---- builder -------------------------------------------------------------------
+
+
+def _as_float_array(name: str, a: Any, shape_tail: tuple[int, ...]) -> np.ndarray:
+    arr = np.asarray(a, dtype=np.float64)
+    if arr.ndim != 1 + len(shape_tail) or arr.shape[1:] != shape_tail:
+        raise InvalidValueError(f"{name}: expected shape (N, {', '.join(map(str, shape_tail))}), got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise InvalidValueError(f"{name}: contains NaN or Inf")
+    return arr
+
+
+def _rgb(name: str, value: Any) -> np.ndarray:
+    v = np.asarray(value, dtype=np.float64).reshape(-1)
+    if v.size == 1:
+        v = np.repeat(v, 3)
+    if v.size != 3 or not np.all(np.isfinite(v)) or np.any(v < 0):
+        raise InvalidValueError(f"{name}: expected a non-negative RGB triple, got {value!r}")
+    return v
+
+
+class Scene:
+    """Builder of a scene: materials, textures, meshes, lights, camera, film and defaults.
+
+    All inputs are validated here, so a bad scene fails at build time with a
+    message naming the object, not inside a kernel.
+    """
+
+    def __init__(self, name: str = "scene") -> None:
+        self.name = name
+        self.materials: list[Any] = []
+        self.material_names: dict[str, int] = {}
+        self.textures: list[np.ndarray] = []
+        self.objects: list[_Object] = []
+        self.point_lights: list[PointLight] = []
+        self.environment: ConstantEnvironment | EnvMap | None = None
+        self.camera: Camera = Camera()
+        self.camera_path: CameraPath | None = None
+        self.film = Film()
+        self.defaults: dict[str, Any] = {"spp": 16, "max_depth": 16}
+        self.description = ""
+
+    # ---- content --------------------------------------------------------------
+    def add_material(self, desc: Any, name: str | None = None) -> int:
+        """Register material record ``desc`` (:mod:`grisx.scene.material`); returns its id."""
+        self.materials.append(desc)
+        mid = len(self.materials) - 1
+        if name is not None:
+            self.material_names[name] = mid
+        return mid
+
+    def add_texture(self, image: np.ndarray, name: str | None = None) -> int:
+        """Register a linear RGB image (H, W, 3) as an albedo texture; returns its id."""
+        img = np.asarray(image, dtype=np.float32)
+        if img.ndim == 2:
+            img = np.repeat(img[:, :, None], 3, axis=2)
+        if img.ndim != 3 or img.shape[2] < 3:
+            raise InvalidValueError(f"texture {name or len(self.textures)}: expected (H, W, 3), got {img.shape}")
+        self.textures.append(img[:, :, :3])
+        return len(self.textures) - 1
+
+    def add_mesh(
+        self,
+        vertices: Any,
+        faces: Any,
+        *,
+        material: int,
+        normals: Any = None,
+        uvs: Any = None,
+        emission: Any = None,
+        to_world: Any = None,
+        motion: RigidMotion | None = None,
+        name: str | None = None,
+    ) -> int:
+        """Add a triangle mesh (object-space ``vertices``, ``faces`` as vertex index triples)."""
+        name = name or f"mesh{len(self.objects)}"
+        v = _as_float_array(f"mesh '{name}' vertices", vertices, (3,))
+        f = np.asarray(faces)
+        if f.ndim != 2 or f.shape[1] != 3 or not np.issubdtype(f.dtype, np.integer):
+            raise InvalidValueError(f"mesh '{name}' faces: expected integer shape (M, 3), got {f.dtype} {f.shape}")
+        if f.size and (f.min() < 0 or f.max() >= len(v)):
+            raise InvalidValueError(f"mesh '{name}' faces: vertex index out of range [0, {len(v)})")
+        if len(f) == 0:
+            raise InvalidValueError(f"mesh '{name}' has no triangles")
+        if not (isinstance(material, (int, np.integer)) and 0 <= material < len(self.materials)):
+            raise InvalidParameterError(f"mesh '{name}': unknown material id {material!r}")
+        m = np.eye(4) if to_world is None else np.asarray(to_world, dtype=np.float64).reshape(4, 4)
+        if not np.all(np.isfinite(m)) or abs(np.linalg.det(m[:3, :3])) < 1e-20:
+            raise InvalidValueError(f"mesh '{name}': to_world must be finite and invertible")
+        vw = v @ m[:3, :3].T + m[:3, 3]
+        n = None
+        if normals is not None:
+            n = _as_float_array(f"mesh '{name}' normals", normals, (3,))
+            if len(n) != len(v):
+                raise InvalidValueError(f"mesh '{name}': {len(n)} normals for {len(v)} vertices")
+            n = n @ np.linalg.inv(m[:3, :3])  # inverse transpose, row-vector form
+            lengths = np.linalg.norm(n, axis=1, keepdims=True)
+            n = np.where(lengths > 0, n / np.where(lengths > 0, lengths, 1), 0.0)
+        uv = None
+        if uvs is not None:
+            uv = _as_float_array(f"mesh '{name}' uvs", uvs, (2,))
+            if len(uv) != len(v):
+                raise InvalidValueError(f"mesh '{name}': {len(uv)} uvs for {len(v)} vertices")
+        e = None if emission is None else _rgb(f"mesh '{name}' emission", emission)
+        self.objects.append(_Object(name, vw, f.astype(np.int64), n, uv, int(material), e, motion))
+        return len(self.objects) - 1
+
+    def add_point_light(self, position: Sequence[float], intensity: Any) -> None:
+        self.point_lights.append(PointLight(position=tuple(float(x) for x in position), intensity=tuple(_rgb("point light intensity", intensity))))
+
+    def set_environment(self, env: ConstantEnvironment | EnvMap | None) -> None:
+        self.environment = env
+
+    def set_camera(self, camera: Camera, path: CameraPath | None = None) -> None:
+        self.camera = camera
+        self.camera_path = path
+
+    # ---- queries ----------------------------------------------------------------
+    @property
+    def triangle_count(self) -> int:
+        return sum(len(o.faces) for o in self.objects)
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        if not self.objects:
+            return np.zeros(3), np.zeros(3)
+        allv = np.concatenate([o.vertices for o in self.objects])
+        return allv.min(axis=0), allv.max(axis=0)
+
+    def _bumpy(self, material: int) -> bool:
+        return getattr(self.materials[material], "bump_amplitude", 0.0) > 0.0
+
+    def features(self) -> SceneFeatures:
+        kinds = frozenset(material_kinds(self.materials)) if self.materials else frozenset()
+        delta = {MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC}
+        used = {o.material for o in self.objects}
+        used_kinds = frozenset(material_kinds([self.materials[i] for i in sorted(used)])) if used else frozenset()
+        env = "none" if self.environment is None else ("constant" if isinstance(self.environment, ConstantEnvironment) else "envmap")
+        caustic = any(
+            k in (MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, MATERIAL_ROUGH_DIELECTRIC) for k in used_kinds
+        ) or any(self._bumpy(i) for i in used)
+        return SceneFeatures(
+            material_kinds=used_kinds or kinds,
+            has_textures=bool(self.textures),
+            has_bump=any(self._bumpy(i) for i in used),
+            has_area_lights=any(o.emission is not None for o in self.objects),
+            has_point_lights=bool(self.point_lights),
+            environment=env,
+            has_delta=bool(used_kinds & delta),
+            has_dielectric=bool(used_kinds & {MATERIAL_DIELECTRIC, MATERIAL_ROUGH_DIELECTRIC}),
+            has_caustic_casters=caustic,
+            animated_camera=self.camera_path is not None and len(self.camera_path.keys) > 1,
+            animated_objects=any(o.motion is not None for o in self.objects),
+        )
+
+    # ---- upload -------------------------------------------------------------------
+    def build(self, device: str | wp.context.Device = "cpu") -> BuiltScene:
+        """Upload the scene to ``device`` and build its BVH."""
+        if not self.objects:
+            raise InvalidParameterError(f"scene '{self.name}' has no shapes")
+        if not any(o.emission is not None for o in self.objects) and not self.point_lights and self.environment is None:
+            raise InvalidParameterError(f"scene '{self.name}' has no light source (area emitter, point light or environment)")
+        return BuiltScene(self, resolve_device(device))
+
+
+class BuiltScene:
+    """A scene on a device: its BVH, the :class:`SceneData` struct, lights and per-frame motion."""
+
+    def __init__(self, scene: Scene, device: wp.context.Device) -> None:
+        self.scene = scene
+        self.name = scene.name
+        self.device = device
+        self.features = scene.features()
+        self.film = scene.film
+        self.defaults = dict(scene.defaults)
+        self.camera = scene.camera
+        self.camera_path = scene.camera_path
+        #: follow the camera path (renderers set it for animated sequences)
+        self.animate_camera = False
+
+        objs = scene.objects
+        verts, faces, norms, uvs = [], [], [], []
+        vobj, tri_mat, tri_obj, tri_flags = [], [], [], []
+        emitter_tris, emitter_radiance = [], []
+        base = 0
+        tri_base = 0
+        for oid, o in enumerate(objs):
+            nv, nf = len(o.vertices), len(o.faces)
+            verts.append(o.vertices)
+            faces.append(o.faces + base)
+            norms.append(o.normals if o.normals is not None else np.zeros((nv, 3)))
+            uvs.append(o.uvs if o.uvs is not None else np.zeros((nv, 2)))
+            vobj.append(np.full(nv, oid))
+            tri_mat.append(np.full(nf, o.material))
+            tri_obj.append(np.full(nf, oid))
+            flags = (1 if o.normals is not None else 0) | (2 if o.uvs is not None else 0)
+            tri_flags.append(np.full(nf, flags))
+            if o.emission is not None:
+                emitter_tris.append(np.arange(tri_base, tri_base + nf))
+                emitter_radiance.append(np.repeat(o.emission[None, :], nf, axis=0))
+            base += nv
+            tri_base += nf
+        dev = device
+        f32 = np.float32
+        self.base_positions = wp.array(np.concatenate(verts).astype(f32), dtype=wp.vec3, device=dev)
+        self.base_normals = wp.array(np.concatenate(norms).astype(f32), dtype=wp.vec3, device=dev)
+        self.positions = wp.clone(self.base_positions)
+        self.normals = wp.clone(self.base_normals)
+        self.indices = wp.array(np.concatenate(faces).reshape(-1).astype(np.int32), dtype=wp.int32, device=dev)
+        self.vertex_object = wp.array(np.concatenate(vobj).astype(np.int32), dtype=wp.int32, device=dev)
+        self.mesh = wp.Mesh(points=self.positions, indices=self.indices)
+        lo, hi = scene.bounds()
+        self.bounds = (lo, hi)
+        radius = float(max(np.linalg.norm(hi - lo) / 2, 1e-3))
+        self.scene_radius = radius
+        self.num_triangles = tri_base
+        self.num_vertices = base
+
+        # lights
+        etris = np.concatenate(emitter_tris).astype(np.int32) if emitter_tris else np.zeros(0, np.int32)
+        erad = np.concatenate(emitter_radiance).astype(f32) if emitter_radiance else np.zeros((0, 3), f32)
+        self.lights = build_light_set(
+            dev,
+            positions=self.positions,
+            indices=self.indices,
+            emitter_tris=etris,
+            emitter_radiance=erad,
+            point_lights=list(scene.point_lights),
+            environment=scene.environment,
+            scene_radius=radius,
+        )
+
+        mats = list(scene.materials)
+        self.materials = pack_materials(mats, dev)
+        self.textures = pack_textures(scene.textures, dev)
+
+        d = SceneData()
+        d.mesh = self.mesh.id
+        d.positions = self.positions
+        d.indices = self.indices
+        d.normals = self.normals
+        d.uvs = wp.array(np.concatenate(uvs).astype(f32), dtype=wp.vec2, device=dev)
+        d.tri_material = wp.array(np.concatenate(tri_mat).astype(np.int32), dtype=wp.int32, device=dev)
+        d.tri_object = wp.array(np.concatenate(tri_obj).astype(np.int32), dtype=wp.int32, device=dev)
+        d.tri_flags = wp.array(np.concatenate(tri_flags).astype(np.int32), dtype=wp.int32, device=dev)
+        d.materials = self.materials
+        d.textures = self.textures
+        d.lights = self.lights
+        d.ray_epsilon = 1.0e-4 * max(1.0, radius)
+        d.scene_radius = radius
+        self.data = d
+
+        n_obj = len(objs)
+        ident = np.tile(np.eye(4, dtype=f32), (n_obj, 1, 1))
+        self.object_transforms = wp.array(ident, dtype=wp.mat44, device=dev)
+        self.object_transforms_prev = wp.array(ident, dtype=wp.mat44, device=dev)
+        self.frame: float | None = None
+        self._host_transforms = ident.astype(np.float64)
+        self.set_frame(0.0)
+
+    # ---- per frame ----------------------------------------------------------------
+    def transforms_at(self, frame: float) -> np.ndarray:
+        out = np.tile(np.eye(4), (len(self.scene.objects), 1, 1))
+        for i, o in enumerate(self.scene.objects):
+            if o.motion is not None:
+                out[i] = o.motion.transform(frame)
+        return out
+
+    def set_frame(self, frame: float) -> bool:
+        """Move objects to ``frame``; returns whether any geometry moved (the BVH is refit only then)."""
+        new = self.transforms_at(frame)
+        prev = self.transforms_at(max(frame - 1.0, 0.0))
+        self.object_transforms_prev.assign(prev.astype(np.float32))
+        moved = not np.array_equal(new, self._host_transforms)
+        self.frame = frame
+        if not moved:
+            return False
+        self._host_transforms = new
+        self.object_transforms.assign(new.astype(np.float32))
+        wp.launch(
+            _move_vertices,
+            dim=self.num_vertices,
+            inputs=[self.base_positions, self.base_normals, self.vertex_object, self.object_transforms],
+            outputs=[self.positions, self.normals],
+            device=self.device,
+        )
+        self.mesh.refit()
+        return True
+
+    def camera_at(self, frame: float) -> Camera:
+        """The camera at ``frame``: on the camera path when ``animate_camera`` is set, else the static one.
+
+        Frames before 0 are frame 0 (the first frame has no motion).
+        """
+        if self.camera_path is None or not self.animate_camera:
+            return self.camera
+        return dataclasses.replace(self.camera, to_world=self.camera_path.to_world(max(frame, 0.0)))
+
+    def camera_data(self, frame: float, width: int, height: int) -> CameraData:
+        return self.camera_at(frame).data(width, height)

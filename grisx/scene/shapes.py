@@ -1,0 +1,433 @@
+"""Triangle meshes for Mitsuba 3's shapes, and OBJ/PLY loading.
+
+grisx renders triangles only, so Mitsuba's analytic shapes are tessellated
+here with **Mitsuba 3's object-space conventions** [Mitsuba3], so that a
+scene file frames and lights the same in both renderers:
+
+=============  ==================================================================
+``rectangle``  [-1, 1]² in the z = 0 plane, normal +z, uv = (x+1, y+1)/2
+               (two triangles; ``rectangle.cpp``)
+``cube``       [-1, 1]³, 24 vertices with per-face outward normals, every face
+               mapped onto [0, 1]² in uv (Mitsuba's own vertex, normal, uv and
+               triangle tables; ``cube.cpp``)
+``sphere``     unit sphere (``center``/``radius`` become part of ``to_world``,
+               ``to_world · translate(center) · scale(radius)`` as in
+               ``sphere.cpp``), smooth outward vertex normals, uv = (φ/2π, θ/π)
+               with θ = acos z, φ = atan2(y, x) ∈ [0, 2π)
+``disk``       unit disk in the z = 0 plane, normal +z, uv = (r, φ/2π)
+               (``disk.cpp``)
+=============  ==================================================================
+
+**Orientation.** A triangle's front side is the one its counter-clockwise
+winding faces, ``ng = (p1 − p0) × (p2 − p0)``: grisx derives geometric
+normals (and the emitting side of one-sided area lights) from winding, so
+every mesh here has winding and vertex normals that agree. ``flip_normals``
+reverses the winding *and* negates vertex normals, which is what Mitsuba's
+``flip_normals`` does for every shape (analytic shapes flip their frame,
+meshes negate ``n`` and the shading normal).
+
+**Tessellation.** Spheres and disks are inscribed polygons. With ``N`` segments
+around the axis the silhouette of a sphere of projected radius ``r`` pixels
+deviates from the true circle by at most ``r (1 − cos(π/N)) ≈ r π²/(2N²)``
+pixels; the defaults (``segments=256``, ``rings=128`` for spheres) keep that
+below 0.05 px for a sphere filling a 1080p frame (r = 540 px), and below half
+a pixel up to r ≈ 6600 px. The area converges to 4πr² as O(1/N²).
+
+**Meshes.** :func:`load_mesh` reads OBJ with a small parser that follows
+Mitsuba's ``obj.cpp`` exactly (vertices are unique ``v/vt/vn`` index triples,
+so UV and normal seams are kept; polygons are fan-triangulated; texture ``v``
+is flipped, ``v ← 1 − v``, Mitsuba's default ``flip_tex_coords=true``), and
+PLY with ``trimesh`` (``process=False``: no merging or reordering), taking
+vertex normals (``nx, ny, nz``) and texture coordinates (``u, v``, ``s, t``,
+``texture_u, texture_v`` or ``texture_s, texture_t``) from the file as they
+are. When a file has no normals, smooth normals are computed with Mitsuba's
+weighting (face normals weighted by the corner angle; Thürmer & Wüthrich
+1998), unless ``face_normals=True``, which drops normals altogether (faceted
+shading, Mitsuba's ``face_normals``).
+
+Every function returns a :class:`MeshData` record in object space.
+
+References
+----------
+[Mitsuba3] W. Jakob et al., Mitsuba 3 renderer, plugin reference "Shapes"
+           and ``src/shapes/{rectangle,cube,sphere,disk,obj,ply}.cpp``,
+           https://mitsuba.readthedocs.io (2022).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+
+from grisx.errors import GrisxError, InvalidParameterError
+
+__all__ = [
+    "MeshData",
+    "rectangle",
+    "cube",
+    "sphere",
+    "disk",
+    "load_mesh",
+    "load_obj",
+    "load_ply",
+    "flip_mesh",
+    "vertex_normals",
+    "mesh_area",
+    "face_normals_of",
+]
+
+
+@dataclasses.dataclass(frozen=True)
+class MeshData:
+    """A triangle mesh in object space.
+
+    ``vertices`` (n, 3) float64, ``faces`` (m, 3) int64 (counter-clockwise =
+    front), ``normals`` (n, 3) unit vertex normals or ``None`` (face normals),
+    ``uvs`` (n, 2) or ``None``.
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    normals: np.ndarray | None = None
+    uvs: np.ndarray | None = None
+
+    def __iter__(self):  # allows ``vertices, faces, normals, uvs = load_mesh(...)``
+        return iter((self.vertices, self.faces, self.normals, self.uvs))
+
+
+def flip_mesh(mesh: MeshData) -> MeshData:
+    """Turn the mesh inside out: reverse the winding and negate the vertex normals (Mitsuba's ``flip_normals``)."""
+    return MeshData(
+        mesh.vertices,
+        mesh.faces[:, [0, 2, 1]].copy(),
+        None if mesh.normals is None else -mesh.normals,
+        mesh.uvs,
+    )
+
+
+def _finish(mesh: MeshData, flip_normals: bool) -> MeshData:
+    return flip_mesh(mesh) if flip_normals else mesh
+
+
+def face_normals_of(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Unnormalized face normals (p1 − p0) × (p2 − p0); their length is twice the triangle area."""
+    v = np.asarray(vertices, dtype=np.float64)
+    p0, p1, p2 = v[faces[:, 0]], v[faces[:, 1]], v[faces[:, 2]]
+    return np.cross(p1 - p0, p2 - p0)
+
+
+def mesh_area(vertices: np.ndarray, faces: np.ndarray) -> float:
+    """Total surface area of a triangle mesh."""
+    return float(0.5 * np.linalg.norm(face_normals_of(vertices, faces), axis=1).sum())
+
+
+# ---- analytic shapes -------------------------------------------------------------
+
+
+def rectangle(flip_normals: bool = False) -> MeshData:
+    """Mitsuba's ``rectangle``: [-1, 1]² at z = 0, normal +z, uv = (x+1, y+1)/2."""
+    v = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], dtype=np.float64)
+    f = np.array([[0, 1, 2], [0, 2, 3]], dtype=np.int64)
+    n = np.tile([0.0, 0.0, 1.0], (4, 1))
+    uv = 0.5 * (v[:, :2] + 1.0)
+    return _finish(MeshData(v, f, n, uv), flip_normals)
+
+
+# Mitsuba 3's cube tables (src/shapes/cube.cpp): 6 faces × 4 vertices.
+_CUBE_VERTICES = [
+    (1, -1, -1), (1, -1, 1), (-1, -1, 1), (-1, -1, -1),
+    (1, 1, -1), (-1, 1, -1), (-1, 1, 1), (1, 1, 1),
+    (1, -1, -1), (1, 1, -1), (1, 1, 1), (1, -1, 1),
+    (1, -1, 1), (1, 1, 1), (-1, 1, 1), (-1, -1, 1),
+    (-1, -1, 1), (-1, 1, 1), (-1, 1, -1), (-1, -1, -1),
+    (1, 1, -1), (1, -1, -1), (-1, -1, -1), (-1, 1, -1),
+]
+_CUBE_FACE_NORMALS = [(0, -1, 0), (0, 1, 0), (1, 0, 0), (0, 0, 1), (-1, 0, 0), (0, 0, -1)]
+_CUBE_UVS = [(0, 1), (1, 1), (1, 0), (0, 0)] * 6
+_CUBE_TRIANGLES = [
+    (0, 1, 2), (3, 0, 2), (4, 5, 6), (7, 4, 6), (8, 9, 10), (11, 8, 10),
+    (12, 13, 14), (15, 12, 14), (16, 17, 18), (19, 16, 18), (20, 21, 22), (23, 20, 22),
+]
+
+
+def cube(flip_normals: bool = False) -> MeshData:
+    """Mitsuba's ``cube``: [-1, 1]³, 24 vertices, 12 triangles, outward per-face normals."""
+    v = np.array(_CUBE_VERTICES, dtype=np.float64)
+    n = np.repeat(np.array(_CUBE_FACE_NORMALS, dtype=np.float64), 4, axis=0)
+    uv = np.array(_CUBE_UVS, dtype=np.float64)
+    f = np.array(_CUBE_TRIANGLES, dtype=np.int64)
+    return _finish(MeshData(v, f, n, uv), flip_normals)
+
+
+def _check_count(name: str, value: int, minimum: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+        raise InvalidParameterError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
+
+
+def sphere(
+    center: tuple[float, float, float] | None = None,
+    radius: float = 1.0,
+    flip_normals: bool = False,
+    segments: int = 256,
+    rings: int = 128,
+) -> MeshData:
+    """Mitsuba's ``sphere`` as a UV-sphere: ``segments`` around z, ``rings`` from pole to pole.
+
+    Vertices lie on the sphere (inscribed); normals are the exact sphere
+    normals; uv = (φ/2π, θ/π) as Mitsuba's ``sphere`` (seam and pole vertices
+    are duplicated so uv is continuous within every triangle). ``center`` and
+    ``radius`` are applied here; the loader instead puts them into
+    ``to_world`` exactly as Mitsuba does and calls ``sphere()``.
+    """
+    segments = _check_count("sphere segments", segments, 3)
+    rings = _check_count("sphere rings", rings, 2)
+    if not (math.isfinite(radius) and radius > 0):
+        raise InvalidParameterError(f"sphere radius must be positive and finite, got {radius!r}")
+    theta = np.linspace(0.0, math.pi, rings + 1)  # ring i, theta_0 = 0 is the +z pole
+    phi = np.linspace(0.0, 2 * math.pi, segments + 1)  # column j; j = segments duplicates j = 0 (uv seam)
+    # interior rings: (rings - 1) × (segments + 1) vertices
+    th, ph = np.meshgrid(theta[1:-1], phi, indexing="ij")
+    ring_p = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], axis=-1).reshape(-1, 3)
+    ring_uv = np.stack([ph / (2 * math.pi), th / math.pi], axis=-1).reshape(-1, 2)
+    # pole vertices, one per segment, at u = centre of the segment
+    u_mid = (np.arange(segments) + 0.5) / segments
+    north = np.tile([0.0, 0.0, 1.0], (segments, 1))
+    south = np.tile([0.0, 0.0, -1.0], (segments, 1))
+    verts = np.concatenate([north, ring_p, south])
+    uvs = np.concatenate([np.stack([u_mid, np.zeros(segments)], -1), ring_uv, np.stack([u_mid, np.ones(segments)], -1)])
+    # exact values at the seam: sin(2π) is not 0 in floating point
+    verts[np.abs(verts) < 1e-15] = 0.0
+
+    def ring_index(i: int, j: np.ndarray) -> np.ndarray:  # ring i in 1..rings-1
+        return segments + (i - 1) * (segments + 1) + j
+
+    j = np.arange(segments)
+    faces = [np.stack([j, ring_index(1, j), ring_index(1, j + 1)], -1)]  # north cap: pole, ring1[j], ring1[j+1]
+    for i in range(1, rings - 1):
+        a, b = ring_index(i, j), ring_index(i + 1, j)
+        c, d = ring_index(i + 1, j + 1), ring_index(i, j + 1)
+        # (a, b, c) and (a, c, d): south × east = outward (a→b goes south, a→d goes east)
+        faces.append(np.stack([a, b, c], -1))
+        faces.append(np.stack([a, c, d], -1))
+    south_base = segments + (rings - 1) * (segments + 1)
+    faces.append(np.stack([ring_index(rings - 1, j), south_base + j, ring_index(rings - 1, j + 1)], -1))
+    f = np.concatenate(faces).astype(np.int64)
+    normals = verts.copy()
+    c = np.zeros(3) if center is None else np.asarray(center, dtype=np.float64)
+    return _finish(MeshData(verts * radius + c, f, normals, uvs), flip_normals)
+
+
+def disk(flip_normals: bool = False, segments: int = 256) -> MeshData:
+    """Mitsuba's ``disk``: unit disk at z = 0, normal +z, uv = (r, φ/2π) (a fan of ``segments`` triangles)."""
+    segments = _check_count("disk segments", segments, 3)
+    phi = np.linspace(0.0, 2 * math.pi, segments + 1)
+    rim = np.stack([np.cos(phi), np.sin(phi), np.zeros_like(phi)], -1)
+    rim[np.abs(rim) < 1e-15] = 0.0
+    centre = np.zeros((segments, 3))  # one centre vertex per segment: uv's v = φ/2π differs per wedge
+    v = np.concatenate([centre, rim])
+    u_mid = (np.arange(segments) + 0.5) / segments
+    uv = np.concatenate([np.stack([np.zeros(segments), u_mid], -1), np.stack([np.ones(segments + 1), phi / (2 * math.pi)], -1)])
+    j = np.arange(segments)
+    f = np.stack([j, segments + j, segments + j + 1], -1).astype(np.int64)
+    n = np.tile([0.0, 0.0, 1.0], (len(v), 1))
+    return _finish(MeshData(v, f, n, uv), flip_normals)
+
+
+# ---- meshes from files -----------------------------------------------------------
+
+
+def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Smooth vertex normals as Mitsuba's ``Mesh::recompute_vertex_normals``.
+
+    Each face adds its unit normal weighted by its interior angle at the
+    vertex (Thürmer & Wüthrich 1998); degenerate faces add nothing. A vertex
+    that only touches degenerate faces gets an arbitrary +z (it is never hit).
+    """
+    v = np.asarray(vertices, dtype=np.float64)
+    fn = face_normals_of(v, faces)
+    length = np.linalg.norm(fn, axis=1)
+    ok = length > 0
+    fn = np.where(ok[:, None], fn / np.where(ok, length, 1.0)[:, None], 0.0)
+    out = np.zeros_like(v)
+    for k in range(3):
+        i0, i1, i2 = faces[:, k], faces[:, (k + 1) % 3], faces[:, (k + 2) % 3]
+        e1 = v[i1] - v[i0]
+        e2 = v[i2] - v[i0]
+        n1 = np.linalg.norm(e1, axis=1)
+        n2 = np.linalg.norm(e2, axis=1)
+        cosang = np.einsum("ij,ij->i", e1, e2) / np.maximum(n1 * n2, 1e-300)
+        angle = np.arccos(np.clip(cosang, -1.0, 1.0))
+        np.add.at(out, i0, fn * angle[:, None])
+    length = np.linalg.norm(out, axis=1)
+    good = length > 0
+    out[good] /= length[good, None]
+    out[~good] = (0.0, 0.0, 1.0)
+    return out
+
+
+def _mesh_error(path: Path, what: str) -> GrisxError:
+    return GrisxError(f"cannot load mesh '{path}': {what}")
+
+
+def _obj_index(token: str, count: int, kind: str, path: Path, line: int) -> int:
+    try:
+        i = int(token)
+    except ValueError:
+        raise _mesh_error(path, f"line {line}: bad {kind} index '{token}'") from None
+    j = i - 1 if i > 0 else count + i  # OBJ indices are 1-based; negative ones count from the end
+    if not (0 <= j < count) or i == 0:
+        raise _mesh_error(path, f"line {line}: {kind} index {i} out of range (have {count})")
+    return j
+
+
+def load_obj(path: str | os.PathLike, flip_tex_coords: bool = True) -> MeshData:
+    """Read a Wavefront OBJ file as Mitsuba's ``obj`` plugin does (see module docstring).
+
+    Returns the file's normals (or ``None`` when it has none) and uvs (or ``None``).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise _mesh_error(path, "no such file")
+    pos: list[tuple[float, float, float]] = []
+    tex: list[tuple[float, float]] = []
+    nrm: list[tuple[float, float, float]] = []
+    key_to_vertex: dict[tuple[int, int, int], int] = {}
+    keys: list[tuple[int, int, int]] = []
+    tris: list[tuple[int, int, int]] = []
+    with open(path, encoding="utf-8", errors="replace") as fh:
+        for lineno, raw in enumerate(fh, start=1):
+            parts = raw.split()
+            if not parts:
+                continue
+            tag = parts[0]
+            try:
+                if tag == "v":
+                    pos.append((float(parts[1]), float(parts[2]), float(parts[3])))
+                elif tag == "vt":
+                    u = float(parts[1])
+                    w = float(parts[2]) if len(parts) > 2 else 0.0
+                    tex.append((u, 1.0 - w if flip_tex_coords else w))
+                elif tag == "vn":
+                    nrm.append((float(parts[1]), float(parts[2]), float(parts[3])))
+            except (IndexError, ValueError):
+                raise _mesh_error(path, f"line {lineno}: could not parse '{raw.strip()}'") from None
+            if tag != "f":
+                continue  # o, g, s, usemtl, mtllib, l, p: geometry groups are merged, as Mitsuba does
+            corner_ids = []
+            for tok in parts[1:]:
+                fields = tok.split("/")
+                if len(fields) > 3 or not fields[0]:
+                    raise _mesh_error(path, f"line {lineno}: bad face vertex '{tok}'")
+                vi = _obj_index(fields[0], len(pos), "vertex", path, lineno)
+                ti = _obj_index(fields[1], len(tex), "texture coordinate", path, lineno) if len(fields) > 1 and fields[1] else -1
+                ni = _obj_index(fields[2], len(nrm), "normal", path, lineno) if len(fields) > 2 and fields[2] else -1
+                key = (vi, ti, ni)
+                vid = key_to_vertex.get(key)
+                if vid is None:
+                    vid = key_to_vertex[key] = len(keys)
+                    keys.append(key)
+                corner_ids.append(vid)
+            if len(corner_ids) < 3:
+                raise _mesh_error(path, f"line {lineno}: a face needs at least 3 vertices")
+            for k in range(1, len(corner_ids) - 1):  # fan, as obj.cpp
+                tris.append((corner_ids[0], corner_ids[k], corner_ids[k + 1]))
+    if not tris:
+        raise _mesh_error(path, "no faces")
+    k = np.asarray(keys, dtype=np.int64)
+    vertices = np.asarray(pos, dtype=np.float64)[k[:, 0]]
+    uvs = None
+    if tex and np.all(k[:, 1] >= 0):
+        uvs = np.asarray(tex, dtype=np.float64)[k[:, 1]]
+    elif tex and np.any(k[:, 1] >= 0):
+        raise _mesh_error(path, "some face vertices have texture coordinates and others do not")
+    normals = None
+    if nrm and np.all(k[:, 2] >= 0):
+        normals = np.asarray(nrm, dtype=np.float64)[k[:, 2]]
+        ln = np.linalg.norm(normals, axis=1, keepdims=True)
+        if np.any(ln == 0) or not np.all(np.isfinite(normals)):
+            raise _mesh_error(path, "zero-length or invalid vertex normal")
+        normals = normals / ln
+    elif nrm and np.any(k[:, 2] >= 0):
+        raise _mesh_error(path, "some face vertices have normals and others do not")
+    if not np.all(np.isfinite(vertices)):
+        raise _mesh_error(path, "invalid vertex position data")
+    return MeshData(vertices, np.asarray(tris, dtype=np.int64), normals, uvs)
+
+
+_PLY_UV_NAMES = (("u", "v"), ("s", "t"), ("texture_u", "texture_v"), ("texture_s", "texture_t"))
+
+
+def load_ply(path: str | os.PathLike) -> MeshData:
+    """Read a PLY file (ASCII or binary) with trimesh, keeping its vertex order, normals and uvs."""
+    path = Path(path)
+    if not path.is_file():
+        raise _mesh_error(path, "no such file")
+    import trimesh  # a declared dependency; imported lazily (it is slow to import)
+
+    try:
+        m = trimesh.load(str(path), file_type="ply", process=False, force="mesh")
+    except Exception as exc:  # trimesh raises many kinds of errors on bad files
+        raise _mesh_error(path, f"{type(exc).__name__}: {exc}") from None
+    if not isinstance(m, trimesh.Trimesh) or len(m.faces) == 0:
+        raise _mesh_error(path, "no triangle faces (point clouds are not supported)")
+    vertices = np.asarray(m.vertices, dtype=np.float64)
+    faces = np.asarray(m.faces, dtype=np.int64)
+    data = (m.metadata or {}).get("_ply_raw", {}).get("vertex", {}).get("data", {})
+    # ASCII files come back as a dict of columns, binary ones as a structured array
+    names = data.dtype.names or () if isinstance(data, np.ndarray) else tuple(data)
+    raw = {name: data[name] for name in names}
+    if "x" in raw:  # trimesh keeps the file's vertex order with process=False; check it
+        xyz = np.column_stack([np.asarray(raw[c], dtype=np.float64).reshape(-1) for c in ("x", "y", "z")])
+        if xyz.shape != vertices.shape or not np.allclose(xyz, vertices):
+            raise _mesh_error(path, "internal: trimesh reordered the vertices")
+
+    def column(name: str) -> np.ndarray:
+        return np.asarray(raw[name], dtype=np.float64).reshape(-1)
+
+    normals = None
+    if all(c in raw for c in ("nx", "ny", "nz")):
+        normals = np.column_stack([column(c) for c in ("nx", "ny", "nz")])
+        ln = np.linalg.norm(normals, axis=1, keepdims=True)
+        if np.any(ln == 0) or not np.all(np.isfinite(normals)):
+            raise _mesh_error(path, "zero-length or invalid vertex normal")
+        normals = normals / ln
+    uvs = None
+    for a, b in _PLY_UV_NAMES:
+        if a in raw and b in raw:
+            uvs = np.column_stack([column(a), column(b)])
+            break
+    if not np.all(np.isfinite(vertices)):
+        raise _mesh_error(path, "invalid vertex position data")
+    return MeshData(vertices, faces, normals, uvs)
+
+
+def load_mesh(
+    path: str | os.PathLike,
+    face_normals: bool = False,
+    flip_normals: bool = False,
+    flip_tex_coords: bool = True,
+) -> MeshData:
+    """Load an ``.obj`` or ``.ply`` mesh in object space (see module docstring).
+
+    ``normals`` is the file's vertex normals, or Mitsuba's angle-weighted
+    smooth normals when the file has none, or ``None`` with ``face_normals``.
+    ``flip_tex_coords`` applies to OBJ only (Mitsuba's default ``true``).
+    """
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix == ".obj":
+        mesh = load_obj(path, flip_tex_coords=flip_tex_coords)
+    elif suffix == ".ply":
+        mesh = load_ply(path)
+    else:
+        raise _mesh_error(path, f"unknown mesh format '{suffix}' (expected .obj or .ply)")
+    if face_normals:
+        mesh = MeshData(mesh.vertices, mesh.faces, None, mesh.uvs)
+    elif mesh.normals is None:
+        mesh = MeshData(mesh.vertices, mesh.faces, vertex_normals(mesh.vertices, mesh.faces), mesh.uvs)
+    return _finish(mesh, flip_normals)

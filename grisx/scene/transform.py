@@ -1,0 +1,50 @@
+"""4×4 affine transforms with Mitsuba's conventions (column vectors, angles in degrees).
+
+``translate(v) @ rotate(axis, angle) @ scale(s)`` applies the scale first,
+as Mitsuba's ``to_world`` chains do. ``lookat`` lives in
+:mod:`grisx.scene.camera` (the sensor frame is a camera concept).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from grisx.errors import InvalidParameterError
+
+__all__ = ["translate", "rotate", "scale", "compose"]
+
+
+def translate(v: Sequence[float]) -> np.ndarray:
+    m = np.eye(4)
+    m[:3, 3] = np.asarray(v, dtype=np.float64).reshape(3)
+    return m
+
+
+def rotate(axis: Sequence[float], angle: float) -> np.ndarray:
+    """Counter-clockwise rotation by ``angle`` degrees about ``axis`` (Rodrigues)."""
+    a = np.asarray(axis, dtype=np.float64).reshape(3)
+    n = np.linalg.norm(a)
+    if not np.isfinite(n) or n == 0:
+        raise InvalidParameterError(f"rotate: axis must be a non-zero vector, got {a.tolist()}")
+    a = a / n
+    t = math.radians(angle)
+    k = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+    m = np.eye(4)
+    m[:3, :3] = np.eye(3) + math.sin(t) * k + (1 - math.cos(t)) * (k @ k)
+    return m
+
+
+def scale(s: float | Sequence[float]) -> np.ndarray:
+    v = np.broadcast_to(np.asarray(s, dtype=np.float64), (3,))
+    return np.diag([*v, 1.0])
+
+
+def compose(*ms: np.ndarray) -> np.ndarray:
+    """m₁ @ m₂ @ … (the rightmost applies first)."""
+    out = np.eye(4)
+    for m in ms:
+        out = out @ m
+    return out
