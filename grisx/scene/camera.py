@@ -181,7 +181,8 @@ class CameraRay:
 class PixelProjection:
     pixel: wp.vec2  # continuous pixel coordinates (x right, y down; pixel centers at +0.5)
     depth: float  # camera-space z
-    valid: int  # in front of the camera and inside the film
+    valid: int  # in front of the camera
+    inside: int  # and inside the film
 
 
 @wp.func
@@ -227,11 +228,13 @@ def camera_project(cam: CameraData, p: wp.vec3) -> PixelProjection:
     out = PixelProjection()
     out.depth = q[2]
     out.valid = 0
+    out.inside = 0
     if q[2] <= 1.0e-8:
         return out
+    out.valid = 1
     sx = 0.5 * (1.0 - q[0] / (q[2] * cam.tan_half[0]))
     sy = 0.5 * (1.0 - q[1] / (q[2] * cam.tan_half[1]))
     out.pixel = wp.vec2(sx * float(cam.width), sy * float(cam.height))
     if sx >= 0.0 and sx < 1.0 and sy >= 0.0 and sy < 1.0:
-        out.valid = 1
+        out.inside = 1
     return out

@@ -59,7 +59,7 @@ class GBufferData:
     depth: wp.array2d(dtype=float)  # camera-space z; 0 where nothing was hit
     tri: wp.array2d(dtype=wp.int32)
     bary: wp.array2d(dtype=wp.vec2)
-    motion: wp.array2d(dtype=wp.vec2)  # previous-frame pixel position minus this pixel's, fractional
+    motion: wp.array2d(dtype=wp.vec2)  # previous-frame pixel position minus this pixel's, fractional (may leave the film)
     motion_int: wp.array2d(dtype=wp.vec2i)  # the same, rounded to whole pixels
     emission: wp.array2d(dtype=wp.vec3)  # radiance emitted toward the camera (environment where nothing was hit)
     hit: wp.array2d(dtype=wp.int32)

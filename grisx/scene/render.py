@@ -104,6 +104,21 @@ for _view, _doc in (
     register(RenderMethod(_view, _doc, "grisx.scene.views", "create_view", kind="debug"))
 
 
+register(
+    RenderMethod(
+        "pt",
+        "reference path tracer: BSDF sampling + next-event estimation, power-heuristic MIS, Russian roulette",
+        "grisx.scene.pt",
+        "create_path_tracer",
+        params=(
+            Param("max_depth", 16, "longest path in segments, Mitsuba's meaning (1: emitters only, 2: + direct light, -1: unbounded); default: the scene's", kind="int", minimum=-1),
+            Param("rr_depth", 5, "depth from which Russian roulette may end paths", kind="int", minimum=1),
+            Param("strategy", "mis", "mis: NEE and BSDF sampling with the power heuristic; nee or bsdf: one technique alone", kind="choice", choices=("mis", "nee", "bsdf")),
+        ),
+    )
+)
+
+
 def method_params(method: str, params: Mapping[str, Any] | None) -> dict[str, Any]:
     """Defaults of ``method`` merged with ``params``, parsed and range-checked."""
     if method not in METHODS:
@@ -196,6 +211,11 @@ def render(
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not (0 <= seed < 2**31):
         raise InvalidParameterError(f"seed must be an integer in [0, 2^31), got {seed!r}")
     sc = scene if isinstance(scene, Scene) else load_scene(str(scene))
+    if "max_depth" in resolved:
+        if "max_depth" not in (params or {}):
+            resolved["max_depth"] = int(sc.defaults.get("max_depth", resolved["max_depth"]))
+        if resolved["max_depth"] == 0:
+            raise InvalidParameterError("param 'max_depth' must be -1 (unbounded) or >= 1, got 0")
     spp = int(sc.defaults.get("spp", 16)) if spp is None else spp
     if isinstance(spp, bool) or not isinstance(spp, (int, np.integer)) or spp < 1:
         raise InvalidParameterError(f"spp must be a positive integer, got {spp!r}")
@@ -207,6 +227,8 @@ def render(
     built.animate_camera = camera == "path" or (camera == "auto" and frames > 1 and not accumulate)
     timer = PassTimer(dev)
     renderer = spec.create(RenderContext(built, width, height, {**resolved, "spp": int(spp)}, int(seed), timer, method))
+    for kernel in renderer.kernels() if hasattr(renderer, "kernels") else ():
+        wp.load_module(kernel.module, device=dev)  # compiling is not rendering: keep it off the clock
     acc = None
     image = None
     synchronize(dev)

@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from grisx.scene.gbuffer import GBuffer
+from grisx.scene.gbuffer import GBuffer, gbuffer_kernel
 from grisx.scene.scene import BuiltScene
 
 __all__ = ["GBufferView", "create_view", "display_image"]
@@ -20,6 +20,9 @@ class GBufferView:
         self.view = view
         self.timer = timer
         self.gbuffer = GBuffer(width, height, built.device)
+
+    def kernels(self) -> list[Any]:
+        return [gbuffer_kernel]
 
     def render_frame(self, frame: int) -> np.ndarray:
         with self.timer("gbuffer"):

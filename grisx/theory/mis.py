@@ -33,6 +33,11 @@ every point with f ≠ 0 — the canonical sample's job.
 Only domains whose support holds y are counted. Counting *every* domain
 (the naive 1/M of biased ReSTIR) is the same formula with the wrong Z, and is
 biased exactly where a shift is a partial bijection.
+
+**Power heuristic** (Veach 1997, Eq. 9.13, β = 2) for the two sampling
+techniques of a path tracer (BSDF sampling and next-event estimation)::
+
+    m_a(x) = p_a(x)² / (p_a(x)² + p_b(x)²)
 """
 
 from __future__ import annotations
@@ -49,6 +54,7 @@ __all__ = [
     "support_count_term",
     "support_mis",
     "confidence_share",
+    "power_heuristic",
     "mis_weight",
     "MIS_MODES",
 ]
@@ -172,6 +178,22 @@ def confidence_share(confidence: float, total: float) -> float:
     if total > 0.0:
         return confidence / total
     return 0.0
+
+
+@wp.func
+def power_heuristic(pdf_a: float, pdf_b: float) -> float:
+    """m_a = p_a² / (p_a² + p_b²) (Veach 1997, Eq. 9.13); 0 when both densities are 0.
+
+    Evaluated through the ratio of the smaller to the larger density, so huge
+    densities (near-delta lobes) cannot overflow float32.
+    """
+    if pdf_a <= 0.0:
+        return 0.0
+    if pdf_a >= pdf_b:
+        r = pdf_b / pdf_a
+        return 1.0 / (1.0 + r * r)
+    r = pdf_a / pdf_b
+    return r * r / (1.0 + r * r)
 
 
 # ---- one entry point for reuse passes --------------------------------------
