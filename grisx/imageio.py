@@ -33,7 +33,7 @@ import numpy as np
 
 from grisx.errors import GrisxError
 
-__all__ = ["read_exr", "write_exr", "write_png", "srgb_encode"]
+__all__ = ["read_exr", "write_exr", "write_png", "srgb_encode", "srgb_decode"]
 
 
 def _openexr():
@@ -101,6 +101,12 @@ def write_exr(path: str | os.PathLike, array: np.ndarray) -> Path:
         Path(tmp).unlink(missing_ok=True)
         raise GrisxError(f"cannot write EXR '{path}': {exc}") from None
     return path
+
+
+def srgb_decode(encoded: np.ndarray) -> np.ndarray:
+    """sRGB-encoded values in [0, 1] → linear (IEC 61966-2-1), as Mitsuba linearises 8-bit bitmaps."""
+    c = np.asarray(encoded, dtype=np.float64)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
 
 
 def srgb_encode(linear: np.ndarray) -> np.ndarray:

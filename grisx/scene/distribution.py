@@ -217,6 +217,12 @@ def build_piecewise_constant_1d(func: np.ndarray, device: str | None = None) -> 
 
 
 @wp.func
+def _cell(x: float, n: int) -> int:
+    """The cell ⌊x n⌋ of x in [0, 1), clamped to [0, n − 1]."""
+    return wp.clamp(int(x * float(n)), 0, n - 1)
+
+
+@wp.func
 def _sample_cdf(
     func: wp.array(dtype=wp.float32),
     cdf: wp.array(dtype=wp.float32),
@@ -243,18 +249,22 @@ def _sample_cdf(
     if c1 - c0 > 0.0:
         du = du / (c1 - c0)
     du = wp.clamp(du, 0.0, _ONE_MINUS_EPS)
+    x = wp.min((float(o) + du) / float(n), _ONE_MINUS_EPS)
+    # float32 rounding of (o + du) / n can carry x over a cell edge (likely once o ~ 1000): step it back
+    # so that the pdf functions, which find the cell as ⌊x n⌋, agree with the cell sampled here
+    for _step in range(4):
+        c = _cell(x, n)
+        if c > o:
+            x = x - x * 1.2e-7
+        elif c < o:
+            x = x + x * 1.2e-7
     s = PiecewiseConstant1DSample()
-    s.x = wp.min((float(o) + du) / float(n), _ONE_MINUS_EPS)
+    s.x = x
     s.index = o
     s.pdf = 0.0
     if integral > 0.0:
         s.pdf = func[f_offset + o] / integral
     return s
-
-
-@wp.func
-def _cell(x: float, n: int) -> int:
-    return wp.clamp(int(x * float(n)), 0, n - 1)
 
 
 @wp.func

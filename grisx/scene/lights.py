@@ -87,6 +87,7 @@ import numpy as np
 import warp as wp
 
 from grisx.errors import InvalidParameterError, InvalidValueError
+from grisx.imageio import srgb_decode
 from grisx.scene.distribution import (
     AliasTable,
     PiecewiseConstant2D,
@@ -191,11 +192,6 @@ def _lum(rgb: np.ndarray) -> np.ndarray:
     return np.asarray(rgb, dtype=np.float64) @ np.asarray(LUMINANCE_WEIGHTS)
 
 
-def _srgb_decode(c: np.ndarray) -> np.ndarray:
-    """sRGB-encoded values in [0, 1] → linear (IEC 61966-2-1), as Mitsuba linearises 8-bit bitmaps."""
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
-
-
 def load_envmap_image(source: Any) -> np.ndarray:
     """An envmap image as float64 (H, W, 3) linear RGB, from an array or an EXR / PNG / JPEG file."""
     if isinstance(source, (str, os.PathLike)):
@@ -212,7 +208,7 @@ def load_envmap_image(source: Any) -> np.ndarray:
 
             with Image.open(path) as im:
                 raw = np.asarray(im.convert("RGB"), dtype=np.float64) / 255.0
-            img = _srgb_decode(raw)
+            img = srgb_decode(raw)
         else:
             raise InvalidParameterError(f"envmap image '{path}': unsupported format '{suffix}' (use .exr, .png or .jpg)")
         what = f"envmap image '{path}'"
@@ -596,6 +592,8 @@ def _as_vec3_array(value: Any, device: str | None, what: str) -> wp.array:
             raise InvalidParameterError(f"{what} must be a Warp array of vec3, got dtype {value.dtype}")
         return value
     a = np.asarray(value, dtype=np.float64)
+    if a.size == 0:
+        a = a.reshape(0, 3)
     if a.ndim != 2 or a.shape[1] != 3:
         raise InvalidParameterError(f"{what} must have shape (n, 3), got {a.shape}")
     if not np.all(np.isfinite(a)):
@@ -609,6 +607,8 @@ def _as_index_array(value: Any, device: str | None) -> wp.array:
             raise InvalidParameterError(f"indices must be a Warp array of int32, got dtype {value.dtype}")
         return value
     a = np.asarray(value)
+    if a.size == 0:
+        a = np.zeros(0, dtype=np.int32)
     if a.dtype.kind not in "iu" or not (a.ndim == 1 and a.size % 3 == 0 or a.ndim == 2 and a.shape[1] == 3):
         raise InvalidParameterError(f"indices must be integers of shape (m, 3) or (3m,), got {a.dtype} {a.shape}")
     return wp.array(a.astype(np.int32).ravel(), dtype=wp.int32, device=device)
@@ -692,6 +692,7 @@ def build_light_set(
     ls.env_to_world = wp.mat33(np.eye(3, dtype=np.float32))
     ls.env_to_local = wp.mat33(np.eye(3, dtype=np.float32))
     image = np.zeros((3, 2, 3))
+    weights = np.ones((1, 1))  # sampling cells of the envmap (a dummy without one)
     env_power: list[float] = []
     if environment is not None:
         r = float(scene_radius)
@@ -722,7 +723,7 @@ def build_light_set(
     ls.env_image = wp.array(padded.reshape(-1, 3).astype(np.float32), dtype=wp.vec3, device=device)
     ls.env_width = int(w)
     ls.env_height = int(h)
-    ls.env_distribution = build_piecewise_constant_2d(_envmap_cell_weights(image) if ls.env_kind == 2 else np.ones((1, 1)), device)
+    ls.env_distribution = build_piecewise_constant_2d(weights, device)
     ls.scene_radius = float(scene_radius)
 
     # ---- selection over all lights ----

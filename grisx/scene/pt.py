@@ -149,6 +149,7 @@ def make_path_tracer_kernel(kinds: frozenset[int]) -> Any:
         strategy: int,
         total: wp.array2d(dtype=wp.vec3),
         total_sq: wp.array2d(dtype=wp.vec3),
+        nonfinite: wp.array(dtype=wp.int32),
     ):
         y, x = wp.tid()
         pixel = y * cam.width + x
@@ -158,9 +159,10 @@ def make_path_tracer_kernel(kinds: frozenset[int]) -> Any:
         py = float(y) + random_uniform(key, 1)
         ray = camera_ray(cam, px, py, wp.vec2(random_uniform(key, 2), random_uniform(key, 3)))
         L = trace_path(scene, ray.o, ray.d, random_subkey(key, 1), max_depth, rr_depth, strategy)
-        # a NaN/Inf sample would poison the pixel forever: drop it (counted by the tests, never expected)
+        # a NaN/Inf sample would poison the pixel forever: drop it, and count it (the tests require 0)
         if not (wp.isfinite(L[0]) and wp.isfinite(L[1]) and wp.isfinite(L[2])):
             L = wp.vec3(0.0, 0.0, 0.0)
+            wp.atomic_add(nonfinite, 0, 1)
         total[y, x] = total[y, x] + L
         total_sq[y, x] = total_sq[y, x] + wp.cw_mul(L, L)
 
@@ -196,6 +198,7 @@ class PathTracer:
         dev = built.device
         self.total = wp.zeros((self.height, self.width), dtype=wp.vec3, device=dev)
         self.total_sq = wp.zeros((self.height, self.width), dtype=wp.vec3, device=dev)
+        self.nonfinite = wp.zeros(1, dtype=wp.int32, device=dev)
         self.samples = 0
 
     def kernels(self) -> list[Any]:
@@ -214,7 +217,7 @@ class PathTracer:
                 self.kernel,
                 dim=(self.height, self.width),
                 inputs=[self.built.data, cam, self.seed, int(frame), self.samples, self.max_depth, self.rr_depth, self.strategy],
-                outputs=[self.total, self.total_sq],
+                outputs=[self.total, self.total_sq, self.nonfinite],
                 device=self.built.device,
             )
             self.samples += 1
@@ -231,6 +234,11 @@ class PathTracer:
 
     def mean(self) -> np.ndarray:
         return self.total.numpy() / max(self.samples, 1)
+
+    @property
+    def nonfinite_samples(self) -> int:
+        """Samples dropped because they were NaN or Inf (over the renderer's lifetime)."""
+        return int(self.nonfinite.numpy()[0])
 
     def variance_of_mean(self) -> np.ndarray:
         """Per-pixel sample variance divided by the sample count (the squared standard error)."""

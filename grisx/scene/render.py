@@ -267,6 +267,8 @@ def render(
         "features": built.features.to_dict(),
         "triangles": built.num_triangles,
     }
+    if hasattr(renderer, "nonfinite_samples"):
+        settings["nonfinite_samples"] = renderer.nonfinite_samples  # dropped NaN/Inf samples; 0 expected
     return RenderResult(
         image=image,
         frames=int(frames),

@@ -26,12 +26,13 @@ reverses the winding *and* negates vertex normals, which is what Mitsuba's
 ``flip_normals`` does for every shape (analytic shapes flip their frame,
 meshes negate ``n`` and the shading normal).
 
-**Tessellation.** Spheres and disks are inscribed polygons. With ``N`` segments
-around the axis the silhouette of a sphere of projected radius ``r`` pixels
-deviates from the true circle by at most ``r (1 − cos(π/N)) ≈ r π²/(2N²)``
-pixels; the defaults (``segments=256``, ``rings=128`` for spheres) keep that
-below 0.05 px for a sphere filling a 1080p frame (r = 540 px), and below half
-a pixel up to r ≈ 6600 px. The area converges to 4πr² as O(1/N²).
+**Tessellation.** Spheres and disks are inscribed polygons. A disk of ``N``
+segments deviates from the circle by ``r (1 − cos(π/N)) ≈ r π²/(2N²)``; a UV
+sphere's faces (quads split along a diagonal) come closer to the centre, by at
+most ``≈ r π²/N²`` with ``rings = N/2``. The defaults (``segments=256``,
+``rings=128``) keep the silhouette error of a sphere filling a 1080p frame
+(projected radius 540 px) at 0.08 px, and below half a pixel up to a
+projected radius of ≈ 3300 px. The area converges to 4πr² as O(1/N²).
 
 **Meshes.** :func:`load_mesh` reads OBJ with a small parser that follows
 Mitsuba's ``obj.cpp`` exactly (vertices are unique ``v/vt/vn`` index triples,
@@ -40,7 +41,7 @@ is flipped, ``v ← 1 − v``, Mitsuba's default ``flip_tex_coords=true``), and
 PLY with ``trimesh`` (``process=False``: no merging or reordering), taking
 vertex normals (``nx, ny, nz``) and texture coordinates (``u, v``, ``s, t``,
 ``texture_u, texture_v`` or ``texture_s, texture_t``) from the file as they
-are. When a file has no normals, smooth normals are computed with Mitsuba's
+are (Mitsuba's ``ply`` has ``flip_tex_coords`` too, default false). When a file has no normals, smooth normals are computed with Mitsuba's
 weighting (face normals weighted by the corner angle; Thürmer & Wüthrich
 1998), unless ``face_normals=True``, which drops normals altogether (faceted
 shading, Mitsuba's ``face_normals``).
@@ -362,8 +363,12 @@ def load_obj(path: str | os.PathLike, flip_tex_coords: bool = True) -> MeshData:
 _PLY_UV_NAMES = (("u", "v"), ("s", "t"), ("texture_u", "texture_v"), ("texture_s", "texture_t"))
 
 
-def load_ply(path: str | os.PathLike) -> MeshData:
-    """Read a PLY file (ASCII or binary) with trimesh, keeping its vertex order, normals and uvs."""
+def load_ply(path: str | os.PathLike, flip_tex_coords: bool = False) -> MeshData:
+    """Read a PLY file (ASCII or binary) with trimesh, keeping its vertex order, normals and uvs.
+
+    Faces may come back grouped by polygon size (trimesh triangulates
+    triangles and larger polygons separately); winding is the file's.
+    """
     path = Path(path)
     if not path.is_file():
         raise _mesh_error(path, "no such file")
@@ -400,6 +405,8 @@ def load_ply(path: str | os.PathLike) -> MeshData:
     for a, b in _PLY_UV_NAMES:
         if a in raw and b in raw:
             uvs = np.column_stack([column(a), column(b)])
+            if flip_tex_coords:
+                uvs[:, 1] = 1.0 - uvs[:, 1]
             break
     if not np.all(np.isfinite(vertices)):
         raise _mesh_error(path, "invalid vertex position data")
@@ -410,20 +417,21 @@ def load_mesh(
     path: str | os.PathLike,
     face_normals: bool = False,
     flip_normals: bool = False,
-    flip_tex_coords: bool = True,
+    flip_tex_coords: bool | None = None,
 ) -> MeshData:
     """Load an ``.obj`` or ``.ply`` mesh in object space (see module docstring).
 
     ``normals`` is the file's vertex normals, or Mitsuba's angle-weighted
     smooth normals when the file has none, or ``None`` with ``face_normals``.
-    ``flip_tex_coords`` applies to OBJ only (Mitsuba's default ``true``).
+    ``flip_tex_coords`` (v ← 1 − v) defaults to Mitsuba's per-format
+    default: ``True`` for OBJ, ``False`` for PLY.
     """
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix == ".obj":
-        mesh = load_obj(path, flip_tex_coords=flip_tex_coords)
+        mesh = load_obj(path, flip_tex_coords=True if flip_tex_coords is None else flip_tex_coords)
     elif suffix == ".ply":
-        mesh = load_ply(path)
+        mesh = load_ply(path, flip_tex_coords=bool(flip_tex_coords))
     else:
         raise _mesh_error(path, f"unknown mesh format '{suffix}' (expected .obj or .ply)")
     if face_normals:

@@ -1,0 +1,964 @@
+"""Mitsuba 3 scene files (XML): a documented subset, read into a :class:`~grisx.scene.scene.Scene`.
+
+Research scenes are shared as Mitsuba XML. :func:`load_mitsuba` reads the
+subset below with **Mitsuba 3's meaning** for every element (geometry of the
+analytic shapes, ``fov_axis``, one-sided area emitters, radiance units,
+``max_depth``), so the same file gives the same picture in Mitsuba and in
+grisx. Anything outside the subset — an element, a plugin type, a parameter,
+an attribute — raises :class:`~grisx.errors.SceneFileError` whose message
+starts with ``file:line:`` and names the element and the attribute or
+parameter; so does malformed XML. Nothing is silently ignored, except the
+few output-format options listed as "accepted, ignored".
+
+Supported subset
+----------------
+Document
+    ``<scene version="X.Y.Z">`` (required; versions < 2 — Mitsuba 0.x files —
+    have their camelCase parameter names converted to snake_case, as Mitsuba 3
+    does). ``<default name value>`` (top level) and ``$name`` in any
+    attribute value: the ``params`` argument overrides defaults; an unknown
+    ``$name`` is an error. ``id`` on any object and ``<ref id [name]>`` to
+    BSDFs and textures (in any order; ids are unique).
+Values
+    ``float``, ``integer``, ``boolean`` (true/false), ``string``,
+    ``point``/``vector`` (``x, y, z`` attributes or ``value="x, y, z"``),
+    ``rgb`` (``value``: 3 numbers, or 1 broadcast), ``spectrum`` (one constant
+    ``value`` only). Numbers may be separated by commas and/or spaces.
+    Where a colour is expected, ``rgb``, ``spectrum`` and ``float`` are accepted.
+Transforms ``<transform name="to_world">``
+    ``translate`` (x/y/z or value), ``rotate`` (axis as x/y/z or value,
+    ``angle`` in degrees, right-handed), ``scale`` (value: 1 or 3 numbers, or
+    x/y/z), ``matrix`` (value: 16 numbers row-major, or 9 for the linear
+    part), ``lookat`` (origin, target, optional up); each one is applied after
+    the ones before it (M ← op · M), as Mitsuba composes them.
+``sensor``
+    ``perspective`` (``fov`` with ``fov_axis`` x [default] / y / diagonal /
+    smaller / larger, or ``focal_length`` ["50mm" default, 35 mm film
+    diagonal], ``near_clip`` [1e-2], ``far_clip`` [1e4], ``to_world``;
+    ``focus_distance`` accepted, no effect on a pinhole) and ``thinlens``
+    (plus ``aperture_radius``, ``focus_distance``, both required here).
+    Nested ``film`` and ``sampler``. At most one sensor.
+``film``
+    ``hdrfilm``: ``width`` [768], ``height`` [576]; ``pixel_format``,
+    ``component_format``, ``file_format`` accepted, ignored (output encoding).
+    Nested ``rfilter``: ``box``; ``gaussian`` (``stddev``) is accepted and
+    reconstructed as a box — deliberately: it is Mitsuba's default filter, so
+    almost every Mitsuba scene uses it implicitly, and it only changes
+    sub-pixel reconstruction. Other filters are errors.
+``sampler``
+    ``independent``, ``stratified``, ``multijitter``, ``orthogonal``,
+    ``ldsampler``: ``sample_count`` [4] → ``scene.defaults["spp"]``; ``seed``
+    accepted, ignored (grisx seeds its own streams).
+``integrator``
+    ``path`` (and ``volpath``, identical without media): ``max_depth`` [-1 =
+    unbounded] → ``scene.defaults["max_depth"]`` with Mitsuba's meaning (1 =
+    directly visible emitters only, 2 = direct lighting, ...); ``rr_depth``
+    [5] → ``scene.defaults["rr_depth"]``; ``hide_emitters`` false only.
+``shape``
+    ``rectangle``, ``cube`` (``face_normals``), ``sphere`` (``center``,
+    ``radius``), ``disk``, ``obj`` (``filename``, ``face_normals``, ``flip_tex_coords`` [true]),
+    ``ply`` (``filename``, ``face_normals``, ``flip_tex_coords`` [false]); all with ``to_world`` and
+    ``flip_normals``; a nested or referenced ``bsdf`` (default: diffuse 0.5)
+    and a nested ``emitter type="area"``. Geometry: :mod:`grisx.scene.shapes`.
+``bsdf``
+    ``diffuse`` (``reflectance``: colour or ``bitmap`` texture [0.5]);
+    ``conductor`` / ``roughconductor`` (``material`` [none] or ``eta``/``k``,
+    ``specular_reflectance``; rough: ``alpha`` [0.1], ``distribution`` must be
+    ``ggx`` — Mitsuba's default is ``beckmann``, which grisx does not
+    implement, so it must be given — ``sample_visible``);
+    ``dielectric`` / ``roughdielectric`` (``int_ior`` [bk7], ``ext_ior`` [air]
+    as numbers or Mitsuba's named IORs, ``specular_reflectance``,
+    ``specular_transmittance``; rough: ``alpha``, ``distribution`` = ggx,
+    ``sample_visible``); ``twosided`` around one non-transmissive BSDF.
+``emitter``
+    ``area`` (inside a shape; ``radiance``, required), ``constant``
+    (``radiance`` [1]), ``envmap`` (``filename``, ``scale`` [1], ``to_world``;
+    ``mis_compensation`` accepted, ignored), ``point`` (``position`` or
+    ``to_world``, ``intensity`` [1]). At most one environment.
+``texture``
+    ``bitmap``: ``filename`` (PNG/JPEG via pillow, 8-bit or 16-bit grey, sRGB-decoded
+    to linear with the exact sRGB curve as Mitsuba does unless ``raw="true"``;
+    EXR via :func:`grisx.imageio.read_exr`, linear), ``filter_type`` bilinear,
+    ``wrap_mode`` repeat (Mitsuba's defaults; the only modes grisx samples).
+    Textures are supported as diffuse ``reflectance`` only.
+
+File names are relative to the XML file's directory (the current directory
+for XML given as a string). Elements not listed (``include``, ``medium``,
+``shapegroup``, ``instance``, other plugin types ...) are errors.
+
+References
+----------
+[Mitsuba3] W. Jakob et al., Mitsuba 3 documentation, "Scene file format" and
+           the plugin reference, https://mitsuba.readthedocs.io (2022).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import re
+from pathlib import Path
+from typing import Any
+from xml.parsers import expat
+
+import numpy as np
+
+from grisx.errors import GrisxError, SceneFileError
+from grisx.scene import shapes
+from grisx.scene import transform as xf
+from grisx.scene.camera import Camera, lookat
+from grisx.scene.lights import ConstantEnvironment, EnvMap, load_envmap_image
+from grisx.imageio import srgb_decode as srgb_to_linear
+from grisx.scene.material import (
+    Conductor,
+    Dielectric,
+    Diffuse,
+    RoughConductor,
+    RoughDielectric,
+    TextureRef,
+    conductor_material,
+    pack_materials,
+)
+from grisx.scene.scene import Film, Scene
+
+__all__ = ["load_mitsuba", "NAMED_IORS", "load_image"]
+
+#: Mitsuba 3's named indices of refraction (``include/mitsuba/render/ior.h``).
+NAMED_IORS: dict[str, float] = {
+    "vacuum": 1.0,
+    "helium": 1.000036,
+    "hydrogen": 1.000132,
+    "air": 1.000277,
+    "carbon dioxide": 1.00045,
+    "water": 1.3330,
+    "acetone": 1.36,
+    "ethanol": 1.361,
+    "carbon tetrachloride": 1.461,
+    "glycerol": 1.4729,
+    "benzene": 1.501,
+    "silicone oil": 1.52045,
+    "bromine": 1.661,
+    "water ice": 1.31,
+    "fused quartz": 1.458,
+    "pyrex": 1.470,
+    "acrylic glass": 1.49,
+    "polypropylene": 1.49,
+    "bk7": 1.5046,
+    "sodium chloride": 1.544,
+    "amber": 1.55,
+    "pet": 1.5750,
+    "diamond": 2.419,
+}
+
+_VALUE_TAGS = {"float", "integer", "boolean", "string", "point", "vector", "rgb", "spectrum"}
+_OBJECT_TAGS = {"shape", "bsdf", "emitter", "sensor", "film", "rfilter", "sampler", "integrator", "texture"}
+_TRANSFORM_OPS = {"translate", "rotate", "scale", "matrix", "lookat"}
+_ALLOWED_ATTRS: dict[str, set[str]] = {
+    "scene": {"version"},
+    "default": {"name", "value"},
+    "ref": {"id", "name"},
+    "transform": {"name"},
+    "float": {"name", "value"},
+    "integer": {"name", "value"},
+    "boolean": {"name", "value"},
+    "string": {"name", "value"},
+    "rgb": {"name", "value"},
+    "spectrum": {"name", "value"},
+    "point": {"name", "value", "x", "y", "z"},
+    "vector": {"name", "value", "x", "y", "z"},
+    "translate": {"value", "x", "y", "z"},
+    "rotate": {"value", "x", "y", "z", "angle"},
+    "scale": {"value", "x", "y", "z"},
+    "matrix": {"value"},
+    "lookat": {"origin", "target", "up"},
+    **{t: {"type", "id", "name"} for t in _OBJECT_TAGS},
+}
+_PARAM_RE = re.compile(r"\$([A-Za-z_][A-Za-z0-9_]*)")
+
+
+# ---- XML with line numbers -------------------------------------------------------
+
+
+@dataclasses.dataclass
+class _Node:
+    tag: str
+    attrs: dict[str, str]
+    line: int
+    children: list[_Node] = dataclasses.field(default_factory=list)
+
+    def label(self) -> str:
+        """How the element is named in messages: tag plus its type/name/id attributes."""
+        extra = "".join(f' {k}="{self.attrs[k]}"' for k in ("type", "name", "id") if k in self.attrs)
+        return self.tag + extra
+
+
+class _Ctx:
+    """Where the file is, for messages and relative paths."""
+
+    def __init__(self, path: str | None, base_dir: Path):
+        self.path, self.base_dir = path, base_dir
+
+    def error(self, node: _Node | None, message: str, attribute: str | None = None) -> SceneFileError:
+        return SceneFileError(
+            message,
+            path=self.path,
+            line=None if node is None else node.line,
+            element=None if node is None else node.label(),
+            attribute=attribute,
+        )
+
+
+def _parse_xml(data: bytes, ctx: _Ctx) -> _Node:
+    parser = expat.ParserCreate()
+    stack: list[_Node] = []
+    roots: list[_Node] = []
+
+    def start(tag: str, attrs: dict[str, str]) -> None:
+        node = _Node(tag, dict(attrs), parser.CurrentLineNumber)
+        (stack[-1].children if stack else roots).append(node)
+        stack.append(node)
+
+    def end(tag: str) -> None:
+        stack.pop()
+
+    def text(data: str) -> None:
+        if data.strip():
+            where = stack[-1] if stack else None
+            raise ctx.error(where, f"unexpected text {data.strip()[:40]!r} (values go in attributes)")
+
+    parser.StartElementHandler = start
+    parser.EndElementHandler = end
+    parser.CharacterDataHandler = text
+    try:
+        parser.Parse(data, True)
+    except expat.ExpatError as exc:
+        raise SceneFileError(
+            f"malformed XML: {expat.ErrorString(exc.code)} (column {exc.offset + 1})", path=ctx.path, line=exc.lineno
+        ) from None
+    return roots[0]
+
+
+def _camel_to_snake(name: str) -> str:
+    return re.sub(r"(?<=[a-z0-9])(?=[A-Z])", "_", name).lower()  # toWorld → to_world, intIOR → int_ior
+
+
+def _prepare(root: _Node, ctx: _Ctx, params: dict[str, Any] | None) -> None:
+    """Check the root, apply ``default``/``$param`` substitution and attribute whitelists, upgrade 0.x names."""
+    if root.tag != "scene":
+        raise ctx.error(root, "the root element must be <scene>")
+    version = root.attrs.get("version")
+    if version is None:
+        raise ctx.error(root, "missing attribute 'version' (e.g. version=\"3.0.0\")", "version")
+    try:
+        major = int(version.split(".")[0])
+    except ValueError:
+        raise ctx.error(root, f"attribute 'version': cannot parse '{version}'", "version") from None
+    defaults: dict[str, str] = {}
+    for child in root.children:
+        if child.tag == "default":
+            for a in ("name", "value"):
+                if a not in child.attrs:
+                    raise ctx.error(child, f"missing attribute '{a}'", a)
+            defaults[child.attrs["name"]] = child.attrs["value"]
+    values = dict(defaults)
+    for k, v in (params or {}).items():
+        values[str(k)] = v if isinstance(v, str) else (str(v).lower() if isinstance(v, bool) else repr(v) if isinstance(v, float) else str(v))
+
+    def visit(node: _Node, top: bool) -> None:
+        allowed = _ALLOWED_ATTRS.get(node.tag)
+        if allowed is None:
+            raise ctx.error(node, f"unsupported element <{node.tag}>")
+        if node.tag == "default" and not top:
+            raise ctx.error(node, "<default> is only allowed directly inside <scene>")
+        for attr, raw in list(node.attrs.items()):
+            if attr not in allowed:
+                raise ctx.error(node, f"unsupported attribute '{attr}'", attr)
+
+            def sub(m: re.Match[str], attr: str = attr) -> str:
+                if m.group(1) not in values:
+                    raise ctx.error(node, f"attribute '{attr}': unknown parameter '${m.group(1)}' "
+                                          f"(no <default> and not passed in params)", attr)
+                return values[m.group(1)]
+
+            if node.tag != "default":
+                node.attrs[attr] = _PARAM_RE.sub(sub, raw)
+        if major < 2 and "name" in node.attrs:
+            node.attrs["name"] = _camel_to_snake(node.attrs["name"])
+        for child in node.children:
+            visit(child, top=node is root)
+
+    visit(root, top=False)
+
+
+# ---- numbers and transforms ------------------------------------------------------
+
+
+def _numbers(ctx: _Ctx, node: _Node, attr: str, counts: tuple[int, ...]) -> list[float]:
+    raw = node.attrs.get(attr)
+    if raw is None:
+        raise ctx.error(node, f"missing attribute '{attr}'", attr)
+    parts = [p for p in re.split(r"[,\s]+", raw.strip()) if p]
+    try:
+        vals = [float(p) for p in parts]
+    except ValueError:
+        raise ctx.error(node, f"attribute '{attr}': cannot parse numbers from '{raw}'", attr) from None
+    if len(vals) not in counts or not all(math.isfinite(v) for v in vals):
+        want = " or ".join(str(c) for c in counts)
+        raise ctx.error(node, f"attribute '{attr}': expected {want} finite number(s), got '{raw}'", attr)
+    return vals
+
+
+def _xyz(ctx: _Ctx, node: _Node, default: float) -> np.ndarray:
+    """A 3-vector from ``value`` or from ``x``/``y``/``z`` attributes (missing ones = ``default``)."""
+    if "value" in node.attrs:
+        if any(a in node.attrs for a in "xyz"):
+            raise ctx.error(node, "give either 'value' or 'x'/'y'/'z', not both", "value")
+        v = _numbers(ctx, node, "value", (1, 3))
+        return np.array(v * 3 if len(v) == 1 else v, dtype=np.float64)
+    out = np.full(3, float(default))
+    for i, a in enumerate("xyz"):
+        if a in node.attrs:
+            out[i] = _numbers(ctx, node, a, (1,))[0]
+    return out
+
+
+def _coordinate_system_s(d: np.ndarray) -> np.ndarray:
+    # Mitsuba's coordinate_system(n).first (Duff et al. 2017): the 'up' used when lookat omits it
+    sign = math.copysign(1.0, d[2])
+    a = -1.0 / (sign + d[2])
+    b = d[0] * d[1] * a
+    return np.array([1.0 + sign * d[0] * d[0] * a, sign * b, -sign * d[0]])
+
+
+def _parse_transform(ctx: _Ctx, node: _Node) -> np.ndarray:
+    m = np.eye(4)
+    for op in node.children:
+        if op.tag not in _TRANSFORM_OPS:
+            raise ctx.error(op, f"unsupported element <{op.tag}> inside <transform> "
+                                f"(expected {', '.join(sorted(_TRANSFORM_OPS))})")
+        if op.tag == "translate":
+            t = xf.translate(_xyz(ctx, op, 0.0))
+        elif op.tag == "scale":
+            t = xf.scale(_xyz(ctx, op, 1.0))
+        elif op.tag == "rotate":
+            if "angle" not in op.attrs:
+                raise ctx.error(op, "missing attribute 'angle' (degrees)", "angle")
+            axis = _xyz(ctx, op, 0.0)
+            if np.linalg.norm(axis) == 0:
+                raise ctx.error(op, "rotation axis is zero (give x/y/z or value)", "value")
+            t = xf.rotate(axis, _numbers(ctx, op, "angle", (1,))[0])  # right-handed, degrees
+        elif op.tag == "matrix":
+            v = _numbers(ctx, op, "value", (9, 16))
+            t = np.eye(4)
+            if len(v) == 16:
+                t = np.array(v).reshape(4, 4)
+            else:
+                t[:3, :3] = np.array(v).reshape(3, 3)
+        else:  # lookat
+            o = np.array(_numbers(ctx, op, "origin", (3,)))
+            tgt = np.array(_numbers(ctx, op, "target", (3,)))
+            d = tgt - o
+            if np.linalg.norm(d) == 0:
+                raise ctx.error(op, "origin and target coincide", "target")
+            up = np.array(_numbers(ctx, op, "up", (3,))) if "up" in op.attrs else _coordinate_system_s(d / np.linalg.norm(d))
+            try:
+                t = lookat(o, tgt, up)  # Mitsuba's look_at: columns left, up', dir, origin
+            except GrisxError as exc:
+                raise ctx.error(op, str(exc), "up") from None
+        m = t @ m
+    return m
+
+
+# ---- images ----------------------------------------------------------------------
+
+
+def load_image(path: str | os.PathLike, raw: bool = False) -> np.ndarray:
+    """Read an image as linear float32 (H, W, 3), row 0 at the top.
+
+    EXR is linear already; PNG/JPEG are sRGB-decoded unless ``raw``. Grey
+    images are broadcast to RGB and alpha is dropped.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise GrisxError(f"cannot read image '{path}': no such file")
+    suffix = path.suffix.lower()
+    if suffix == ".exr":
+        from grisx.imageio import read_exr
+
+        img = read_exr(path).astype(np.float64)
+    elif suffix in (".png", ".jpg", ".jpeg"):
+        from PIL import Image
+
+        try:
+            with Image.open(path) as im:
+                if im.mode in ("I;16", "I;16B", "I;16L", "I"):
+                    arr = np.asarray(im, dtype=np.float64) / 65535.0
+                else:
+                    arr = np.asarray(im.convert("RGBA" if "A" in im.mode or im.mode == "P" else "RGB"), dtype=np.float64) / 255.0
+        except OSError as exc:
+            raise GrisxError(f"cannot read image '{path}': {exc}") from None
+        img = arr if raw else srgb_to_linear(arr)
+    else:
+        raise GrisxError(f"cannot read image '{path}': unsupported format '{suffix}' (use .exr, .png or .jpg)")
+    if img.ndim == 2:
+        img = img[:, :, None]
+    if img.shape[2] in (2, 4):  # grey+alpha or RGBA: drop alpha
+        img = img[:, :, :-1]
+    if img.shape[2] == 1:
+        img = np.repeat(img, 3, axis=2)
+    if not np.all(np.isfinite(img)):
+        raise GrisxError(f"image '{path}' contains NaN or Inf")
+    return np.ascontiguousarray(img[:, :, :3], dtype=np.float32)
+
+
+# ---- plugin properties -----------------------------------------------------------
+
+
+class _Props:
+    """The parameters and nested objects of one plugin element; tracks which were used."""
+
+    def __init__(self, loader: _Loader, node: _Node):
+        self.loader, self.ctx, self.node = loader, loader.ctx, node
+        self.values: dict[str, _Node] = {}
+        self.objects: list[_Node] = []
+        self.used: set[str] = set()
+        self.used_objects: set[int] = set()
+        for child in node.children:
+            if child.tag == "default":
+                raise self.ctx.error(child, "<default> is only allowed directly inside <scene>")
+            is_texture = child.tag == "texture" or (child.tag == "ref" and loader.ref_target(child).tag == "texture")
+            if child.tag in _VALUE_TAGS or child.tag == "transform" or is_texture:
+                name = child.attrs.get("name")
+                if name is None:
+                    raise self.ctx.error(child, "missing attribute 'name'", "name")
+                if name in self.values:
+                    raise self.ctx.error(child, f"parameter '{name}' given twice (first on line {self.values[name].line})", "name")
+                self.values[name] = child
+            elif child.tag in _OBJECT_TAGS or child.tag == "ref":
+                self.objects.append(child)
+            else:
+                raise self.ctx.error(child, f"unsupported element <{child.tag}> inside <{node.label()}>")
+
+    # -- lookup helpers
+    def has(self, name: str) -> bool:
+        return name in self.values
+
+    def _get(self, name: str, tags: tuple[str, ...]) -> _Node | None:
+        node = self.values.get(name)
+        if node is None:
+            return None
+        self.used.add(name)
+        tag = node.tag if node.tag != "ref" else "texture"
+        if tag not in tags:
+            raise self.ctx.error(node, f"parameter '{name}' must be given as <{'> or <'.join(tags)}>, not <{tag}>", name)
+        return node
+
+    def float(self, name: str, default: float | None = None) -> float:
+        node = self._get(name, ("float", "integer"))
+        if node is None:
+            if default is None:
+                raise self.ctx.error(self.node, f"missing required parameter '{name}'", name)
+            return float(default)
+        return _numbers(self.ctx, node, "value", (1,))[0]
+
+    def int(self, name: str, default: int) -> int:
+        node = self._get(name, ("integer",))
+        if node is None:
+            return default
+        raw = node.attrs.get("value", "")
+        try:
+            return int(raw.strip())
+        except ValueError:
+            raise self.ctx.error(node, f"attribute 'value': '{raw}' is not an integer", "value") from None
+
+    def bool(self, name: str, default: bool) -> bool:
+        node = self._get(name, ("boolean",))
+        if node is None:
+            return default
+        raw = node.attrs.get("value", "").strip().lower()
+        if raw not in ("true", "false"):
+            raise self.ctx.error(node, f"attribute 'value': '{raw}' is not true or false", "value")
+        return raw == "true"
+
+    def string(self, name: str, default: str | None = None) -> str:
+        node = self._get(name, ("string",))
+        if node is None:
+            if default is None:
+                raise self.ctx.error(self.node, f"missing required parameter '{name}'", name)
+            return default
+        if "value" not in node.attrs:
+            raise self.ctx.error(node, "missing attribute 'value'", "value")
+        return node.attrs["value"]
+
+    def choice(self, name: str, default: str | None, allowed: tuple[str, ...], why: str = "") -> str:
+        value = self.string(name, default)
+        if value.lower() not in allowed:
+            node = self.values.get(name, self.node)
+            raise self.ctx.error(node, f"parameter '{name}' = '{value}' is not supported "
+                                       f"(supported: {', '.join(allowed)}){why}", name)
+        return value.lower()
+
+    def point(self, name: str, default: tuple[float, float, float]) -> np.ndarray:
+        node = self._get(name, ("point", "vector"))
+        if node is None:
+            return np.asarray(default, dtype=np.float64)
+        return _xyz(self.ctx, node, 0.0)
+
+    def transform(self, name: str) -> np.ndarray | None:
+        node = self._get(name, ("transform",))
+        return None if node is None else _parse_transform(self.ctx, node)
+
+    def color(self, name: str, default: float | tuple[float, ...] | None, texture: bool = False) -> Any:
+        """RGB from ``rgb``/``spectrum``/``float``, or a :class:`TextureRef` where ``texture``."""
+        node = self.values.get(name)
+        if node is None:
+            if default is None:
+                raise self.ctx.error(self.node, f"missing required parameter '{name}'", name)
+            d = (default,) * 3 if isinstance(default, (int, float)) else tuple(default)
+            return tuple(float(x) for x in d)
+        if node.tag in ("texture", "ref"):
+            self.used.add(name)
+            if not texture:
+                raise self.ctx.error(node, f"parameter '{name}': textures are supported only as diffuse "
+                                           f"'reflectance'; give a constant <rgb>", name)
+            return self.loader.texture_ref(node)
+        node = self._get(name, ("rgb", "spectrum", "float"))
+        if node.tag == "spectrum" and ":" in node.attrs.get("value", ""):
+            raise self.ctx.error(node, f"parameter '{name}': wavelength-sampled spectra are not supported "
+                                       f"(give one constant value or an <rgb>)", "value")
+        counts = (1, 3) if node.tag == "rgb" else (1,)
+        v = _numbers(self.ctx, node, "value", counts)
+        return tuple(v * 3 if len(v) == 1 else v)
+
+    def ior(self, name: str, default: str) -> float:
+        node = self.values.get(name)
+        if node is not None and node.tag == "string":
+            key = self.string(name).strip().lower()
+            if key not in NAMED_IORS:
+                raise self.ctx.error(node, f"parameter '{name}': unknown named IOR '{key}' "
+                                           f"(known: {', '.join(NAMED_IORS)})", name)
+            return NAMED_IORS[key]
+        if node is None:
+            return NAMED_IORS[default]
+        return self.float(name)
+
+    def take_objects(self, tags: tuple[str, ...]) -> list[_Node]:
+        """Nested (or referenced) objects whose kind is in ``tags``; marks them used."""
+        out = []
+        for i, child in enumerate(self.objects):
+            kind = self.loader.ref_target(child).tag if child.tag == "ref" else child.tag
+            if kind in tags:
+                self.used_objects.add(i)
+                out.append(child)
+        return out
+
+    def finish(self) -> None:
+        """Every parameter and nested object must have been used (as Mitsuba's 'unreferenced property' check)."""
+        for name, node in self.values.items():
+            if name not in self.used:
+                raise self.ctx.error(node, f"unsupported parameter '{name}' of <{self.node.label()}>", name)
+        for i, child in enumerate(self.objects):
+            if i not in self.used_objects:
+                raise self.ctx.error(child, f"unexpected <{child.label()}> inside <{self.node.label()}>")
+
+
+# ---- the loader --------------------------------------------------------------------
+
+_SAMPLERS = ("independent", "stratified", "multijitter", "orthogonal", "ldsampler")
+
+
+class _Loader:
+    def __init__(self, root: _Node, ctx: _Ctx, scene: Scene):
+        self.root, self.ctx, self.scene = root, ctx, scene
+        self.ids: dict[str, _Node] = {}
+        self.records: dict[int, Any] = {}  # id(node) -> material record
+        self.material_ids: dict[int, int] = {}  # id(node) -> scene material id
+        self.texture_ids: dict[int, int] = {}  # id(node) -> scene texture id
+        self.default_material: int | None = None
+        self.shape_count = 0
+        self.sensor_seen: _Node | None = None
+        self.environment_seen: _Node | None = None
+        self._collect_ids(root)
+
+    def _collect_ids(self, node: _Node) -> None:
+        for child in node.children:
+            if "id" in child.attrs and child.tag in _OBJECT_TAGS:
+                key = child.attrs["id"]
+                if key in self.ids:
+                    raise self.ctx.error(child, f"duplicate id '{key}' (first on line {self.ids[key].line})", "id")
+                self.ids[key] = child
+            self._collect_ids(child)
+
+    def ref_target(self, ref: _Node) -> _Node:
+        key = ref.attrs.get("id")
+        if key is None:
+            raise self.ctx.error(ref, "missing attribute 'id'", "id")
+        if key not in self.ids:
+            raise self.ctx.error(ref, f"reference to unknown id '{key}'", "id")
+        return self.ids[key]
+
+    def _deref(self, node: _Node, kind: str) -> _Node:
+        target = self.ref_target(node) if node.tag == "ref" else node
+        if target.tag != kind:
+            raise self.ctx.error(node, f"expected a <{kind}>, but id '{node.attrs.get('id')}' is a <{target.tag}>", "id")
+        return target
+
+    @staticmethod
+    def _type(node: _Node) -> str:
+        return node.attrs.get("type", "")
+
+    def _require_type(self, node: _Node, supported: tuple[str, ...]) -> str:
+        t = self._type(node)
+        if not t:
+            raise self.ctx.error(node, "missing attribute 'type'", "type")
+        if t not in supported:
+            raise self.ctx.error(node, f"unsupported {node.tag} type '{t}' (supported: {', '.join(supported)})", "type")
+        return t
+
+    # -- top level
+    def run(self) -> None:
+        for child in self.root.children:
+            tag = child.tag
+            if tag == "default":
+                continue
+            if tag == "shape":
+                self.shape(child)
+            elif tag == "bsdf":
+                self.bsdf_record(child)  # validate now; added to the scene when a shape uses it
+            elif tag == "texture":
+                self.texture_id(child)
+            elif tag == "emitter":
+                self.emitter(child)
+            elif tag == "sensor":
+                self.sensor(child)
+            elif tag == "integrator":
+                self.integrator(child)
+            else:
+                raise self.ctx.error(child, f"unsupported element <{tag}> inside <scene>")
+
+    # -- textures
+    def texture_id(self, node: _Node) -> int:
+        node = self._deref(node, "texture")
+        if id(node) in self.texture_ids:
+            return self.texture_ids[id(node)]
+        self._require_type(node, ("bitmap",))
+        p = _Props(self, node)
+        filename = p.string("filename")
+        raw = p.bool("raw", False)
+        p.choice("filter_type", "bilinear", ("bilinear",), " — grisx textures are bilinear")
+        p.choice("wrap_mode", "repeat", ("repeat",), " — grisx textures wrap around")
+        p.finish()
+        image = self.image(node, filename, raw)
+        tid = self.scene.add_texture(image, name=node.attrs.get("id") or filename)
+        self.texture_ids[id(node)] = tid
+        return tid
+
+    def texture_ref(self, node: _Node) -> TextureRef:
+        return TextureRef(self.texture_id(node))
+
+    def image(self, node: _Node, filename: str, raw: bool = False) -> np.ndarray:
+        path = self.ctx.base_dir / filename
+        try:
+            return load_image(path, raw=raw)
+        except GrisxError as exc:
+            raise self.ctx.error(node, f"parameter 'filename': {exc}", "filename") from None
+
+    # -- BSDFs
+    def bsdf_record(self, node: _Node) -> Any:
+        node = self._deref(node, "bsdf")
+        if id(node) in self.records:
+            return self.records[id(node)]
+        t = self._require_type(node, ("diffuse", "conductor", "roughconductor", "dielectric", "roughdielectric", "twosided"))
+        p = _Props(self, node)
+        if t == "twosided":
+            inner = p.take_objects(("bsdf",))
+            if len(inner) != 1:
+                raise self.ctx.error(node, f"twosided needs exactly one nested BSDF, got {len(inner)} "
+                                           f"(different front and back BSDFs are not supported)")
+            rec = self.bsdf_record(inner[0])
+            if isinstance(rec, (Dielectric, RoughDielectric)):
+                raise self.ctx.error(node, "twosided cannot wrap a transmissive BSDF (as in Mitsuba)")
+            rec = dataclasses.replace(rec, two_sided=True)
+        elif t == "diffuse":
+            rec = Diffuse(reflectance=p.color("reflectance", 0.5, texture=True))
+        elif t in ("conductor", "roughconductor"):
+            kw: dict[str, Any] = {}
+            material = p.string("material", "none")
+            if p.has("eta") or p.has("k") or material == "none":
+                if material != "none":
+                    raise self.ctx.error(node, "give either 'material' or 'eta'/'k', not both", "material")
+                kw["eta"] = p.color("eta", 0.0)
+                kw["k"] = p.color("k", 1.0)
+            else:
+                try:
+                    kw["eta"], kw["k"] = conductor_material(material)
+                except GrisxError as exc:
+                    raise self.ctx.error(p.values["material"], f"parameter 'material': {exc}", "material") from None
+            kw["specular_reflectance"] = p.color("specular_reflectance", 1.0)
+            rec = self._smooth_or_rough(p, t == "roughconductor", kw, Conductor, RoughConductor)
+        else:  # dielectric, roughdielectric
+            kw = {
+                "int_ior": p.ior("int_ior", "bk7"),
+                "ext_ior": p.ior("ext_ior", "air"),
+                "specular_reflectance": p.color("specular_reflectance", 1.0),
+                "specular_transmittance": p.color("specular_transmittance", 1.0),
+            }
+            rec = self._smooth_or_rough(p, t == "roughdielectric", kw, Dielectric, RoughDielectric)
+        p.finish()
+        try:  # validate values now (negative colours, alpha <= 0, equal IORs ...) so the error names this line
+            pack_materials([rec], device="cpu")
+        except GrisxError as exc:
+            raise self.ctx.error(node, str(exc).replace("material 0 ", "", 1)) from None
+        self.records[id(node)] = rec
+        return rec
+
+    def _smooth_or_rough(self, p: _Props, rough: bool, kw: dict[str, Any], smooth: type, rough_cls: type) -> Any:
+        if not rough:
+            return smooth(**kw)
+        self._ggx(p)
+        return rough_cls(alpha=p.float("alpha", 0.1), **kw)
+
+    def _ggx(self, p: _Props) -> None:
+        if not p.has("distribution"):
+            raise self.ctx.error(p.node, "missing parameter 'distribution': Mitsuba's default is 'beckmann', "
+                                         "which grisx does not implement; add "
+                                         "<string name=\"distribution\" value=\"ggx\"/>", "distribution")
+        p.choice("distribution", None, ("ggx",))
+        p.bool("sample_visible", True)  # a sampling choice: the expected image is the same
+
+    def material_id(self, node: _Node) -> int:
+        target = self._deref(node, "bsdf")
+        if id(target) not in self.material_ids:
+            rec = self.bsdf_record(target)
+            self.material_ids[id(target)] = self.scene.add_material(rec, name=target.attrs.get("id"))
+        return self.material_ids[id(target)]
+
+    # -- shapes
+    def shape(self, node: _Node) -> None:
+        t = self._require_type(node, ("obj", "ply", "rectangle", "cube", "sphere", "disk"))
+        p = _Props(self, node)
+        to_world = p.transform("to_world")
+        to_world = np.eye(4) if to_world is None else to_world
+        flip = p.bool("flip_normals", False)
+        try:
+            if t == "rectangle":
+                mesh = shapes.rectangle(flip_normals=flip)
+            elif t == "cube":  # a mesh in Mitsuba too, so it takes face_normals (its normals are per face anyway)
+                mesh = shapes.cube(flip_normals=flip)
+                if p.bool("face_normals", False):
+                    mesh = dataclasses.replace(mesh, normals=None)
+            elif t == "disk":
+                mesh = shapes.disk(flip_normals=flip)
+            elif t == "sphere":
+                center = p.point("center", (0.0, 0.0, 0.0))
+                radius = p.float("radius", 1.0)
+                # sphere.cpp: to_world · translate(center) · scale(radius); a negative radius turns it inside out
+                to_world = to_world @ xf.translate(center) @ xf.scale(radius)
+                mesh = shapes.sphere(flip_normals=flip)
+            else:
+                filename = p.string("filename")
+                face_normals = p.bool("face_normals", False)
+                flip_tex = p.bool("flip_tex_coords", t == "obj")  # Mitsuba: true for obj, false for ply
+                suffix = Path(filename).suffix.lower()
+                if suffix != "." + t:
+                    raise self.ctx.error(p.values["filename"], f"a <shape type=\"{t}\"> needs a .{t} file, got '{filename}'", "filename")
+                mesh = shapes.load_mesh(self.ctx.base_dir / filename, face_normals=face_normals,
+                                        flip_normals=flip, flip_tex_coords=flip_tex)
+        except GrisxError as exc:
+            if isinstance(exc, SceneFileError):
+                raise
+            raise self.ctx.error(node, str(exc)) from None
+        bsdfs = p.take_objects(("bsdf",))
+        if len(bsdfs) > 1:
+            raise self.ctx.error(bsdfs[1], "a shape takes one BSDF")
+        if bsdfs:
+            mid = self.material_id(bsdfs[0])
+        else:  # Mitsuba's default: diffuse with reflectance 0.5
+            if self.default_material is None:
+                self.default_material = self.scene.add_material(Diffuse(), name="default")
+            mid = self.default_material
+        emission = None
+        emitters = p.take_objects(("emitter",))
+        if len(emitters) > 1:
+            raise self.ctx.error(emitters[1], "a shape takes one emitter")
+        if emitters:
+            em = emitters[0]
+            if em.tag == "ref":
+                raise self.ctx.error(em, "area emitters must be nested in their shape, not referenced")
+            self._require_type(em, ("area",))
+            ep = _Props(self, em)
+            emission = ep.color("radiance", None)
+            ep.finish()
+        p.finish()
+        self.shape_count += 1
+        name = node.attrs.get("id") or f"{t}{self.shape_count}"
+        try:
+            self.scene.add_mesh(mesh.vertices, mesh.faces, material=mid, normals=mesh.normals, uvs=mesh.uvs,
+                                emission=emission, to_world=to_world, name=name)
+        except GrisxError as exc:
+            raise self.ctx.error(node, str(exc)) from None
+
+    # -- emitters outside shapes
+    def emitter(self, node: _Node) -> None:
+        t = self._type(node)
+        if t == "area":
+            raise self.ctx.error(node, "an area emitter must be nested inside a <shape>", "type")
+        t = self._require_type(node, ("constant", "envmap", "point"))
+        p = _Props(self, node)
+        if t == "point":
+            to_world = p.transform("to_world")
+            if to_world is not None and p.has("position"):
+                raise self.ctx.error(node, "give either 'position' or 'to_world', not both", "position")
+            pos = to_world[:3, 3] if to_world is not None else p.point("position", (0.0, 0.0, 0.0))
+            intensity = p.color("intensity", 1.0)
+            p.finish()
+            try:
+                self.scene.add_point_light(tuple(float(x) for x in pos), intensity)
+            except GrisxError as exc:
+                raise self.ctx.error(node, str(exc)) from None
+            return
+        if self.environment_seen is not None:
+            raise self.ctx.error(node, f"only one environment emitter is allowed (first on line {self.environment_seen.line})")
+        self.environment_seen = node
+        if t == "constant":
+            env: Any = ConstantEnvironment(radiance=p.color("radiance", 1.0))
+        else:
+            filename = p.string("filename")
+            scale = p.float("scale", 1.0)
+            to_world = p.transform("to_world")
+            p.bool("mis_compensation", False)  # a sampling choice: the expected image is the same
+            try:
+                image = load_envmap_image(self.ctx.base_dir / filename)
+            except GrisxError as exc:
+                raise self.ctx.error(p.values["filename"], f"parameter 'filename': {exc}", "filename") from None
+            env = EnvMap(image=image, scale=scale, to_world=np.eye(4) if to_world is None else to_world)
+        p.finish()
+        self.scene.set_environment(env)
+
+    # -- sensor, film, sampler, integrator
+    def sensor(self, node: _Node) -> None:
+        if self.sensor_seen is not None:
+            raise self.ctx.error(node, f"only one sensor is supported (first on line {self.sensor_seen.line})")
+        self.sensor_seen = node
+        t = self._require_type(node, ("perspective", "thinlens"))
+        p = _Props(self, node)
+        films = p.take_objects(("film",))
+        samplers = p.take_objects(("sampler",))
+        for group in (films, samplers):
+            if len(group) > 1:
+                raise self.ctx.error(group[1], f"a sensor takes one <{group[1].tag}>")
+        if films:
+            self.film(films[0])
+        if samplers:
+            self.sampler(samplers[0])
+        to_world = p.transform("to_world")
+        if p.has("fov") and p.has("focal_length"):
+            raise self.ctx.error(node, "give either 'fov' or 'focal_length', not both", "focal_length")
+        if p.has("fov"):
+            fov = p.float("fov")
+            fov_axis = p.choice("fov_axis", "x", ("x", "y", "diagonal", "smaller", "larger"))
+        else:  # Mitsuba: focal length of a 35 mm camera, measured along the film diagonal
+            f = p.string("focal_length", "50mm").strip()
+            try:
+                fl = float(f[:-2] if f.endswith("mm") else f)
+            except ValueError:
+                raise self.ctx.error(p.values.get("focal_length", node), f"cannot parse focal_length '{f}' (e.g. \"50mm\")", "focal_length") from None
+            fov = math.degrees(2 * math.atan(math.hypot(36.0, 24.0) / (2 * fl)))
+            fov_axis = "diagonal"
+        near = p.float("near_clip", 1e-2)
+        far = p.float("far_clip", 1e4)
+        if not (0 < near < far):
+            raise self.ctx.error(node, f"need 0 < near_clip < far_clip, got {near}, {far}", "near_clip")
+        if t == "thinlens":
+            aperture = p.float("aperture_radius")
+            focus = p.float("focus_distance")
+        else:
+            p.float("focus_distance", 0.0)  # no effect on a pinhole camera
+            aperture, focus = 0.0, 0.0
+        p.finish()
+        try:
+            cam = Camera(to_world=np.eye(4) if to_world is None else to_world, fov=fov, fov_axis=fov_axis,
+                         near_clip=near, far_clip=far, aperture_radius=aperture, focus_distance=focus)
+        except GrisxError as exc:
+            raise self.ctx.error(node, str(exc)) from None
+        self.scene.set_camera(cam)
+
+    def film(self, node: _Node) -> None:
+        node = self._deref(node, "film")
+        self._require_type(node, ("hdrfilm",))
+        p = _Props(self, node)
+        width = p.int("width", 768)
+        height = p.int("height", 576)
+        for ignored in ("pixel_format", "component_format", "file_format"):
+            if p.has(ignored):
+                p.string(ignored)  # output encoding only
+        filters = p.take_objects(("rfilter",))
+        if len(filters) > 1:
+            raise self.ctx.error(filters[1], "a film takes one <rfilter>")
+        if filters:
+            f = self._deref(filters[0], "rfilter")
+            ft = self._require_type(f, ("box", "gaussian"))
+            fp = _Props(self, f)
+            if ft == "gaussian":
+                fp.float("stddev", 0.5)  # reconstructed as a box (see module docstring)
+            fp.finish()
+        p.finish()
+        try:
+            self.scene.film = Film(width, height)
+        except GrisxError as exc:
+            raise self.ctx.error(node, str(exc)) from None
+
+    def sampler(self, node: _Node) -> None:
+        node = self._deref(node, "sampler")
+        self._require_type(node, _SAMPLERS)
+        p = _Props(self, node)
+        spp = p.int("sample_count", 4)
+        p.int("seed", 0)  # grisx seeds its own streams
+        p.bool("jitter", True)  # stratified/ldsampler option: a sampling choice
+        p.finish()
+        if spp < 1:
+            raise self.ctx.error(p.values.get("sample_count", node), f"sample_count must be >= 1, got {spp}", "sample_count")
+        self.scene.defaults["spp"] = spp
+
+    def integrator(self, node: _Node) -> None:
+        self._require_type(node, ("path", "volpath"))
+        p = _Props(self, node)
+        max_depth = p.int("max_depth", -1)
+        rr_depth = p.int("rr_depth", 5)
+        if p.bool("hide_emitters", False):
+            raise self.ctx.error(p.values["hide_emitters"], "hide_emitters=true is not supported", "hide_emitters")
+        p.finish()
+        if max_depth < -1:
+            raise self.ctx.error(p.values.get("max_depth", node), f"max_depth must be -1 (unbounded) or >= 0, got {max_depth}", "max_depth")
+        if rr_depth < 1:
+            raise self.ctx.error(p.values.get("rr_depth", node), f"rr_depth must be >= 1, got {rr_depth}", "rr_depth")
+        self.scene.defaults["max_depth"] = max_depth
+        self.scene.defaults["rr_depth"] = rr_depth
+
+
+def load_mitsuba(path_or_string: str | os.PathLike, params: dict[str, Any] | None = None) -> Scene:
+    """Read a Mitsuba 3 scene (a file path, or XML text starting with ``<``) into a :class:`Scene`.
+
+    ``params`` sets ``$name`` parameters (overriding ``<default>`` values).
+    Raises :class:`~grisx.errors.SceneFileError` for anything malformed or
+    outside the supported subset (module docstring), naming file, line,
+    element and attribute.
+    """
+    if isinstance(path_or_string, str) and path_or_string.lstrip().startswith("<"):
+        data = path_or_string.encode("utf-8")
+        ctx = _Ctx(None, Path.cwd())
+        name = "mitsuba"
+    else:
+        path = Path(path_or_string)
+        if not path.is_file():
+            raise SceneFileError(f"no such scene file '{path}'", path=str(path))
+        data = path.read_bytes()
+        ctx = _Ctx(str(path), path.resolve().parent)
+        name = path.stem
+    root = _parse_xml(data, ctx)
+    _prepare(root, ctx, params)
+    scene = Scene(name)
+    scene.description = f"Mitsuba scene '{ctx.path or '<string>'}'"
+    _Loader(root, ctx, scene).run()
+    return scene

@@ -1,0 +1,446 @@
+"""Mitsuba XML loading (grisx.scene.mitsuba): the Cornell box, every supported element, and every error path."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from grisx.errors import SceneFileError
+from grisx.scene import shapes
+from grisx.scene.lights import ConstantEnvironment, EnvMap
+from grisx.scene.material import (
+    CONDUCTOR_PRESETS,
+    Conductor,
+    Dielectric,
+    Diffuse,
+    RoughConductor,
+    RoughDielectric,
+    TextureRef,
+)
+from grisx.scene.mitsuba import NAMED_IORS, load_mitsuba
+
+DATA = Path(__file__).parent / "data"
+CBOX = DATA / "cornell_box.xml"
+
+
+def doc(body: str) -> str:
+    """A scene document whose ``body`` starts on line 2."""
+    return '<scene version="3.0.0">\n' + body + "\n</scene>\n"
+
+
+def objects(scene):
+    return {o.name: o for o in scene.objects}
+
+
+def unit_face_normals(o) -> np.ndarray:
+    fn = shapes.face_normals_of(o.vertices, o.faces)
+    return fn / np.linalg.norm(fn, axis=1, keepdims=True)
+
+
+def rot_y(deg: float) -> np.ndarray:
+    c, s = math.cos(math.radians(deg)), math.sin(math.radians(deg))
+    return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+
+
+# ---- the Cornell box ------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def cbox():
+    return load_mitsuba(CBOX)
+
+
+def test_cornell_box_counts(cbox):
+    assert cbox.name == "cornell_box"
+    assert len(cbox.objects) == 8  # light, 5 walls, 2 boxes
+    assert cbox.triangle_count == 6 * 2 + 2 * 12
+    assert len(cbox.materials) == 3  # white, green, red: shared by reference, registered once
+    assert sum(o.emission is not None for o in cbox.objects) == 1
+    assert cbox.point_lights == [] and cbox.environment is None and cbox.textures == []
+
+
+def test_cornell_box_colours(cbox):
+    obj = objects(cbox)
+    white, green, red = (cbox.materials[obj[n].material] for n in ("back", "green-wall", "red-wall"))
+    assert white == Diffuse(reflectance=(0.885809, 0.698859, 0.666422))
+    assert green == Diffuse(reflectance=(0.105421, 0.37798, 0.076425))
+    assert red == Diffuse(reflectance=(0.570068, 0.0430135, 0.0443706))
+    for name in ("light", "floor", "ceiling", "back", "small-box", "large-box"):
+        assert obj[name].material == obj["back"].material
+    np.testing.assert_allclose(obj["light"].emission, [18.387, 13.9873, 6.75357])
+
+
+def test_cornell_box_transforms(cbox):
+    obj = objects(cbox)
+    # light: scale(0.23, 0.19, 0.19), then rotate 90° about x ((x, y, z) → (x, −z, y)), then translate
+    # (0, 0.99, 0.01): the corner (sx, sy, 0) of [-1, 1]² lands at (0.23 sx, 0.99, 0.01 + 0.19 sy)
+    corners = [(-1, -1), (1, -1), (1, 1), (-1, 1)]  # rectangle vertex order
+    expected = [(0.23 * sx, 0.99, 0.01 + 0.19 * sy) for sx, sy in corners]
+    np.testing.assert_allclose(obj["light"].vertices, expected, atol=1e-12)
+    np.testing.assert_allclose(unit_face_normals(obj["light"]), [[0, -1, 0]] * 2, atol=1e-12)  # emits downwards
+    # walls face the inside of the box (towards the origin)
+    for name, n in [("floor", (0, 1, 0)), ("ceiling", (0, -1, 0)), ("back", (0, 0, 1)),
+                    ("green-wall", (-1, 0, 0)), ("red-wall", (1, 0, 0))]:
+        np.testing.assert_allclose(unit_face_normals(obj[name]), [n] * 2, atol=1e-12)
+        np.testing.assert_allclose(obj[name].normals, [n] * 4, atol=1e-12)
+        assert np.allclose(np.abs(obj[name].vertices) @ np.abs(n), 1.0)  # the plane at distance 1
+    # small box: cube vertex (1, −1, −1) → scale 0.3 → rotate −17° about y → translate (0.335, −0.7, 0.38)
+    p = rot_y(-17) @ (0.3 * np.array([1.0, -1.0, -1.0])) + [0.335, -0.7, 0.38]
+    np.testing.assert_allclose(obj["small-box"].vertices[0], p, atol=1e-12)
+    # large box: non-uniform scale (0.3, 0.61, 0.3), rotate 18.25° about y, translate (−0.33, −0.4, −0.28)
+    cube = shapes.cube()
+    p = (rot_y(18.25) @ (np.array([0.3, 0.61, 0.3])[:, None] * cube.vertices.T)).T + [-0.33, -0.4, -0.28]
+    np.testing.assert_allclose(obj["large-box"].vertices, p, atol=1e-12)
+    assert obj["large-box"].vertices[:, 1].min() == pytest.approx(-1.01)  # its base sits just below the floor
+    # boxes: outward normals (away from each box's centre)
+    for name in ("small-box", "large-box"):
+        o = obj[name]
+        centre = o.vertices.mean(axis=0)
+        c = o.vertices[o.faces].mean(axis=1) - centre
+        assert np.all(np.einsum("ij,ij->i", unit_face_normals(o), c) > 0)
+
+
+def test_cornell_box_camera_film_defaults(cbox):
+    cam = cbox.camera
+    assert cam.fov == pytest.approx(39.3077) and cam.fov_axis == "smaller"
+    assert cam.near_clip == pytest.approx(0.001) and cam.far_clip == pytest.approx(100.0)
+    assert cam.aperture_radius == 0
+    # lookat(origin (0, 0, 3.9), target 0, up +y): columns left = up × dir, up' = dir × left, dir, origin
+    np.testing.assert_allclose(cam.to_world, [[-1, 0, 0, 0], [0, 1, 0, 0], [0, 0, -1, 3.9], [0, 0, 0, 1]], atol=1e-12)
+    assert (cbox.film.width, cbox.film.height) == (256, 256)
+    assert cbox.defaults["spp"] == 64 and cbox.defaults["max_depth"] == 8
+
+
+def test_cornell_box_params_override_defaults():
+    s = load_mitsuba(CBOX, params={"spp": 4, "max_depth": 3})
+    assert s.defaults["spp"] == 4 and s.defaults["max_depth"] == 3
+
+
+def test_cornell_box_builds(cbox):
+    built = cbox.build("cpu")
+    assert built.num_triangles == 36
+    assert built.features.has_area_lights and built.features.environment == "none"
+
+
+def test_xml_string_is_accepted_and_params_substitute_anywhere():
+    s = load_mitsuba(
+        doc('<default name="r" value="0.25"/>\n'
+            '<shape type="rectangle"><bsdf type="diffuse"><rgb name="reflectance" value="$r, $g, 0.5"/></bsdf>'
+            '<emitter type="area"><rgb name="radiance" value="1"/></emitter></shape>'),
+        params={"g": 0.75},
+    )
+    assert s.materials[0] == Diffuse(reflectance=(0.25, 0.75, 0.5))
+    np.testing.assert_allclose(s.objects[0].emission, [1, 1, 1])
+
+
+# ---- transforms ---------------------------------------------------------------------------
+
+
+def rect_with(transform: str):
+    s = load_mitsuba(doc(f'<shape type="rectangle"><transform name="to_world">{transform}</transform></shape>'))
+    return s.objects[0].vertices
+
+
+def test_transforms_compose_in_document_order():
+    v = rect_with('<translate x="1"/><scale value="2"/>')  # scale after translate: (x + 1)·2
+    np.testing.assert_allclose(v[2], [4, 2, 0])
+    v = rect_with('<scale value="2"/><translate x="1"/>')  # 2x + 1
+    np.testing.assert_allclose(v[2], [3, 2, 0])
+
+
+def test_transform_ops():
+    np.testing.assert_allclose(rect_with('<scale x="2" z="5"/>')[2], [2, 1, 0])
+    np.testing.assert_allclose(rect_with('<scale value="1 2 3"/>')[2], [1, 2, 0])
+    np.testing.assert_allclose(rect_with('<translate value="1,2 3"/>')[2], [2, 3, 3])
+    np.testing.assert_allclose(rect_with('<rotate z="1" angle="90"/>')[1], [1, 1, 0], atol=1e-12)  # (1,−1) → (1, 1)
+    np.testing.assert_allclose(rect_with('<rotate value="0, 0, 2" angle="90"/>')[1], [1, 1, 0], atol=1e-12)
+    np.testing.assert_allclose(rect_with('<matrix value="1 0 0 5  0 1 0 6  0 0 1 7  0 0 0 1"/>')[0], [4, 5, 7])
+    np.testing.assert_allclose(rect_with('<matrix value="0 -1 0  1 0 0  0 0 1"/>')[1], [1, 1, 0])
+    # lookat without 'up' picks Mitsuba's coordinate_system(dir) tangent
+    v = rect_with('<lookat origin="0 0 0" target="0 0 5"/>')
+    assert np.allclose(v[:, 2], 0) and np.allclose(np.abs(v[:, :2]), 1)
+
+
+# ---- shapes -----------------------------------------------------------------------------------
+
+
+def test_sphere_center_radius_and_to_world():
+    s = load_mitsuba(doc('<shape type="sphere"><point name="center" x="1" y="2" z="3"/><float name="radius" value="0.5"/>'
+                         '<transform name="to_world"><translate z="10"/></transform></shape>'))
+    v = s.objects[0].vertices
+    np.testing.assert_allclose(np.linalg.norm(v - [1, 2, 13], axis=1), 0.5, atol=1e-12)
+    n = s.objects[0].normals
+    np.testing.assert_allclose(n, (v - [1, 2, 13]) / 0.5, atol=1e-9)  # outward
+    s = load_mitsuba(doc('<shape type="sphere"><boolean name="flip_normals" value="true"/></shape>'))
+    o = s.objects[0]
+    assert np.all(np.einsum("ij,ij->i", o.normals, o.vertices) < 0)
+
+
+def test_disk_and_flipped_rectangle():
+    s = load_mitsuba(doc('<shape type="disk"><transform name="to_world"><scale value="2"/></transform></shape>\n'
+                         '<shape type="rectangle"><boolean name="flip_normals" value="true"/></shape>'))
+    d, r = s.objects
+    assert shapes.mesh_area(d.vertices, d.faces) == pytest.approx(4 * math.pi, rel=1e-3)
+    np.testing.assert_allclose(unit_face_normals(d), np.tile([0, 0, 1], (len(d.faces), 1)), atol=1e-12)
+    np.testing.assert_allclose(unit_face_normals(r), [[0, 0, -1]] * 2)
+    np.testing.assert_allclose(r.normals, [[0, 0, -1]] * 4)
+
+
+def test_obj_and_ply_shapes(tmp_path):
+    xml = tmp_path / "meshes.xml"
+    xml.write_text(doc(
+        f'<shape type="obj"><string name="filename" value="{DATA / "seam.obj"}"/></shape>\n'
+        f'<shape type="obj"><string name="filename" value="{DATA / "seam.obj"}"/><boolean name="face_normals" value="true"/>'
+        f'<boolean name="flip_tex_coords" value="false"/></shape>\n'
+        f'<shape type="ply"><string name="filename" value="{DATA / "quad.ply"}"/>'
+        f'<transform name="to_world"><translate z="1"/></transform></shape>'))
+    s = load_mitsuba(xml)
+    a, b, c = s.objects
+    assert len(a.vertices) == 8 and a.uvs is not None and a.normals is not None
+    assert b.normals is None and not np.allclose(a.uvs, b.uvs)
+    np.testing.assert_allclose(b.uvs[:, 1], 1 - a.uvs[:, 1])
+    np.testing.assert_allclose(c.vertices[:, 2], [1, 1, 1, 1, 2])
+
+
+def test_relative_paths_are_relative_to_the_file(tmp_path):
+    (tmp_path / "m").mkdir()
+    (tmp_path / "m" / "q.ply").write_bytes((DATA / "quad.ply").read_bytes())
+    (tmp_path / "s.xml").write_text(doc('<shape type="ply"><string name="filename" value="m/q.ply"/></shape>'))
+    assert len(load_mitsuba(tmp_path / "s.xml").objects[0].vertices) == 5
+
+
+def test_cube_face_normals_and_ply_flip_tex_coords():
+    s = load_mitsuba(doc(f'<shape type="cube"><boolean name="face_normals" value="true"/></shape>\n'
+                         f'<shape type="ply"><string name="filename" value="{DATA / "quad.ply"}"/>'
+                         f'<boolean name="flip_tex_coords" value="true"/></shape>'))
+    cube, quad = s.objects
+    assert cube.normals is None
+    np.testing.assert_allclose(quad.uvs[:, 1], [1, 1, 0, 0, 0.5])
+
+
+def test_shape_without_bsdf_gets_mitsubas_default():
+    s = load_mitsuba(doc('<shape type="cube"/><shape type="rectangle"/>'))
+    assert s.materials == [Diffuse(reflectance=(0.5, 0.5, 0.5))]
+
+
+# ---- BSDFs ------------------------------------------------------------------------------------------
+
+
+def bsdf(xml: str):
+    s = load_mitsuba(doc(f'<shape type="rectangle">{xml}</shape>'))
+    return s.materials[s.objects[0].material]
+
+
+def test_bsdfs():
+    assert bsdf('<bsdf type="diffuse"/>') == Diffuse()
+    assert bsdf('<bsdf type="diffuse"><spectrum name="reflectance" value="0.3"/></bsdf>') == Diffuse(reflectance=(0.3,) * 3)
+    assert bsdf('<bsdf type="diffuse"><float name="reflectance" value="0.2"/></bsdf>') == Diffuse(reflectance=(0.2,) * 3)
+    assert bsdf('<bsdf type="conductor"/>') == Conductor(eta=(0.0,) * 3, k=(1.0,) * 3)
+    au_eta, au_k = CONDUCTOR_PRESETS["Au"]
+    assert bsdf('<bsdf type="conductor"><string name="material" value="Au"/></bsdf>') == Conductor(eta=au_eta, k=au_k)
+    rc = bsdf('<bsdf type="roughconductor"><string name="distribution" value="ggx"/><float name="alpha" value="0.3"/>'
+              '<rgb name="eta" value="0.2 0.3 0.4"/><rgb name="k" value="3"/>'
+              '<rgb name="specular_reflectance" value="0.9"/></bsdf>')
+    assert rc == RoughConductor(alpha=0.3, eta=(0.2, 0.3, 0.4), k=(3.0,) * 3, specular_reflectance=(0.9,) * 3)
+    assert bsdf('<bsdf type="dielectric"/>') == Dielectric(int_ior=NAMED_IORS["bk7"], ext_ior=NAMED_IORS["air"])
+    assert NAMED_IORS["bk7"] == 1.5046 and NAMED_IORS["air"] == 1.000277
+    d = bsdf('<bsdf type="dielectric"><string name="int_ior" value="water"/><float name="ext_ior" value="1.1"/></bsdf>')
+    assert (d.int_ior, d.ext_ior) == (1.333, 1.1)
+    rd = bsdf('<bsdf type="roughdielectric"><string name="distribution" value="ggx"/><float name="alpha" value="0.05"/>'
+              '<string name="int_ior" value="diamond"/></bsdf>')
+    assert rd == RoughDielectric(alpha=0.05, int_ior=2.419, ext_ior=1.000277)
+    ts = bsdf('<bsdf type="twosided"><bsdf type="roughconductor"><string name="distribution" value="ggx"/></bsdf></bsdf>')
+    assert ts == RoughConductor(two_sided=True)
+
+
+def test_twosided_and_shared_references():
+    s = load_mitsuba(doc(
+        '<bsdf type="diffuse" id="d"><rgb name="reflectance" value="0.1 0.2 0.3"/></bsdf>\n'
+        '<bsdf type="twosided" id="t"><ref id="d"/></bsdf>\n'
+        '<shape type="rectangle"><ref id="t"/></shape><shape type="cube"><ref id="t"/></shape>'
+        '<shape type="disk"><ref id="d"/></shape>'))
+    a, b, c = s.objects
+    assert a.material == b.material != c.material
+    assert s.materials[a.material] == Diffuse(reflectance=(0.1, 0.2, 0.3), two_sided=True)
+    assert s.materials[c.material] == Diffuse(reflectance=(0.1, 0.2, 0.3))
+
+
+# ---- textures and emitters ---------------------------------------------------------------------------
+
+
+def test_bitmap_textures(tmp_path):
+    from PIL import Image
+
+    from grisx.imageio import write_exr
+
+    px = np.array([[[0, 128, 255], [10, 20, 30]]], dtype=np.uint8)  # 1×2 RGB
+    Image.fromarray(px).save(tmp_path / "t.png")
+    write_exr(tmp_path / "t.exr", np.full((2, 3, 3), 0.25, dtype=np.float32))
+    (tmp_path / "s.xml").write_text(doc(
+        '<texture type="bitmap" id="tex"><string name="filename" value="t.png"/></texture>\n'
+        '<shape type="rectangle"><bsdf type="diffuse"><ref name="reflectance" id="tex"/></bsdf></shape>\n'
+        '<shape type="rectangle"><bsdf type="diffuse"><texture type="bitmap" name="reflectance">'
+        '<string name="filename" value="t.png"/><boolean name="raw" value="true"/></texture></bsdf></shape>\n'
+        '<shape type="cube"><bsdf type="diffuse"><texture type="bitmap" name="reflectance">'
+        '<string name="filename" value="t.exr"/><string name="filter_type" value="bilinear"/></texture></bsdf></shape>'))
+    s = load_mitsuba(tmp_path / "s.xml")
+    refs = [s.materials[o.material].reflectance for o in s.objects]
+    assert refs == [TextureRef(0), TextureRef(1), TextureRef(2)]
+    c = px / 255.0  # Mitsuba decodes 8-bit sRGB with the exact curve
+    srgb = np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+    np.testing.assert_allclose(s.textures[0], srgb, rtol=1e-6)
+    np.testing.assert_allclose(s.textures[1], c, rtol=1e-6)
+    np.testing.assert_allclose(s.textures[2], 0.25)
+
+
+def test_emitters(tmp_path):
+    from grisx.imageio import write_exr
+
+    write_exr(tmp_path / "sky.exr", np.full((4, 8, 3), 2.0, dtype=np.float32))
+    (tmp_path / "s.xml").write_text(doc(
+        '<shape type="rectangle"/>\n'
+        '<emitter type="point"><point name="position" x="1" y="2" z="3"/><rgb name="intensity" value="5 6 7"/></emitter>\n'
+        '<emitter type="point"><transform name="to_world"><translate x="-1"/></transform></emitter>\n'
+        '<emitter type="envmap"><string name="filename" value="sky.exr"/><float name="scale" value="0.5"/>'
+        '<transform name="to_world"><rotate y="1" angle="90"/></transform></emitter>'))
+    s = load_mitsuba(tmp_path / "s.xml")
+    p0, p1 = s.point_lights
+    np.testing.assert_allclose(p0.position, [1, 2, 3])
+    np.testing.assert_allclose(p0.intensity, [5, 6, 7])
+    np.testing.assert_allclose(p1.position, [-1, 0, 0])
+    np.testing.assert_allclose(p1.intensity, [1, 1, 1])
+    env = s.environment
+    assert isinstance(env, EnvMap) and env.scale == 0.5
+    np.testing.assert_allclose(env.image, 2.0)
+    np.testing.assert_allclose(np.asarray(env.to_world)[:3, :3], rot_y(90), atol=1e-12)
+    s = load_mitsuba(doc('<shape type="cube"/><emitter type="constant"><rgb name="radiance" value="0.5"/></emitter>'))
+    assert isinstance(s.environment, ConstantEnvironment)
+    np.testing.assert_allclose(s.environment.radiance, [0.5] * 3)
+
+
+def test_sensor_variants():
+    s = load_mitsuba(doc('<shape type="cube"/><sensor type="perspective"/>'))
+    # Mitsuba: no fov → a 50 mm lens on 36×24 mm film, measured along the diagonal
+    assert s.camera.fov_axis == "diagonal"
+    assert s.camera.fov == pytest.approx(math.degrees(2 * math.atan(math.hypot(36, 24) / 100)))
+    s = load_mitsuba(doc('<shape type="cube"/><sensor type="thinlens"><float name="fov" value="30"/>'
+                         '<string name="fov_axis" value="y"/><float name="aperture_radius" value="0.1"/>'
+                         '<float name="focus_distance" value="4"/><film type="hdrfilm"/>'
+                         '<sampler type="stratified"><integer name="sample_count" value="9"/></sampler></sensor>'
+                         '<integrator type="path"/>'))
+    assert (s.camera.fov, s.camera.fov_axis, s.camera.aperture_radius, s.camera.focus_distance) == (30, "y", 0.1, 4)
+    assert (s.film.width, s.film.height) == (768, 576)  # Mitsuba's hdrfilm defaults
+    assert s.defaults["spp"] == 9 and s.defaults["max_depth"] == -1  # Mitsuba: unbounded
+
+
+def test_gaussian_rfilter_is_accepted_as_box():
+    s = load_mitsuba(doc('<shape type="cube"/><sensor type="perspective"><film type="hdrfilm">'
+                         '<rfilter type="gaussian"><float name="stddev" value="0.5"/></rfilter></film></sensor>'))
+    assert s.film.width == 768
+
+
+def test_mitsuba_0x_names_are_upgraded():
+    s = load_mitsuba('<scene version="0.6.0"><shape type="rectangle"><boolean name="flipNormals" value="true"/>'
+                     '<transform name="toWorld"><translate x="1"/></transform>'
+                     '<bsdf type="dielectric"><float name="intIOR" value="1.7"/></bsdf></shape></scene>')
+    assert s.materials[0].int_ior == 1.7
+    np.testing.assert_allclose(s.objects[0].vertices[:, 0].min(), 0.0)
+
+
+# ---- errors --------------------------------------------------------------------------------------------
+
+ERRORS = [
+    # (document, line, element contains, attribute, message contains)
+    ('<scene version="3.0.0">\n<shape type="cube">\n</scene>', 3, None, None, "malformed XML"),
+    ("<scene version='3.0.0'>\n<shape type=\"cube\"/>\n<shape", 3, None, None, "malformed XML"),
+    ("<scene>\n</scene>", 1, "scene", "version", "version"),
+    ('<scenes version="3.0.0"/>', 1, "scenes", None, "root element"),
+    (doc('<medium type="homogeneous"/>'), 2, "medium", None, "unsupported element"),
+    (doc('<include filename="x.xml"/>'), 2, "include", None, "unsupported element"),
+    (doc('<shape type="shapegroup"/>'), 2, "shape", "type", "unsupported shape type 'shapegroup'"),
+    (doc('<shape type="cube">\n<bsdf type="plastic"/>\n</shape>'), 3, "bsdf", "type", "plastic"),
+    (doc('<shape type="cube">\n<bsdf type="diffuse">\n<float name="foo" value="1"/></bsdf></shape>'), 4, "float", "foo", "unsupported parameter 'foo'"),
+    (doc('<shape type="cube">\n<float name="radius" value="1"/></shape>'), 3, "float", "radius", "unsupported parameter"),
+    (doc('<shape type="cube"><bsdf type="roughconductor">\n<float name="alpha" value="0.1" foo="2"/>'
+         '<string name="distribution" value="ggx"/></bsdf></shape>'), 3, "float", "foo", "unsupported attribute 'foo'"),
+    (doc('<shape type="cube"><bsdf type="roughconductor">\n<string name="distribution" value="beckmann"/></bsdf></shape>'),
+     3, "string", "distribution", "beckmann"),
+    (doc('<shape type="cube">\n<bsdf type="roughdielectric"/></shape>'), 3, "bsdf", "distribution", "beckmann"),
+    (doc('<shape type="cube">\n<bsdf type="diffuse"><rgb name="reflectance" value="$albedo"/></bsdf></shape>'),
+     3, "rgb", "value", "unknown parameter '$albedo'"),
+    (doc('<shape type="cube">\n<ref id="nowhere"/></shape>'), 3, "ref", "id", "unknown id 'nowhere'"),
+    (doc('<sensor type="perspective" id="cam"/>\n<shape type="cube">\n<ref id="cam"/></shape>'), 4, "ref", None, "unexpected"),
+    (doc('<shape type="cube"><bsdf type="diffuse">\n<spectrum name="reflectance" value="400:0.1, 700:0.5"/></bsdf></shape>'),
+     3, "spectrum", "value", "wavelength"),
+    (doc('<sensor type="perspective"><film type="hdrfilm">\n<rfilter type="tent"/></film></sensor>'), 3, "rfilter", "type", "tent"),
+    (doc('<integrator type="bdpt"/>'), 2, "integrator", "type", "bdpt"),
+    (doc('<sensor type="orthographic"/>'), 2, "sensor", "type", "orthographic"),
+    (doc('<emitter type="area"><rgb name="radiance" value="1"/></emitter>'), 2, "emitter", "type", "nested inside a <shape>"),
+    (doc('<emitter type="constant"/>\n<emitter type="constant"/>'), 3, "emitter", None, "only one environment"),
+    (doc('<sensor type="perspective"/>\n<sensor type="perspective"/>'), 3, "sensor", None, "only one sensor"),
+    (doc('<shape type="cube"><bsdf type="roughconductor">\n<float name="alpha">0.1</float></bsdf></shape>'), 3, "float", None, "unexpected text"),
+    (doc('<bsdf type="diffuse" id="a"/>\n<bsdf type="diffuse" id="a"/>'), 3, "bsdf", "id", "duplicate id"),
+    (doc('<shape type="obj"/>'), 2, "shape", "filename", "missing required parameter 'filename'"),
+    (doc('<shape type="obj">\n<string name="filename" value="missing.obj"/></shape>'), 2, "shape", None, "no such file"),
+    (doc('<shape type="obj">\n<string name="filename" value="mesh.ply"/></shape>'), 3, "string", "filename", ".obj file"),
+    (doc('<shape type="cube"><bsdf type="conductor">\n<texture type="bitmap" name="specular_reflectance">'
+         '<string name="filename" value="t.png"/></texture></bsdf></shape>'), 3, "texture", "specular_reflectance", "textures are supported only"),
+    (doc('<shape type="cube"><bsdf type="diffuse">\n<texture type="checkerboard" name="reflectance"/></bsdf></shape>'),
+     3, "texture", "type", "checkerboard"),
+    (doc('<shape type="cube"><bsdf type="diffuse">\n<float name="reflectance" value="abc"/></bsdf></shape>'), 3, "float", "value", "cannot parse"),
+    (doc('<shape type="cube">\n<default name="x" value="1"/></shape>'), 3, "default", None, "only allowed directly inside"),
+    (doc('<integrator type="path">\n<boolean name="hide_emitters" value="true"/></integrator>'), 3, "boolean", "hide_emitters", "not supported"),
+    (doc('<shape type="cube"><bsdf type="roughconductor"><string name="distribution" value="ggx"/>\n'
+         '<rgb name="alpha" value="0.1"/></bsdf></shape>'), 3, "rgb", "alpha", "must be given as <float>"),
+    (doc('<shape type="cube">\n<bsdf type="conductor"><string name="material" value="Au"/><rgb name="eta" value="1"/></bsdf></shape>'),
+     3, "bsdf", "material", "either 'material' or 'eta'"),
+    (doc('<shape type="cube"><bsdf type="dielectric">\n<string name="int_ior" value="unobtainium"/></bsdf></shape>'),
+     3, "string", "int_ior", "unknown named IOR"),
+    (doc('<shape type="cube"><bsdf type="conductor">\n<string name="material" value="Xx"/></bsdf></shape>'),
+     3, "string", "material", "conductor material"),
+    (doc('<sensor type="perspective">\n<float name="fov" value="30"/><string name="focal_length" value="50mm"/></sensor>'),
+     2, "sensor", "focal_length", "either 'fov' or 'focal_length'"),
+    (doc('<sensor type="perspective">\n<string name="fov_axis" value="z"/><float name="fov" value="30"/></sensor>'),
+     3, "string", "fov_axis", "fov_axis"),
+    (doc('<shape type="cube"><transform name="to_world">\n<shear value="1"/></transform></shape>'), 3, "shear", None, "unsupported element"),
+    (doc('<shape type="cube"><transform name="to_world">\n<rotate x="1"/></transform></shape>'), 3, "rotate", "angle", "angle"),
+    (doc('<shape type="cube"><transform name="to_world">\n<matrix value="1 2 3"/></transform></shape>'), 3, "matrix", "value", "9 or 16"),
+    (doc('<shape type="cube"><bsdf type="twosided">\n<bsdf type="dielectric"/></bsdf></shape>'), 2, "bsdf", None, "transmissive"),
+    (doc('<shape type="cube">\n<emitter type="area"/></shape>'), 3, "emitter", "radiance", "missing required parameter 'radiance'"),
+    (doc('<shape type="cube"><bsdf type="diffuse">\n<rgb value="1"/></bsdf></shape>'), 3, "rgb", "name", "missing attribute 'name'"),
+    (doc('<shape type="cube"><bsdf type="diffuse">\n<rgb name="reflectance" value="1"/>\n<rgb name="reflectance" value="1"/></bsdf></shape>'),
+     4, "rgb", "name", "given twice"),
+    (doc('<sensor type="perspective"><sampler type="sobol"/></sensor>'), 2, "sampler", "type", "sobol"),
+    (doc('<shape type="cube">\n<bsdf type="roughconductor"><string name="distribution" value="ggx"/>'
+         '<float name="alpha" value="-0.1"/></bsdf></shape>'), 3, "bsdf", None, "alpha must be a finite positive"),
+    (doc('<shape type="cube">\n<bsdf type="dielectric"><float name="int_ior" value="1"/><float name="ext_ior" value="1"/></bsdf></shape>'),
+     3, "bsdf", None, "must differ"),
+    (doc('<shape type="cube"><emitter type="area">\n<rgb name="radiance" value="-1"/></emitter></shape>'), 2, "shape", None, "non-negative"),
+    (doc('<emitter type="point">\n<point name="position" x="0" y="0" z="0"/><transform name="to_world"><translate x="1"/></transform></emitter>'),
+     2, "emitter", "position", "either 'position' or 'to_world'"),
+]
+
+
+@pytest.mark.parametrize("text, line, element, attribute, message", ERRORS, ids=[f"case{i}" for i in range(len(ERRORS))])
+def test_errors_name_element_attribute_and_line(text, line, element, attribute, message):
+    with pytest.raises(SceneFileError) as info:
+        load_mitsuba(text)
+    err = info.value
+    assert message in str(err)
+    assert err.line == line and f":{line}:" in str(err)
+    if element is not None:
+        assert err.element is not None and err.element.startswith(element) and f"<{err.element}>" in str(err)
+    if attribute is not None:
+        assert err.attribute == attribute and attribute in str(err)
+
+
+def test_missing_file_and_missing_image(tmp_path):
+    with pytest.raises(SceneFileError, match="no such scene file"):
+        load_mitsuba(tmp_path / "nope.xml")
+    (tmp_path / "s.xml").write_text(doc('<shape type="cube"><bsdf type="diffuse">\n<texture type="bitmap" name="reflectance">'
+                                        '<string name="filename" value="none.png"/></texture></bsdf></shape>'))
+    with pytest.raises(SceneFileError, match=r"s\.xml:3: <texture type=\"bitmap\" name=\"reflectance\">.*none\.png"):
+        load_mitsuba(tmp_path / "s.xml")

@@ -1,0 +1,141 @@
+"""The reference path tracer against exact answers (CPU, small images, fixed seeds).
+
+Pixels use independent random streams, so a pixel-averaged estimate has a
+standard error from the per-pixel variances; each check is a z-test
+(``grisx.testing.z_test``, k = 4, Šidák over channels) with a sibling showing
+that a known-biased configuration fails the same check.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from grisx.scene.builtin import BUILTIN_SCENES, build_builtin
+from grisx.scene.camera import Camera, lookat
+from grisx.scene.lights import ConstantEnvironment
+from grisx.scene.material import Diffuse
+from grisx.scene.pt import PathTracer
+from grisx.scene.scene import Scene
+from grisx.scene.shapes import cube, rectangle
+from grisx.testing import BIASED_K, DEFAULT_K, z_test
+
+
+def _estimate(scene: Scene, width: int, height: int, spp: int, seed: int = 1, mask: np.ndarray | None = None, **kw):
+    """Pixel-averaged estimate and its standard error per channel."""
+    built = scene.build("cpu")
+    pt = PathTracer(built, width, height, spp=spp, seed=seed, **kw)
+    pt.add_samples(0, spp)
+    assert pt.nonfinite_samples == 0
+    mean, var = pt.mean().astype(np.float64), pt.variance_of_mean().astype(np.float64)
+    if mask is not None:
+        mean, var = mean[mask], var[mask]
+    mean, var = mean.reshape(-1, 3), var.reshape(-1, 3)
+    n = len(mean)
+    est = mean.mean(axis=0)
+    # floor at float32 rounding: BSDF sampling of a diffuse plane under a constant sky has zero variance
+    return est, np.maximum(np.sqrt(var.sum(axis=0)) / n, 1e-6 * np.abs(est))
+
+
+# ---- white furnace: a closed diffuse box of albedo ρ whose walls all emit Le: L = Le / (1 − ρ) ----
+
+RHO, LE = 0.7, 0.6
+
+
+def _furnace() -> Scene:
+    s = Scene("furnace")
+    m = s.add_material(Diffuse(RHO))
+    box = cube(flip_normals=True)  # normals inward
+    s.add_mesh(box.vertices, box.faces, normals=box.normals, material=m, emission=(LE, LE, LE))
+    s.set_camera(Camera(to_world=lookat((0.1, -0.2, 0.3), (1, 0.3, -0.5), (0, 1, 0)), fov=80))
+    return s
+
+
+def test_white_furnace_converges_to_le_over_one_minus_rho():
+    est, se = _estimate(_furnace(), 16, 16, 16, max_depth=-1)
+    exact = LE / (1 - RHO)
+    result = z_test(est, se, np.full(3, exact), k=DEFAULT_K)
+    assert result.passed, result
+
+
+def test_white_furnace_catches_a_truncated_path():
+    # max_depth = 4 keeps Le (1 + ρ + ρ²) of the geometric series: biased
+    est, se = _estimate(_furnace(), 16, 16, 16, max_depth=4)
+    result = z_test(est, se, np.full(3, LE / (1 - RHO)), k=BIASED_K)
+    assert not result.passed, result
+
+
+# ---- a diffuse plane under a constant environment: L = ρ · L_env -------------------------------
+
+
+def _env_plane() -> Scene:
+    s = Scene("env-plane")
+    m = s.add_material(Diffuse(0.5))
+    r = rectangle()
+    s.add_mesh(r.vertices, r.faces, normals=r.normals, material=m, to_world=np.diag([50.0, 50.0, 1.0, 1.0]))
+    s.set_environment(ConstantEnvironment((0.8, 1.0, 1.2)))
+    s.set_camera(Camera(to_world=lookat((0, 0, 3), (0, 0, 0), (0, 1, 0)), fov=30))
+    return s
+
+
+@pytest.mark.parametrize("strategy", ["mis", "nee", "bsdf"])
+def test_diffuse_plane_under_constant_environment(strategy):
+    est, se = _estimate(_env_plane(), 12, 12, 8, strategy=strategy)
+    result = z_test(est, se, 0.5 * np.array([0.8, 1.0, 1.2]), k=DEFAULT_K)
+    assert result.passed, result
+
+
+def test_diffuse_plane_catches_missing_direct_light():
+    est, se = _estimate(_env_plane(), 12, 12, 8, max_depth=1)  # only emitters seen directly: black
+    assert not z_test(est, se, 0.5 * np.array([0.8, 1.0, 1.2]), k=BIASED_K).passed
+
+
+# ---- the two techniques agree with their MIS combination on the Cornell box ----------------------
+
+
+def _cornell(strategy: str, seed: int, max_depth: int = 6):
+    # the lower half of the image: the light itself (radiance ~18 next to ~0.2) would dominate the error bars
+    mask = np.zeros((32, 32), dtype=bool)
+    mask[16:] = True
+    return _estimate(build_builtin("cornell-box"), 32, 32, 32, seed=seed, mask=mask, strategy=strategy, max_depth=max_depth)
+
+
+def test_nee_only_bsdf_only_and_mis_agree_on_the_cornell_box():
+    mis = _cornell("mis", 11)
+    for seed, strategy in ((12, "nee"), (13, "bsdf")):
+        other = _cornell(strategy, seed)
+        diff = other[0] - mis[0]
+        se = np.sqrt(other[1] ** 2 + mis[1] ** 2)
+        result = z_test(diff, se, np.zeros(3), k=DEFAULT_K)
+        assert result.passed, (strategy, result)
+    # MIS has lower variance than either technique alone on this scene
+    assert np.all(mis[1] < _cornell("bsdf", 14)[1])
+
+
+def test_cornell_box_agreement_check_catches_a_shorter_path():
+    mis = _cornell("mis", 11)
+    short = _cornell("nee", 12, max_depth=2)  # direct light only: misses the indirect light
+    assert not z_test(short[0] - mis[0], np.sqrt(short[1] ** 2 + mis[1] ** 2), np.zeros(3), k=BIASED_K).passed
+
+
+# ---- determinism and finiteness ------------------------------------------------------------------
+
+
+def test_same_seed_same_image_other_seed_other_image():
+    built = build_builtin("cornell-box").build("cpu")
+    images = []
+    for seed in (5, 5, 6):
+        pt = PathTracer(built, 12, 12, spp=2, seed=seed)
+        images.append(pt.render_frame(0))
+    np.testing.assert_array_equal(images[0], images[1])
+    assert not np.array_equal(images[0], images[2])
+
+
+@pytest.mark.parametrize("name", sorted(BUILTIN_SCENES))
+def test_no_nan_or_inf_on_any_builtin_scene(name):
+    built = build_builtin(name).build("cpu")
+    pt = PathTracer(built, 12, 8, spp=2, seed=0)
+    img = pt.render_frame(0)
+    assert pt.nonfinite_samples == 0
+    assert np.all(np.isfinite(img)) and np.all(img >= 0)
+    assert img.max() > 0  # every built-in scene shows some light
