@@ -15,8 +15,8 @@ Mitsuba 3 (whose ``si.wi`` is our ``wo``):
   and ``weight`` = their throughput factor;
 * transport is of **radiance**: a refracted sample's weight and a
   transmission eval carry Mitsuba's 1/η_it² (= η_ti²) factor for the solid
-  angle compression across the interface (Veach 1997, §5.2), so that
-  f(wi, wo) = η² f(wo, wi)/… is not symmetric — see the reciprocity note below.
+  angle compression across the interface (Veach 1997, §5.2), so transmission
+  is not symmetric — see the reciprocity note below.
 
 Lobes (equations in ``grisx.scene.microfacet``):
 
@@ -133,7 +133,6 @@ __all__ = [
     "rough_dielectric_pdf",
 ]
 
-_PI = wp.constant(math.pi)
 _INV_PI = wp.constant(1.0 / math.pi)
 _PI_OVER_4 = wp.constant(math.pi / 4.0)
 _PI_OVER_2 = wp.constant(math.pi / 2.0)

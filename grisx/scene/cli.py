@@ -5,6 +5,7 @@
     grisx scenes [--json]
     grisx render SCENE_OR_FILE --method M [--spp N] [--frames F [--accumulate]] [--res WxH]
                  [--device cpu|cuda] [--seed S] [--param k=v ...] [--out PATH.exr] [--json]
+    grisx reference SCENE_OR_FILE [--spp N] [--res WxH] [--max-depth D] [--device cpu|cuda] [--force] [--out PATH.exr] [--json]
 
 ``render`` writes the linear EXR, a tonemapped sRGB PNG beside it and a JSON
 sidecar (settings, grisx version, device, seed, timings). ``--method
@@ -56,6 +57,23 @@ def add_parsers(sub: Any, key_value: Any, count: Any, seed: Any) -> None:
     r.add_argument("--out", default=None, help="output EXR path (default SCENE-METHOD.exr)")
     r.add_argument("--json", action="store_true", help="print one JSON object")
     r.set_defaults(handler=_render)
+
+    ref = sub.add_parser(
+        "reference",
+        help="render (or fetch from the cache) a high-spp path-traced reference with its per-pixel variance",
+        description="Reference images are cached under $GRISX_CACHE_DIR/references (default ~/.cache/grisx/references) "
+                    "by a hash of the scene and the settings.",
+    )
+    ref.add_argument("scene", help="built-in scene name or a Mitsuba XML file")
+    ref.add_argument("--spp", type=count, default=1024, help="samples per pixel (default 1024)")
+    ref.add_argument("--res", default=None, help="WxH, overrides the scene's film size")
+    ref.add_argument("--max-depth", type=int, default=None, help="Mitsuba's max_depth (default: the scene's)")
+    ref.add_argument("--device", default="cpu", help="cpu (default) or cuda")
+    ref.add_argument("--seed", type=seed, default=0, help="seed (default 0)")
+    ref.add_argument("--force", action="store_true", help="render even if cached")
+    ref.add_argument("--out", default=None, help="also copy the image (and PATH.variance.exr, PATH.png) here")
+    ref.add_argument("--json", action="store_true", help="print one JSON object")
+    ref.set_defaults(handler=_reference)
 
 
 def _scenes(args: argparse.Namespace) -> int:
@@ -136,6 +154,41 @@ def write_outputs(result: Any, out: Path, method: str) -> list[str]:
     sidecar.write_text(json.dumps(meta, indent=2, default=_plain))
     written.append(str(sidecar))
     return written
+
+
+def _reference(args: argparse.Namespace) -> int:
+    import shutil
+
+    from grisx.errors import InvalidParameterError
+    from grisx.imageio import write_png
+    from grisx.scene.reference import reference
+    from grisx.scene.render import parse_res
+
+    out = Path(args.out) if args.out else None
+    if out is not None and (out.suffix.lower() != ".exr" or not out.parent.is_dir()):
+        raise InvalidParameterError(f"--out must name an .exr file in an existing directory, got '{out}'")
+    ref = reference(
+        args.scene,
+        res=parse_res(args.res) if args.res else None,
+        spp=args.spp,
+        max_depth=args.max_depth,
+        device=args.device,
+        seed=args.seed,
+        force=args.force,
+        progress=_Progress(f"reference {args.scene}"),
+    )
+    written = [str(ref.path), str(ref.path.with_name(ref.path.stem + ".variance.exr"))]
+    if out is not None:
+        shutil.copyfile(ref.path, out)
+        shutil.copyfile(written[1], out.with_suffix(".variance.exr"))
+        write_png(out.with_suffix(".png"), ref.image)
+        written += [str(out), str(out.with_suffix(".variance.exr")), str(out.with_suffix(".png"))]
+    if args.json:
+        print(json.dumps({**ref.settings, "cached": ref.cached, "output": written}, default=_plain))
+    else:
+        state = "cached" if ref.cached else f"rendered in {ref.settings.get('seconds', 0):.1f} s"
+        print(f"{args.scene}: reference {ref.settings['width']}x{ref.settings['height']}, {ref.settings['spp']} spp ({state}) -> {ref.path}")
+    return 0
 
 
 def _plain(v: Any) -> Any:

@@ -34,11 +34,12 @@ pbrt-v3), and ``"none"`` = η 0, k 1, a perfect mirror (Mitsuba 3's default).
 indexed by material id; ``material_kinds`` gives the set of kinds present,
 which ``grisx.scene.bsdf.make_bsdf`` uses to compile only the needed lobes.
 
-Fields of ``Material`` beyond the contract: none besides those listed in the
-struct docstring; ``eta`` of a dielectric holds the relative index
-int_ior/ext_ior in all three channels, ``reflectance`` of conductors and
-dielectrics holds ``specular_reflectance`` and ``transmittance`` holds
-``specular_transmittance``.
+``Material`` has exactly the contract's fields; how the records fill them:
+``eta`` of a dielectric holds the relative index int_ior/ext_ior in all three
+channels, ``reflectance`` of conductors and dielectrics holds
+``specular_reflectance`` and ``transmittance`` holds ``specular_transmittance``.
+The records add ``bump_amplitude`` / ``bump_frequency`` (copied to the struct)
+so a scene can attach normal perturbation to a material.
 
 References: W. Jakob et al., Mitsuba 3 plugin documentation (``diffuse``,
 ``conductor``, ``roughconductor``, ``dielectric``, ``roughdielectric``,
