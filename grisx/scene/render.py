@@ -119,6 +119,11 @@ register(
 )
 
 
+# ---- restir-di / restir-gi (issue 10): registered here by grisx.scene.restir_di / restir_gi ----
+
+# ---- restir-pt (issue 11): registered here by grisx.scene.restir_pt ----
+
+
 def method_params(method: str, params: Mapping[str, Any] | None) -> dict[str, Any]:
     """Defaults of ``method`` merged with ``params``, parsed and range-checked."""
     if method not in METHODS:

@@ -1,0 +1,133 @@
+"""Screen-space reuse plumbing shared by every ReSTIR renderer: who may reuse from whom.
+
+The estimator math of reuse (resampling weights, MIS, Jacobians, reservoir
+merging) lives in :mod:`grisx.theory`; this module answers the *geometric*
+questions a renderer asks before it calls that math, once for all renderers:
+
+* :func:`gbuffer_similar` — the similarity test that keeps reuse between
+  pixels that see similar surfaces: shading normals within an angle
+  (25° in seed 004, Sec. 5) and camera depths within a relative difference
+  (0.05 "normalized depth", seed 004; Bitterli et al. 2020 use 10%).
+  A *biased* ReSTIR relies on it to hide bias; an unbiased one only uses it
+  to avoid wasting samples (MIS keeps it unbiased either way).
+* :func:`temporal_neighbor` — the pixel of the previous frame that this
+  pixel's surface came from (integer motion vector), checked against the
+  film and the previous G-buffer (seed 004, Alg. 3).
+* :func:`spatial_neighbor` — a random pixel within a radius (uniform on the
+  disk, never the pixel itself), clamped to the film (seed 004, Alg. 4;
+  Bitterli et al. 2020: 5 neighbours within 30 px).
+* :func:`adaptive_radius` — seed 004's radius schedule: start at 10% of the
+  image and halve after each rejected neighbour, down to 3 px.
+
+:class:`DoubleBuffer` holds a renderer's per-pixel reservoirs for "this
+frame" and "previous frame" (or "input"/"output" of a spatial pass), swapped
+without copies, so a pass never reads what it is writing.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Generic, TypeVar
+
+import warp as wp
+
+from grisx.scene.gbuffer import GBufferData
+
+wp.set_module_options({"enable_backward": False})
+
+__all__ = [
+    "NeighborPixel",
+    "gbuffer_similar",
+    "pixels_similar",
+    "temporal_neighbor",
+    "spatial_neighbor",
+    "adaptive_radius",
+    "DoubleBuffer",
+    "SIMILARITY_NORMAL_COS",
+    "SIMILARITY_DEPTH",
+]
+
+#: cos 25°: seed 004's normal threshold
+SIMILARITY_NORMAL_COS = math.cos(math.radians(25.0))
+#: seed 004's normalized depth threshold
+SIMILARITY_DEPTH = 0.05
+
+
+@wp.struct
+class NeighborPixel:
+    x: int
+    y: int
+    valid: int
+
+
+@wp.func
+def gbuffer_similar(n_a: wp.vec3, depth_a: float, n_b: wp.vec3, depth_b: float, normal_cos: float, max_depth_ratio: float) -> bool:
+    """Normals within acos(normal_cos) and |depth_a − depth_b| ≤ max_depth_ratio · depth_a (seed 004, Sec. 5)."""
+    if depth_a <= 0.0 or depth_b <= 0.0:
+        return False
+    if wp.dot(n_a, n_b) < normal_cos:
+        return False
+    return wp.abs(depth_a - depth_b) <= max_depth_ratio * depth_a
+
+
+@wp.func
+def pixels_similar(ga: GBufferData, xa: int, ya: int, gb: GBufferData, xb: int, yb: int, normal_cos: float, max_depth_ratio: float) -> bool:
+    """:func:`gbuffer_similar` between pixel (xa, ya) of ``ga`` and (xb, yb) of ``gb`` (both must be hits)."""
+    if ga.hit[ya, xa] == 0 or gb.hit[yb, xb] == 0:
+        return False
+    return gbuffer_similar(ga.normal[ya, xa], ga.depth[ya, xa], gb.normal[yb, xb], gb.depth[yb, xb], normal_cos, max_depth_ratio)
+
+
+@wp.func
+def temporal_neighbor(g: GBufferData, g_prev: GBufferData, x: int, y: int, normal_cos: float, max_depth_ratio: float) -> NeighborPixel:
+    """The previous frame's pixel for (x, y) through the integer motion vector, if on the film and similar."""
+    out = NeighborPixel()
+    mv = g.motion_int[y, x]
+    out.x = x + mv[0]
+    out.y = y + mv[1]
+    out.valid = 0
+    width = g.hit.shape[1]
+    height = g.hit.shape[0]
+    if out.x < 0 or out.y < 0 or out.x >= width or out.y >= height:
+        return out
+    if pixels_similar(g, x, y, g_prev, out.x, out.y, normal_cos, max_depth_ratio):
+        out.valid = 1
+    return out
+
+
+@wp.func
+def spatial_neighbor(x: int, y: int, width: int, height: int, radius: float, u: wp.vec2) -> NeighborPixel:
+    """A pixel uniformly within ``radius`` of (x, y), clamped to the film; invalid if it lands on (x, y)."""
+    r = radius * wp.sqrt(u[0])
+    phi = 2.0 * wp.pi * u[1]
+    nx = wp.clamp(x + int(wp.round(r * wp.cos(phi))), 0, width - 1)
+    ny = wp.clamp(y + int(wp.round(r * wp.sin(phi))), 0, height - 1)
+    out = NeighborPixel()
+    out.x = nx
+    out.y = ny
+    out.valid = int(nx != x or ny != y)
+    return out
+
+
+@wp.func
+def adaptive_radius(width: int, height: int, rejections: int, min_radius: float) -> float:
+    """Seed 004, Sec. 5: 10% of the image size, halved after each rejected neighbour, at least ``min_radius``."""
+    r = 0.1 * float(wp.max(width, height))
+    for _ in range(rejections):
+        r = r * 0.5
+    return wp.max(r, min_radius)
+
+
+T = TypeVar("T")
+
+
+class DoubleBuffer(Generic[T]):
+    """Two instances of a per-pixel buffer: ``current`` is written, ``previous`` read; ``swap`` flips them."""
+
+    def __init__(self, make: Callable[[], T]) -> None:
+        self.current: T = make()
+        self.previous: T = make()
+
+    def swap(self) -> None:
+        self.current, self.previous = self.previous, self.current
