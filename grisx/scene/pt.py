@@ -185,6 +185,7 @@ class PathTracer:
         strategy: str = "mis",
         seed: int = 0,
         timer: Any = None,
+        kinds: frozenset[int] | None = None,
     ) -> None:
         self.built = built
         self.width, self.height = int(width), int(height)
@@ -194,7 +195,8 @@ class PathTracer:
         self.strategy = STRATEGIES[strategy]
         self.seed = int(seed)
         self.timer = timer
-        self.kernel = make_path_tracer_kernel(frozenset(built.features.material_kinds))
+        # compile only the scene's material kinds (``kinds`` overrides, e.g. to measure the gain)
+        self.kernel = make_path_tracer_kernel(frozenset(built.features.material_kinds if kinds is None else kinds))
         dev = built.device
         self.total = wp.zeros((self.height, self.width), dtype=wp.vec3, device=dev)
         self.total_sq = wp.zeros((self.height, self.width), dtype=wp.vec3, device=dev)
