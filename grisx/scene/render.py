@@ -216,9 +216,11 @@ def render(
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not (0 <= seed < 2**31):
         raise InvalidParameterError(f"seed must be an integer in [0, 2^31), got {seed!r}")
     sc = scene if isinstance(scene, Scene) else load_scene(str(scene))
+    # a scene file's integrator settings (max_depth, rr_depth) are the defaults of the method's params
+    for key in ("max_depth", "rr_depth"):
+        if key in resolved and key not in (params or {}) and key in sc.defaults:
+            resolved[key] = int(sc.defaults[key])
     if "max_depth" in resolved:
-        if "max_depth" not in (params or {}):
-            resolved["max_depth"] = int(sc.defaults.get("max_depth", resolved["max_depth"]))
         if resolved["max_depth"] == 0:
             raise InvalidParameterError("param 'max_depth' must be -1 (unbounded) or >= 1, got 0")
     spp = int(sc.defaults.get("spp", 16)) if spp is None else spp

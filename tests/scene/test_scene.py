@@ -334,3 +334,14 @@ def test_fov_is_positive():
     with pytest.raises(InvalidParameterError, match="fov"):
         Camera(fov=0.0)
     assert math.isclose(Camera().fov, 39.3077)
+
+
+def test_mitsuba_xml_cornell_box_matches_the_builtin_one():
+    from pathlib import Path
+
+    from grisx.scene.render import render
+
+    xml = Path(__file__).parent / "data" / "cornell_box.xml"
+    views = [render(str(s), "gbuffer", res=(32, 32)).extra for s in (xml, "cornell-box")]
+    for field in ("albedo", "normal", "depth", "material", "emission"):
+        np.testing.assert_allclose(views[0][field], views[1][field], atol=1e-5, err_msg=field)
