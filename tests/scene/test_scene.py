@@ -345,3 +345,24 @@ def test_mitsuba_xml_cornell_box_matches_the_builtin_one():
     views = [render(str(s), "gbuffer", res=(32, 32)).extra for s in (xml, "cornell-box")]
     for field in ("albedo", "normal", "depth", "material", "emission"):
         np.testing.assert_allclose(views[0][field], views[1][field], atol=1e-5, err_msg=field)
+
+
+@wp.kernel
+def _lens_rays(cam: CameraData, u: wp.array(dtype=wp.vec2), o: wp.array(dtype=wp.vec3), d: wp.array(dtype=wp.vec3)):
+    i = wp.tid()
+    r = camera_ray(cam, 7.3, 4.1, u[i])
+    o[i] = r.o
+    d[i] = r.d
+
+
+def test_thin_lens_rays_of_one_pixel_meet_on_the_focal_plane():
+    cam = Camera(to_world=lookat((0, 0, 0), (0, 0, 1), (0, 1, 0)), fov=50, aperture_radius=0.2, focus_distance=3.0)
+    data = cam.data(16, 8)
+    u = np.random.default_rng(2).uniform(size=(64, 2)).astype(np.float32)
+    o = wp.zeros(64, dtype=wp.vec3, device="cpu")
+    d = wp.zeros(64, dtype=wp.vec3, device="cpu")
+    wp.launch(_lens_rays, dim=64, inputs=[data, wp.array(u, dtype=wp.vec2, device="cpu"), o, d], device="cpu")
+    o, d = o.numpy().astype(np.float64), d.numpy().astype(np.float64)
+    assert np.ptp(o[:, 0]) > 0.1 and np.all(np.hypot(o[:, 0], o[:, 1]) <= 0.2 + 1e-6)  # origins spread over the lens
+    hit = o + d * ((3.0 - o[:, 2]) / d[:, 2])[:, None]  # where each ray crosses z = focus distance
+    np.testing.assert_allclose(hit, np.broadcast_to(hit.mean(axis=0), hit.shape), atol=1e-5)
