@@ -7,6 +7,9 @@
     grisx scenes [--json]
     grisx render SCENE_OR_FILE --method M [--spp N] [--frames F [--accumulate]] [--res WxH]
                  [--device cpu|cuda] [--seed S] [--param k=v ...] [--out PATH.exr] [--json]
+    grisx reference SCENE_OR_FILE [--spp N] [--res WxH] [--device cpu|cuda] [--out PATH.exr] [--json]
+    grisx compare TEST.exr REF.exr [--metrics mse,relmse,flip] [--json]
+    grisx bench toys|render ...       (see grisx bench --help)
 
 Bad input prints one line ``grisx: error: …`` on stderr and exits with 2.
 """
@@ -101,11 +104,13 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--json", action="store_true", help="print one JSON object")
     run.set_defaults(handler=_toy_run)
 
+    from grisx.eval.cli import add_parser as add_eval_parser
     from grisx.poisson.cli import add_parser as add_poisson_parser
     from grisx.scene.cli import add_parsers as add_scene_parsers
 
     add_poisson_parser(sub)
     add_scene_parsers(sub, _key_value, _count, _seed)
+    add_eval_parser(sub)
     return parser
 
 
