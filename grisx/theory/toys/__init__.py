@@ -16,10 +16,19 @@ from grisx.theory.toys.base import Estimate, Method, Param, ToyProblem
 from grisx.theory.toys.gris_shift import GRISShift
 from grisx.theory.toys.reconnection_flatland import ReconnectionFlatland
 from grisx.theory.toys.ris_1d import RIS1D
+from grisx.theory.toys.sms_toy import SMSToy
 
 __all__ = ["PROBLEMS", "get_problem", "run_toy", "Estimate", "Method", "Param", "ToyProblem"]
 
-PROBLEMS: dict[str, ToyProblem] = {p.name: p for p in (RIS1D(), GRISShift(), ReconnectionFlatland())}
+PROBLEMS: dict[str, ToyProblem] = {
+    p.name: p
+    for p in (
+        RIS1D(),
+        GRISShift(),
+        ReconnectionFlatland(),
+        SMSToy(),
+    )
+}
 
 
 def get_problem(name: str) -> ToyProblem:

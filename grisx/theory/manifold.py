@@ -1,0 +1,525 @@
+"""Specular manifold sampling (SMS): Newton walks, Bernoulli-trial UCWs, trust regions, priors, manifold shifts.
+
+A specular chain between a shading point and a light vertex is fixed by a
+2D seed ``u`` in the periodic primary sample space U = [0, 1)² (seed 003,
+Sec. 3.1): a *manifold walk* — Newton's method on a constraint C(u) = 0 —
+carries the seed to an admissible solution u*. Solutions are discrete, so a
+sample's "pdf" is the probability P(u*) that a random seed converges to it,
+the area of its *convergence basin* (Eq. 2)::
+
+    P(u*) = ∫_U p(u) P(u* | u) du,        P(u* | u) ∈ {0, 1}.
+
+P is unknown, but its reciprocal has an unbiased estimate by **Bernoulli
+trials** (Booth 2007; Zeltner et al. 2020): draw fresh seeds until one walks
+to the same u*; the number K of seeds drawn is geometric with E[K] = 1/P(u*),
+so ``W = K`` is an unbiased contribution weight (UCW) and ``f(u*) · W`` an
+unbiased estimate of Σ_k f(u*_k) (Eq. 1). One sample costs 1 + Σ_k P_k/P_k
+= 1 + K_solutions walks on average (Eq. 3). Capping K at ``max_trials``
+loses energy: E[min(K, cap)] = (1 − (1 − P)^cap)/P < 1/P.
+
+**Trust regions** (Sec. 3.3). U is cut into N × N tiles; a walk seeded at u
+may only move inside R(u), the 3 × 3 tiles around u's tile (periodic), and
+stops (fails) when it steps out. A seed can then reach u* only from the
+*conditional sample space* C(u*) = R(u*), and (Eq. 4–5)::
+
+    P'(u*) = ∫_{C(u*)} p(u) P_C(u* | u) du
+           = P(C) ∫_{C} p(u)/P(C) · P_C(u* | u) du,   P(C) = ∫_C p(u) du.
+
+P(C) is known in closed form, and Bernoulli trials drawn *inside* C from
+p/P(C) estimate only the remaining reciprocal: ``W = K / P(C)``, with
+E[K] = P(C)/P'(u*) trials — fewer than SMS's 1/P (Eq. 6).
+
+**Priors** (Sec. 4.1). Presampled unrestricted walks of nearby pixels mark
+the tiles I that held solutions; seeds are then drawn from the mixture
+(Eq. 7)::
+
+    p(u) = α p_I(u) + (1 − α) p_U(u),   p_I uniform on the tiles of I,
+
+whose mass in C is (Eq. 8, M = 3 tiles per side of C)::
+
+    P(C) = α #(I ∩ C)/#(I) + (1 − α) M²/N²,
+
+and Bernoulli seeds in C come from I ∩ C with probability (Eq. 9)::
+
+    α' = α #(I ∩ C)/#(I) / P(C),   else uniformly from C.
+
+The (1 − α) p_U term keeps every solution reachable: the estimator stays
+unbiased for any I. With I empty the mixture is p_U (α is set to 0).
+
+**Manifold shift** (Sec. 5.2–5.3). ReSTIR reuses a neighbour's solution x
+by a walk in the current pixel seeded at x (at most 5 Newton iterations, no
+trust region); the shift is defined only if the walk converges to y *and*
+the walk back from y in the neighbour returns x (a partial bijection between
+the two discrete solution sets). Solutions are points of a counting measure,
+so the Jacobian is 1 (delta BSDFs, Sec. 5.2); the resampling weight is
+seed 003's Eq. 10 with |∂T/∂x| = 1 and W_Y follows Eq. 11.
+
+**Using it.** The functions that need the constraint are built by
+:func:`make_manifold_sampler` from two Warp functions
+``constraint(spec, view, u) -> vec2`` and ``constraint_jacobian(spec, view, u)
+-> mat22`` (``view`` names the pixel/frame whose specular chain is solved);
+everything else (tiles, Eq. 5–9 and the UCW) is plain ``@wp.func``. The toy
+``sms-toy`` and a scene-layer caustics renderer call the same record.
+
+=======================  ==============================================
+Newton solver            ≤ 20 iterations, |C| < 1e-5 converged (SMS)
+same solution            periodic distance < 1e-4 (uniqueness threshold)
+manifold shift           ≤ 5 iterations each way, Jacobian 1
+=======================  ==============================================
+
+References: P. Hong et al., "Sample Space Partitioning and Spatiotemporal
+Resampling for Specular Manifold Sampling", SIGGRAPH Asia 2025 (seed 003);
+T. Zeltner, I. Georgiev, W. Jakob, "Specular Manifold Sampling", SIGGRAPH
+2020; W. Jakob, S. Marschner, "Manifold Exploration", SIGGRAPH 2012;
+T. E. Booth, "Unbiased Monte Carlo estimation of the reciprocal of an
+integral", NSE 156 (2007).
+"""
+
+import dataclasses
+from typing import Any
+
+import warp as wp
+
+from grisx.theory.random import random_subkey, random_uniform
+
+# grisx never differentiates through its kernels: skip adjoint code (halves compile time)
+wp.set_module_options({"enable_backward": False})
+
+__all__ = [
+    "NEWTON_MAX_ITERATIONS",
+    "NEWTON_THRESHOLD",
+    "SOLUTION_THRESHOLD",
+    "SHIFT_MAX_ITERATIONS",
+    "TRUST_REGION_TILES",
+    "UNBOUNDED_TRIALS",
+    "PRIOR_ALPHA",
+    "ManifoldWalk",
+    "BernoulliTrials",
+    "SMSSample",
+    "ManifoldShift",
+    "SeedSpace",
+    "ManifoldSampler",
+    "make_manifold_sampler",
+    "wrap_unit",
+    "periodic_distance",
+    "same_solution",
+    "tile_of",
+    "tile_offset",
+    "in_region",
+    "seed_space",
+    "seed_pdf",
+    "sample_seed",
+    "prior_add_tile",
+    "prior_count_in_region",
+    "conditional_probability",
+    "conditional_alpha",
+    "sample_conditional_seed",
+    "bernoulli_ucw",
+    "trial_cap",
+]
+
+NEWTON_MAX_ITERATIONS = wp.constant(20)
+NEWTON_THRESHOLD = wp.constant(1.0e-5)
+SOLUTION_THRESHOLD = wp.constant(1.0e-4)
+SHIFT_MAX_ITERATIONS = wp.constant(5)
+#: M: a trust region / conditional sample space is M × M tiles (seed 003 uses 3 × 3)
+TRUST_REGION_TILES = wp.constant(3)
+#: the safety bound of "unbounded" Bernoulli trials: (1 − P)^(2^22) is negligible for P > 1e-5
+UNBOUNDED_TRIALS = wp.constant(1 << 22)
+#: α of Eq. 7 used in seed 003's results
+PRIOR_ALPHA = 0.8
+_SINGULAR = wp.constant(1.0e-12)
+
+
+# ---- records -------------------------------------------------------------------------
+
+
+@wp.struct
+class ManifoldWalk:
+    """Result of one Newton walk: where it ended, whether |C| < threshold there, steps taken."""
+
+    u: wp.vec2
+    converged: wp.bool
+    iterations: int
+
+
+@wp.struct
+class BernoulliTrials:
+    """Bernoulli trials for one solution: trial count K, their Newton steps, whether K hit the cap, W."""
+
+    trials: int
+    newton: int
+    capped: wp.bool
+    ucw: float
+
+
+@wp.struct
+class SMSSample:
+    """One SMS sample: solution u*, its UCW W (0 when no solution was found) and its cost."""
+
+    u: wp.vec2
+    found: wp.bool
+    ucw: float
+    newton_sample: int
+    trials: int
+    newton_bernoulli: int
+    capped: wp.bool
+
+
+@wp.struct
+class ManifoldShift:
+    """A manifold shift: shifted solution, Jacobian (1: counting measure), validity, Newton steps spent."""
+
+    u: wp.vec2
+    jacobian: float
+    valid: wp.bool
+    iterations: int
+
+
+@wp.struct
+class SeedSpace:
+    """How seeds are drawn: N × N tiles (0: unpartitioned SMS), prior weight α and #(I)."""
+
+    tiles: int
+    alpha: float
+    prior_count: int
+
+
+# ---- the periodic sample space and its tiles ---------------------------------------------
+
+
+@wp.func
+def wrap_unit(u: wp.vec2) -> wp.vec2:
+    """u mod 1 per coordinate, in [0, 1) even where float32 rounds u − floor(u) up to 1."""
+    x = u[0] - wp.floor(u[0])
+    y = u[1] - wp.floor(u[1])
+    if x >= 1.0:
+        x = 0.0
+    if y >= 1.0:
+        y = 0.0
+    return wp.vec2(x, y)
+
+
+@wp.func
+def periodic_distance(a: wp.vec2, b: wp.vec2) -> float:
+    """Euclidean distance on the unit torus."""
+    dx = wp.abs(a[0] - b[0])
+    dy = wp.abs(a[1] - b[1])
+    dx = wp.min(dx, 1.0 - dx)
+    dy = wp.min(dy, 1.0 - dy)
+    return wp.sqrt(dx * dx + dy * dy)
+
+
+@wp.func
+def same_solution(a: wp.vec2, b: wp.vec2) -> wp.bool:
+    """Do two converged walks name the same solution (uniqueness threshold 1e-4)?"""
+    return periodic_distance(a, b) < SOLUTION_THRESHOLD
+
+
+@wp.func
+def tile_of(u: wp.vec2, tiles: int) -> int:
+    """Index ty·N + tx of the tile holding u (N = ``tiles`` >= 1)."""
+    tx = wp.min(int(u[0] * float(tiles)), tiles - 1)
+    ty = wp.min(int(u[1] * float(tiles)), tiles - 1)
+    return ty * tiles + tx
+
+
+@wp.func
+def _axis_offset(a: int, b: int, tiles: int) -> int:
+    """Periodic tile distance along one axis."""
+    d = wp.abs(a - b)
+    return wp.min(d, tiles - d)
+
+
+@wp.func
+def tile_offset(tile: int, center: int, tiles: int) -> int:
+    """Chebyshev distance between two tiles on the periodic N × N grid."""
+    return wp.max(_axis_offset(tile % tiles, center % tiles, tiles), _axis_offset(tile // tiles, center // tiles, tiles))
+
+
+@wp.func
+def in_region(tile: int, center: int, tiles: int) -> wp.bool:
+    """Is ``tile`` in the 3 × 3 region R = C around tile ``center`` (Sec. 3.3)? Always true for N = 0."""
+    if tiles <= 0:
+        return True
+    return tile_offset(tile, center, tiles) <= TRUST_REGION_TILES // 2
+
+
+@wp.func
+def _uniform_in_tile(tile: int, tiles: int, r0: float, r1: float) -> wp.vec2:
+    inv = 1.0 / float(tiles)
+    return wrap_unit(wp.vec2((float(tile % tiles) + r0) * inv, (float(tile // tiles) + r1) * inv))
+
+
+@wp.func
+def _region_tile(center: int, j: int, tiles: int) -> int:
+    """The j-th (0 … M²−1) tile of the region around ``center``."""
+    half = TRUST_REGION_TILES // 2
+    dx = j % TRUST_REGION_TILES - half
+    dy = j // TRUST_REGION_TILES - half
+    tx = (center % tiles + dx + tiles) % tiles
+    ty = (center // tiles + dy + tiles) % tiles
+    return ty * tiles + tx
+
+
+@wp.func
+def _pick(count: int, r: float) -> int:
+    return wp.min(int(r * float(count)), count - 1)
+
+
+# ---- the seed pdf (Eq. 7) and its prior tiles I --------------------------------------------
+
+
+@wp.func
+def seed_space(tiles: int, alpha: float, prior_count: int) -> SeedSpace:
+    """Seed distribution of Eq. 7; without prior tiles (#I = 0) or tiles the mixture is p_U (α = 0)."""
+    s = SeedSpace()
+    s.tiles = tiles
+    s.prior_count = prior_count
+    s.alpha = alpha
+    if prior_count <= 0 or tiles <= 0:
+        s.alpha = 0.0
+        s.prior_count = 0
+    return s
+
+
+@wp.func
+def prior_add_tile(prior: wp.array(dtype=int), count: int, tile: int) -> int:
+    """Add ``tile`` to the set I held in ``prior[0:count]`` (no duplicates, room permitting); new #(I)."""
+    for j in range(count):
+        if prior[j] == tile:
+            return count
+    if count < prior.shape[0]:
+        prior[count] = tile
+        return count + 1
+    return count
+
+
+@wp.func
+def _in_prior(prior: wp.array(dtype=int), count: int, tile: int) -> wp.bool:
+    for j in range(count):
+        if prior[j] == tile:
+            return True
+    return False
+
+
+@wp.func
+def prior_count_in_region(space: SeedSpace, prior: wp.array(dtype=int), center: int) -> int:
+    """#(I ∩ C(center))."""
+    n = int(0)
+    for j in range(space.prior_count):
+        if in_region(prior[j], center, space.tiles):
+            n += 1
+    return n
+
+
+@wp.func
+def seed_pdf(space: SeedSpace, prior: wp.array(dtype=int), u: wp.vec2) -> float:
+    """p(u) = α p_I(u) + (1 − α) p_U(u) (seed 003, Eq. 7), p_I = N²/#(I) on the tiles of I."""
+    p = 1.0 - space.alpha
+    if space.alpha > 0.0 and _in_prior(prior, space.prior_count, tile_of(u, space.tiles)):
+        p += space.alpha * float(space.tiles * space.tiles) / float(space.prior_count)
+    return p
+
+
+@wp.func
+def sample_seed(space: SeedSpace, prior: wp.array(dtype=int), key: wp.uint32, counter: int) -> wp.vec2:
+    """Draw u ~ p (Eq. 7) from uniforms ``counter`` … ``counter + 3`` of ``key``."""
+    r0 = random_uniform(key, counter + 1)
+    r1 = random_uniform(key, counter + 2)
+    if space.alpha > 0.0 and random_uniform(key, counter) < space.alpha:
+        tile = prior[_pick(space.prior_count, random_uniform(key, counter + 3))]
+        return _uniform_in_tile(tile, space.tiles, r0, r1)
+    return wrap_unit(wp.vec2(r0, r1))
+
+
+# ---- the conditional sample space C(u*) (Eq. 4–6, 8, 9) ------------------------------------
+
+
+@wp.func
+def conditional_probability(space: SeedSpace, prior: wp.array(dtype=int), center: int) -> float:
+    """P(C) = α #(I∩C)/#(I) + (1 − α) M²/N² (seed 003, Eq. 8); 1 when unpartitioned (C = U)."""
+    if space.tiles <= 0:
+        return 1.0
+    m2 = float(TRUST_REGION_TILES * TRUST_REGION_TILES)
+    p = (1.0 - space.alpha) * m2 / float(space.tiles * space.tiles)
+    if space.alpha > 0.0:
+        p += space.alpha * float(prior_count_in_region(space, prior, center)) / float(space.prior_count)
+    return p
+
+
+@wp.func
+def conditional_alpha(space: SeedSpace, prior: wp.array(dtype=int), center: int, p_c: float) -> float:
+    """α' = α #(I∩C)/#(I) / P(C) (seed 003, Eq. 9): the chance a Bernoulli seed comes from I ∩ C."""
+    if space.alpha <= 0.0 or space.tiles <= 0 or p_c <= 0.0:
+        return 0.0
+    return space.alpha * float(prior_count_in_region(space, prior, center)) / float(space.prior_count) / p_c
+
+
+@wp.func
+def sample_conditional_seed(
+    space: SeedSpace, prior: wp.array(dtype=int), center: int, alpha_prime: float, key: wp.uint32, counter: int
+) -> wp.vec2:
+    """Draw u ~ p/P(C) restricted to C(center): uniform in I ∩ C w.p. α', else uniform in C (Eq. 9)."""
+    if space.tiles <= 0:
+        return sample_seed(space, prior, key, counter)
+    r0 = random_uniform(key, counter + 1)
+    r1 = random_uniform(key, counter + 2)
+    r2 = random_uniform(key, counter + 3)
+    if alpha_prime > 0.0 and random_uniform(key, counter) < alpha_prime:
+        pick = _pick(prior_count_in_region(space, prior, center), r2)
+        for j in range(space.prior_count):
+            if in_region(prior[j], center, space.tiles):
+                if pick == 0:
+                    return _uniform_in_tile(prior[j], space.tiles, r0, r1)
+                pick -= 1
+    m2 = TRUST_REGION_TILES * TRUST_REGION_TILES
+    return _uniform_in_tile(_region_tile(center, _pick(m2, r2), space.tiles), space.tiles, r0, r1)
+
+
+@wp.func
+def bernoulli_ucw(trials: int, p_c: float) -> float:
+    """W = K / P(C) (seed 003, Eq. 1–2 and 5): E[K] = P(C)/P'(u*), so E[W] = 1/P'(u*)."""
+    if p_c > 0.0:
+        return float(trials) / p_c
+    return 0.0
+
+
+@wp.func
+def trial_cap(max_trials: int) -> int:
+    """The Bernoulli-trial budget: ``max_trials``, or the safety bound for 0 (= unbounded)."""
+    if max_trials > 0:
+        return max_trials
+    return UNBOUNDED_TRIALS
+
+
+# ---- functions built over a problem's constraint ----------------------------------------
+
+
+@dataclasses.dataclass(frozen=True)
+class ManifoldSampler:
+    """SMS over one constraint: the Warp functions :func:`make_manifold_sampler` builds.
+
+    ``walk(spec, view, u0, tiles, max_iterations) -> ManifoldWalk``
+        Newton's method on C(u) = 0 from seed u0; with ``tiles`` > 0 the walk
+        stops (unconverged) when it leaves R(u0) (Sec. 3.3).
+    ``bernoulli(spec, view, u_star, space, prior, key, max_trials) -> BernoulliTrials``
+        fresh seeds from p/P(C(u*)) until one walks to u*: W = K / P(C) (Eq. 5).
+    ``sample(spec, view, space, prior, key, max_trials) -> SMSSample``
+        seed u ~ p (Eq. 7), walk with trust region, Bernoulli UCW if it converged.
+    ``shift(spec, src_view, dst_view, x) -> ManifoldShift``
+        manifold shift of solution x of ``src_view`` into ``dst_view`` with the
+        back-walk invertibility check, ≤ 5 iterations each (Sec. 5.2–5.3).
+    """
+
+    walk: Any
+    bernoulli: Any
+    sample: Any
+    shift: Any
+
+
+def make_manifold_sampler(spec_type: Any, constraint: Any, constraint_jacobian: Any) -> ManifoldSampler:
+    """Build the SMS functions for ``constraint(spec, view, u) -> vec2`` and its ∂C/∂u ``-> mat22``."""
+
+    @wp.func
+    def walk(spec: spec_type, view: int, u0: wp.vec2, tiles: int, max_iterations: int) -> ManifoldWalk:
+        out = ManifoldWalk()
+        out.u = u0
+        out.converged = False
+        out.iterations = 0
+        center = int(0)
+        if tiles > 0:
+            center = tile_of(u0, tiles)
+        u = u0
+        for it in range(max_iterations + 1):
+            c = constraint(spec, view, u)
+            if wp.length(c) < NEWTON_THRESHOLD:
+                out.u = u
+                out.converged = True
+                return out
+            if it == max_iterations:
+                break
+            jac = constraint_jacobian(spec, view, u)
+            if wp.abs(wp.determinant(jac)) < _SINGULAR:
+                break
+            u = wrap_unit(u - wp.inverse(jac) @ c)  # Newton step on the torus
+            out.iterations = out.iterations + 1
+            if tiles > 0 and not in_region(tile_of(u, tiles), center, tiles):
+                break  # the walk left its trust region R(u0): stop (Sec. 3.3)
+        out.u = u
+        return out
+
+    @wp.func
+    def bernoulli(
+        spec: spec_type,
+        view: int,
+        u_star: wp.vec2,
+        space: SeedSpace,
+        prior: wp.array(dtype=int),
+        key: wp.uint32,
+        max_trials: int,
+    ) -> BernoulliTrials:
+        out = BernoulliTrials()
+        out.trials = 0
+        out.newton = 0
+        out.capped = True
+        center = int(0)
+        if space.tiles > 0:
+            center = tile_of(u_star, space.tiles)
+        p_c = conditional_probability(space, prior, center)  # Eq. 8
+        alpha_prime = conditional_alpha(space, prior, center, p_c)  # Eq. 9
+        cap = trial_cap(max_trials)
+        while out.trials < cap:
+            u = sample_conditional_seed(space, prior, center, alpha_prime, key, 4 * out.trials)
+            out.trials = out.trials + 1
+            w = walk(spec, view, u, space.tiles, NEWTON_MAX_ITERATIONS)
+            out.newton = out.newton + w.iterations
+            if w.converged and same_solution(w.u, u_star):
+                out.capped = False
+                break
+        out.ucw = bernoulli_ucw(out.trials, p_c)  # Eq. 5: E[W] = 1/P'(u*)
+        return out
+
+    @wp.func
+    def sample(
+        spec: spec_type, view: int, space: SeedSpace, prior: wp.array(dtype=int), key: wp.uint32, max_trials: int
+    ) -> SMSSample:
+        out = SMSSample()
+        out.found = False
+        out.ucw = 0.0
+        out.trials = 0
+        out.newton_bernoulli = 0
+        out.capped = False
+        # ---- main sampling phase: one seed, one walk (Sec. 3.2) ----
+        w = walk(spec, view, sample_seed(space, prior, key, 0), space.tiles, NEWTON_MAX_ITERATIONS)
+        out.u = w.u
+        out.newton_sample = w.iterations
+        if w.converged:
+            # ---- inverse probability by Bernoulli trials (Eq. 2, 5) ----
+            b = bernoulli(spec, view, w.u, space, prior, random_subkey(key, 1), max_trials)
+            out.found = True
+            out.ucw = b.ucw
+            out.trials = b.trials
+            out.newton_bernoulli = b.newton
+            out.capped = b.capped
+        return out
+
+    @wp.func
+    def shift(spec: spec_type, src_view: int, dst_view: int, x: wp.vec2) -> ManifoldShift:
+        out = ManifoldShift()
+        out.u = x
+        out.jacobian = 0.0
+        out.valid = False
+        there = walk(spec, dst_view, x, 0, SHIFT_MAX_ITERATIONS)  # T(x): walk seeded at x in the new view
+        out.iterations = there.iterations
+        if not there.converged:
+            return out
+        back = walk(spec, src_view, there.u, 0, SHIFT_MAX_ITERATIONS)  # T⁻¹(T(x)) must give x back
+        out.iterations = out.iterations + back.iterations
+        if back.converged and same_solution(back.u, x):
+            out.u = there.u
+            out.jacobian = 1.0  # discrete solutions: no density change (Sec. 5.2)
+            out.valid = True
+        return out
+
+    return ManifoldSampler(walk=walk, bernoulli=bernoulli, sample=sample, shift=shift)
