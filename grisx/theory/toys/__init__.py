@@ -13,6 +13,7 @@ from typing import Any
 
 from grisx.errors import UnknownNameError
 from grisx.theory.toys.base import Estimate, Method, Param, ToyProblem
+from grisx.theory.toys.conditional_paths import FinalGather, JointUCW, SuffixReuse
 from grisx.theory.toys.gris_shift import GRISShift
 from grisx.theory.toys.reconnection_flatland import ReconnectionFlatland
 from grisx.theory.toys.ris_1d import RIS1D
@@ -27,6 +28,9 @@ PROBLEMS: dict[str, ToyProblem] = {
         GRISShift(),
         ReconnectionFlatland(),
         SMSToy(),
+        JointUCW(),
+        SuffixReuse(),
+        FinalGather(),
     )
 }
 
