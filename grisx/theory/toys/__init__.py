@@ -13,6 +13,7 @@ from typing import Any
 
 from grisx.errors import UnknownNameError
 from grisx.theory.toys.base import Estimate, Method, Param, ToyProblem
+from grisx.theory.toys.chromatic_cv import ChromaticCV
 from grisx.theory.toys.conditional_paths import FinalGather, JointUCW, SuffixReuse
 from grisx.theory.toys.gris_shift import GRISShift
 from grisx.theory.toys.reconnection_flatland import ReconnectionFlatland
@@ -31,6 +32,7 @@ PROBLEMS: dict[str, ToyProblem] = {
         JointUCW(),
         SuffixReuse(),
         FinalGather(),
+        ChromaticCV(),
     )
 }
 
