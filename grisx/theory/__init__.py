@@ -9,9 +9,18 @@ module                 what it holds
 ``reservoir``          weighted reservoir: stream, merge, finalize W (Eq. 8),
                        confidence caps (seed 004, Alg. 1)
 ``mis``                generalized balance heuristic (seed 001, Eq. 15–16),
-                       pairwise MIS, support-counting 1/Z (seed 004, Alg. 4)
+                       pairwise MIS, support-counting 1/Z (seed 004, Alg. 4),
+                       the power heuristic of path tracing (Veach, Eq. 9.13)
 ``shift``              shift records and the reconnection Jacobian (seed 004,
                        Eq. 11)
+``conditional``        conditional and joint UCWs (seed 001, Def. 4.1,
+                       Thm. 4.1), conditional RIS, final gather (Eq. 13–23)
+``gradient``           paired-pixel domains, gradient after/with ReSTIR,
+                       positivization (seed 000, Eq. 2–26)
+``control_variate``    spatio-temporal control variates and the ReSTIR
+                       difference estimator (seed 002, Eq. 2–11)
+``manifold``           Bernoulli-trial UCWs, trust regions, priors and the
+                       manifold shift of SMS (seed 003, Eq. 1–13)
 ``toys``               problems with exact answers that run these functions
 =====================  ========================================================
 

@@ -14,7 +14,7 @@ from grisx.testing import BIASED_K, DEFAULT_K, z_test
 from grisx.theory.toys import PROBLEMS, get_problem, run_toy
 from grisx.theory.toys.reconnection_flatland import flatland_scene
 
-TRIALS = {"ris-1d": 1_000_000, "gris-shift": 200_000, "reconnection-flatland": 200_000, "joint-ucw": 200_000, "suffix-reuse": 60_000, "final-gather": 60_000, "sms-toy": 20_000, "chromatic-cv": 2_000}
+TRIALS = {"ris-1d": 1_000_000, "gris-shift": 200_000, "reconnection-flatland": 200_000, "joint-ucw": 200_000, "suffix-reuse": 60_000, "final-gather": 60_000, "sms-toy": 20_000, "f1-f2": 200_000, "gradient-row": 80_000, "chromatic-cv": 2_000}
 
 UNBIASED = [
     ("ris-1d", "mc", {}),

@@ -15,6 +15,8 @@ from grisx.errors import UnknownNameError
 from grisx.theory.toys.base import Estimate, Method, Param, ToyProblem
 from grisx.theory.toys.chromatic_cv import ChromaticCV
 from grisx.theory.toys.conditional_paths import FinalGather, JointUCW, SuffixReuse
+from grisx.theory.toys.f1_f2 import F1F2
+from grisx.theory.toys.gradient_row import GradientRow
 from grisx.theory.toys.gris_shift import GRISShift
 from grisx.theory.toys.reconnection_flatland import ReconnectionFlatland
 from grisx.theory.toys.ris_1d import RIS1D
@@ -33,6 +35,8 @@ PROBLEMS: dict[str, ToyProblem] = {
         SuffixReuse(),
         FinalGather(),
         ChromaticCV(),
+        F1F2(),
+        GradientRow(),
     )
 }
 
