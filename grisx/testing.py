@@ -43,6 +43,7 @@ import scipy.stats
 from grisx.errors import InvalidParameterError, InvalidValueError
 
 __all__ = [
+    "independent_runs",
     "ZTestResult",
     "Chi2Result",
     "z_test",
@@ -197,3 +198,17 @@ def chi2_test(
     p = float(scipy.stats.chi2.sf(stat, dof))
     level = sidak_alpha(alpha, tests) if tests > 1 else alpha
     return Chi2Result(statistic=stat, dof=dof, p_value=p, alpha=level, passed=p >= level)
+
+
+def independent_runs(run: Callable[[int], np.ndarray], runs: int, seed0: int = 1000) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and standard error over ``runs`` independent runs of a correlated estimator.
+
+    ``run(seed)`` returns one run's estimate (e.g. a reuse renderer's image mean
+    after F frames, all history started afresh with that seed). The runs are
+    independent, so their spread gives an honest standard error even though
+    the pixels inside one run are correlated.
+    """
+    if runs < 2:
+        raise InvalidParameterError(f"independent_runs needs at least 2 runs, got {runs}")
+    values = np.asarray([np.asarray(run(seed0 + r), dtype=np.float64) for r in range(runs)])
+    return values.mean(axis=0), values.std(axis=0, ddof=1) / math.sqrt(runs)

@@ -40,13 +40,13 @@ from grisx.scene.bsdf import make_bsdf
 from grisx.scene.camera import CameraData, camera_ray
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.lights import emitter_radiance, environment_eval, environment_pdf, light_pdf_emitter, sample_light
-from grisx.scene.scene import SceneData, intersect, occluded, spawn_origin, surface_material
+from grisx.scene.scene import SceneData, intersect, occluded, segment_occluded, spawn_origin, surface_material
 from grisx.theory.mis import power_heuristic
 from grisx.theory.random import random_key, random_subkey, random_uniform
 
 wp.set_module_options({"enable_backward": False})
 
-__all__ = ["PathTracer", "make_path_tracer_kernel", "STRATEGIES", "create_path_tracer"]
+__all__ = ["PathTracer", "make_path_tracer_kernel", "make_trace_path", "STRATEGIES", "create_path_tracer"]
 
 #: sampling strategies: both techniques with MIS, or one alone
 STRATEGIES = {"mis": 0, "nee": 1, "bsdf": 2}
@@ -54,10 +54,17 @@ STRATEGIES = {"mis": 0, "nee": 1, "bsdf": 2}
 _KERNELS: dict[frozenset[int], Any] = {}
 
 
-def make_path_tracer_kernel(kinds: frozenset[int]) -> Any:
-    """The sample-pass kernel compiled for the material kinds ``kinds`` (cached)."""
-    if kinds in _KERNELS:
-        return _KERNELS[kinds]
+_TRACE_PATHS: dict[frozenset[int], Any] = {}
+
+
+def make_trace_path(kinds: frozenset[int]) -> Any:
+    """``trace_path(scene, o, d, key, max_depth, rr_depth, strategy) -> vec3`` for the material kinds
+    ``kinds`` (cached): the radiance arriving at o from direction d, emission at the first hit included.
+    Renderers that need the path tracer's estimate at a point (ReSTIR GI's outgoing radiance at a
+    sample point) call this very function."""
+    kinds = frozenset(kinds)
+    if kinds in _TRACE_PATHS:
+        return _TRACE_PATHS[kinds]
     bsdf = make_bsdf(kinds)
 
     @wp.func
@@ -109,8 +116,12 @@ def make_path_tracer_kernel(kinds: frozenset[int]) -> Any:
                     wi = to_local(frame, ls.wi)
                     f = bsdf.eval(m, wo, wi)
                     if wp.length_sq(f) > 0.0:
-                        origin = spawn_origin(scene, si.p, si.ng, ls.wi)
-                        if not occluded(scene, origin, ls.wi, ls.dist):
+                        blocked = bool(False)
+                        if ls.is_env != 0:
+                            blocked = occluded(scene, spawn_origin(scene, si.p, si.ng, ls.wi), ls.wi, ls.dist)
+                        else:
+                            blocked = segment_occluded(scene, si.p, si.ng, ls.p, wp.where(ls.delta != 0, wp.vec3(0.0), ls.n))
+                        if not blocked:
                             w = float(1.0)
                             if ls.delta == 0 and use_bsdf_emission:
                                 w = power_heuristic(ls.pdf, bsdf.pdf(m, wo, wi))
@@ -137,6 +148,16 @@ def make_path_tracer_kernel(kinds: frozenset[int]) -> Any:
                 beta = beta / q
         return L
 
+    _TRACE_PATHS[kinds] = trace_path
+    return trace_path
+
+
+def make_path_tracer_kernel(kinds: frozenset[int]) -> Any:
+    """The sample-pass kernel compiled for the material kinds ``kinds`` (cached)."""
+    if kinds in _KERNELS:
+        return _KERNELS[kinds]
+    trace_path = make_trace_path(kinds)
+
     @wp.kernel
     def sample_pass(
         scene: SceneData,
@@ -147,6 +168,7 @@ def make_path_tracer_kernel(kinds: frozenset[int]) -> Any:
         max_depth: int,
         rr_depth: int,
         strategy: int,
+        jitter: int,
         total: wp.array2d(dtype=wp.vec3),
         total_sq: wp.array2d(dtype=wp.vec3),
         nonfinite: wp.array(dtype=wp.int32),
@@ -155,8 +177,11 @@ def make_path_tracer_kernel(kinds: frozenset[int]) -> Any:
         pixel = y * cam.width + x
         key = random_subkey(random_subkey(random_key(seed, frame), pixel), sample)
         # dimensions 0–3 of the key's first counters are the camera's; paths start at counter 8
-        px = float(x) + random_uniform(key, 0)
-        py = float(y) + random_uniform(key, 1)
+        px = float(x) + 0.5
+        py = float(y) + 0.5
+        if jitter != 0:  # box filter over the pixel; jitter = 0: the pixel centre, as a G-buffer sees it
+            px = float(x) + random_uniform(key, 0)
+            py = float(y) + random_uniform(key, 1)
         ray = camera_ray(cam, px, py, wp.vec2(random_uniform(key, 2), random_uniform(key, 3)))
         L = trace_path(scene, ray.o, ray.d, random_subkey(key, 1), max_depth, rr_depth, strategy)
         # a NaN/Inf sample would poison the pixel forever: drop it, and count it (the tests require 0)
@@ -186,6 +211,7 @@ class PathTracer:
         seed: int = 0,
         timer: Any = None,
         kinds: frozenset[int] | None = None,
+        jitter: bool = True,
     ) -> None:
         self.built = built
         self.width, self.height = int(width), int(height)
@@ -195,6 +221,7 @@ class PathTracer:
         self.strategy = STRATEGIES[strategy]
         self.seed = int(seed)
         self.timer = timer
+        self.jitter = int(bool(jitter))
         # compile only the scene's material kinds (``kinds`` overrides, e.g. to measure the gain)
         self.kernel = make_path_tracer_kernel(frozenset(built.features.material_kinds if kinds is None else kinds))
         dev = built.device
@@ -218,7 +245,7 @@ class PathTracer:
             wp.launch(
                 self.kernel,
                 dim=(self.height, self.width),
-                inputs=[self.built.data, cam, self.seed, int(frame), self.samples, self.max_depth, self.rr_depth, self.strategy],
+                inputs=[self.built.data, cam, self.seed, int(frame), self.samples, self.max_depth, self.rr_depth, self.strategy, self.jitter],
                 outputs=[self.total, self.total_sq, self.nonfinite],
                 device=self.built.device,
             )

@@ -121,6 +121,57 @@ register(
 
 # ---- restir-di / restir-gi (issue 10): registered here by grisx.scene.restir_di / restir_gi ----
 
+register(
+    RenderMethod(
+        "restir-di",
+        "ReSTIR DI (Bitterli et al. 2020): 32 light + 1 BSDF candidates, visibility before reuse, temporal and spatial reuse with pairwise MIS; emitted + direct light (pt's max_depth=2)",
+        "grisx.scene.restir_di",
+        "create_restir_di",
+        params=(
+            Param("light_candidates", 32, "initial light-sampled candidates per pixel", kind="int", minimum=0, maximum=1024),
+            Param("bsdf_candidates", 1, "initial BSDF-sampled candidates per pixel", kind="int", minimum=0, maximum=64),
+            Param("temporal", True, "reuse the previous frame's reservoir (reprojected)", kind="bool"),
+            Param("spatial", True, "reuse neighbouring pixels' reservoirs", kind="bool"),
+            Param("neighbors", 5, "spatial neighbours per pixel", kind="int", minimum=0, maximum=64),
+            Param("radius", 30.0, "spatial reuse radius in pixels", minimum=1.0),
+            Param("history_cap", 20.0, "cap on a reused reservoir's confidence M (the history cap)", minimum=0.0),
+            Param("unbiased", True, "true: targets at other pixels include their visibility (shadow rays), unbiased; false: unshadowed, cheaper, biased", kind="bool"),
+        ),
+    )
+)
+
+register(
+    RenderMethod(
+        "restir-gi",
+        "ReSTIR GI (seed 004): sample points resampled in temporal and spatial reservoir buffers with the reconnection Jacobian (Eq. 11); full global illumination",
+        "grisx.scene.restir_gi",
+        "create_restir_gi",
+        params=(
+            Param("source", "uniform", "initial direction pdf (Alg. 2)", kind="choice", choices=("uniform", "cosine", "bsdf")),
+            Param("target", "full", "full: Eq. 9 (L_o f cos); radiance: Eq. 10 (L_o)", kind="choice", choices=("full", "radiance")),
+            Param("jacobian", True, "reconnection Jacobian of Eq. 11 (false reproduces Fig. 7's bias)", kind="bool"),
+            Param("unbiased", True, "true: Z counts only domains that can produce the sample (visibility rays, Alg. 4 l. 16-19); false: Z = sum of M", kind="bool"),
+            Param("temporal", True, "temporal resampling (Alg. 3)", kind="bool"),
+            Param("spatial", True, "spatial resampling (Alg. 4)", kind="bool"),
+            Param("temporal_cap", 30.0, "M cap of temporal reservoirs", minimum=0.0),
+            Param("spatial_cap", 500.0, "M cap of spatial reservoirs", minimum=0.0),
+            Param("iterations_low", 9, "maxIterations while the spatial reservoir's M < spatial_cap/2", kind="int", minimum=0, maximum=64),
+            Param("iterations_high", 3, "maxIterations otherwise", kind="int", minimum=0, maximum=64),
+            Param("adaptive_radius", True, "radius 10% of the image, halved per rejected neighbour down to min_radius; false: fixed radius", kind="bool"),
+            Param("radius", 30.0, "fixed spatial radius in pixels (adaptive_radius=false)", minimum=1.0),
+            Param("min_radius", 3.0, "smallest adaptive radius in pixels", minimum=1.0),
+            Param("low_m", 10.0, "a pixel whose spatial reservoir has M below this reuses neighbours' spatial reservoirs (Fig. 10); 0: never", minimum=0.0),
+            Param("max_depth", 16, "longest path in segments from the camera, Mitsuba's meaning (as pt); default: the scene's", kind="int", minimum=-1),
+            Param("rr_depth", 5, "depth from which Russian roulette may end the paths at sample points", kind="int", minimum=1),
+            Param("mb_fraction", 0.25, "probability that a 64x32 tile follows multi-bounce paths (tile Russian roulette)", minimum=1e-3, maximum=1.0),
+            Param("validation_interval", 6, "replay and validate reservoir samples every N frames; 0: never", kind="int", minimum=0),
+            Param("validation_tolerance", 0.2, "relative change of L_o that invalidates a sample", minimum=0.0),
+            Param("direct", "nee", "direct light: nee (path-traced, NEE + BSDF with MIS) or restir-di", kind="choice", choices=("nee", "restir-di")),
+            Param("max_jacobian", 0.0, "reject reconnections with |J| above this (counted the same way in Z: still unbiased); 0: never (the paper)", minimum=0.0),
+        ),
+    )
+)
+
 # ---- restir-pt (issue 11): registered here by grisx.scene.restir_pt ----
 
 

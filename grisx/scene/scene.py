@@ -65,6 +65,7 @@ __all__ = [
     "Film",
     "intersect",
     "occluded",
+    "segment_occluded",
     "surface_material",
     "spawn_origin",
     "TRI_HAS_NORMALS",
@@ -263,6 +264,26 @@ def intersect(scene: SceneData, o: wp.vec3, d: wp.vec3, tmax: float) -> SurfaceI
 def occluded(scene: SceneData, o: wp.vec3, d: wp.vec3, dist: float) -> bool:
     """Whether anything blocks the segment o → o + dist·d (d unit); the end point's surface is excluded."""
     return wp.mesh_query_ray_anyhit(scene.mesh, o, d, dist * (1.0 - 1.0e-4) - scene.ray_epsilon)
+
+
+@wp.func
+def segment_occluded(scene: SceneData, p0: wp.vec3, n0: wp.vec3, p1: wp.vec3, n1: wp.vec3) -> bool:
+    """Whether anything blocks the segment between surface points p0 and p1 (geometric normals n0, n1).
+
+    Both ends are lifted off their surfaces toward each other (pbrt-v4's
+    ``SpawnRayTo``). Lifting only the origin moves the point where the ray
+    meets p1's plane by ε/cos θ₁, which at grazing angles lands *before* p1,
+    so p1's own triangle would read as an occluder. A zero ``n1`` (a point
+    light) leaves p1 where it is.
+    """
+    d = p1 - p0
+    o = spawn_origin(scene, p0, n0, d)
+    t = spawn_origin(scene, p1, n1, -d)
+    e = t - o
+    dist = wp.length(e)
+    if dist <= 0.0:
+        return False
+    return wp.mesh_query_ray_anyhit(scene.mesh, o, e / dist, dist)
 
 
 @wp.func

@@ -44,6 +44,7 @@ __all__ = [
     "reservoir_update",
     "reservoir_merge",
     "reservoir_finalize",
+    "reservoir_finalize_mis",
     "confidence_capped",
 ]
 
@@ -115,6 +116,25 @@ def reservoir_finalize(r: Reservoir) -> Reservoir:
     out.ucw = 0.0
     if r.target > 0.0 and r.w_sum > 0.0:
         out.ucw = r.w_sum / r.target
+    return out
+
+
+@wp.func
+def reservoir_finalize_mis(r: Reservoir, mis: float) -> Reservoir:
+    """W = m(y) · w_sum / p̂(y): the MIS weight of the *kept* sample applied after selection.
+
+    This is the 1/Z form of Bitterli et al. 2020, Sec. 4.3: candidates are streamed
+    with weights c_i · p̂(x_i) · W_i (``reservoir_merge`` with ``mis = c_i``) and
+    the kept sample y gets m(y) = 1/Z(y), Z(y) the total confidence of the domains
+    that can produce y — seed 004, Alg. 3 l. 6 (Z = M) and Alg. 4 l. 16–19
+    (support counting, :func:`~grisx.theory.mis.support_mis`). Unbiased when
+    Σ_i c_i m(y) [y ∈ supp_i] = 1. ``mis`` ≤ 0 gives W = 0.
+    """
+    out = reservoir_finalize(r)
+    if mis > 0.0:
+        out.ucw = out.ucw * mis
+    else:
+        out.ucw = 0.0
     return out
 
 

@@ -1,0 +1,34 @@
+#!/usr/bin/env bash
+# Reproduce the CUDA tables of the closing notes: every benchmark with --device cuda.
+#   bash benchmarks/run_cuda.sh OUT_DIR [GROUP ...]
+# GROUP: theory (toys, conditional, gradient, control_variates, manifold), poisson,
+#        scene (scene.py, pt.py), restir (restir_gi.py, restir_pt.py), study (grisx bench render).
+# Default: all groups. Each script writes its JSON and PNG into OUT_DIR.
+set -euo pipefail
+out=${1:-benchmarks/results/cuda}
+shift || true
+groups=${*:-theory poisson scene restir study}
+mkdir -p "$out"
+py=${PYTHON:-python3}
+for g in $groups; do
+  case $g in
+    theory)
+      $py benchmarks/toys.py --device cuda --max-trials 10000000 --out "$out"
+      $py benchmarks/conditional.py --device cuda --out "$out"
+      $py benchmarks/gradient.py --device cuda --out "$out"
+      $py benchmarks/control_variates.py --device cuda --out "$out"
+      $py benchmarks/manifold.py --device cuda --out "$out" ;;
+    poisson)
+      $py benchmarks/poisson.py --device cuda --out "$out" ;;
+    scene)
+      $py benchmarks/scene.py --device cuda --out "$out"
+      $py benchmarks/pt.py --device cuda --out "$out" ;;
+    restir)
+      $py benchmarks/restir_gi.py --device cuda --out "$out"
+      $py benchmarks/restir_pt.py --device cuda --out "$out" ;;
+    study)
+      $py -m grisx bench render cornell-box door-ajar --method pt --method restir-di --method restir-gi --method restir-pt \
+          --budget 5 --res 640x360 --device cuda --out "$out/study" ;;
+    *) echo "run_cuda.sh: unknown group '$g'" >&2; exit 2 ;;
+  esac
+done

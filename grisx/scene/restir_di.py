@@ -1,0 +1,817 @@
+"""ReSTIR DI: direct lighting by spatiotemporal reservoir resampling (Bitterli et al. 2020).
+
+For the visible point x of a pixel (the G-buffer's pixel-centre hit) the
+direct light is
+
+    L_d(x → ω_o) = ∫_{lights} f(x, ω_o, ω(y)) L_e(y → x) G(x, y) V(x, y) dA(y),
+
+an integral over points y on the lights. ReSTIR DI estimates it with a
+*light sample* y and an unbiased contribution weight W (seed 000, Eq. 7–8):
+``L ≈ f L_e G V (y) · W``. Each frame runs the passes of Bitterli et al.
+(their Alg. 5), as renderer phases:
+
+1. **Initial candidates.** 32 light samples (power-proportional light choice,
+   uniform area on triangles: :func:`~grisx.scene.lights.sample_light`) and 1
+   BSDF sample (the ray's first hit, if it is an emitter), streamed through
+   a reservoir with the RIS weights w = m · p̂ / p of seed 000, Eq. 6, where
+   the MIS weights m are the balance heuristic between the two techniques
+   with their candidate counts as confidences (seed 001, Eq. 15). The
+   target p̂ is the luminance of the **unshadowed** contribution
+   f L_e G (no shadow ray per candidate: that is the point of RIS).
+2. **Visibility before reuse.** One shadow ray for the kept sample; an
+   occluded sample gets W = 0 (Bitterli et al., Sec. 6.1). From then on the
+   reservoir's target is p̂·V.
+3. **Temporal reuse.** The previous frame's final reservoir at the
+   reprojected pixel (integer motion vector, G-buffer similarity test of
+   :mod:`grisx.scene.reuse`) is merged with the new one; its confidence is
+   capped at 20 (the history cap).
+4. **Spatial reuse.** 5 neighbours uniformly within 30 px that pass the
+   similarity test are merged into the temporal result.
+5. **Shading.** f L_e G V (y) · W, plus the emission seen at x.
+
+Both reuse passes weigh domains with **pairwise MIS** (Bitterli 2022, Ch. 9;
+:func:`~grisx.theory.mis.pairwise_mis_neighbor` /
+:func:`~grisx.theory.mis.pairwise_mis_canonical_term`) — the current pixel's
+fresh (temporal pass) or temporally reused (spatial pass) reservoir is the
+canonical domain. With ``unbiased=true`` every target evaluated at *another*
+pixel includes that pixel's visibility (one shadow ray per evaluation, 2 per
+neighbour), so each domain's target is zero exactly where it can not produce
+a sample and the weights sum to one over the domains that can: unbiased.
+``unbiased=false`` evaluates the unshadowed target there (no extra rays) —
+cheaper, and biased dark near shadow boundaries, as in Bitterli et al.
+
+**Measure.** A light sample is a *point on a light* (its position, normal,
+and what radiates: a scene triangle or a point light), or, for the
+environment, a direction. Targets are expressed in the sample's own measure:
+area on emissive triangles (p̂ = lum(f L_e |cos θ_y| / ‖x − y‖²)), solid angle
+for the environment, counting measure for point lights (p̂ = lum(f I / d²)).
+None of these measures depend on the shading point, so moving a sample from
+pixel q to pixel r is the identity map in a fixed measure: its Jacobian is 1,
+and reuse re-evaluates p̂ at r with r's geometry and BSDF. (Had the target been
+written in the solid angle at q, the shift would need the area ↔ solid-angle
+Jacobian |cos θ_r| d_q² / (|cos θ_q| d_r²) — seed 004, Eq. 11 with the light
+as the second vertex — which cancels against the change of measure.) The
+source pdfs of the initial candidates are converted to the same measure (BSDF
+pdf × |cos θ_y| / d² on triangles), so the RIS weights are ratios in one
+measure. The radiance of a stored sample is re-evaluated from its source
+(triangle emission, point intensity, environment lookup), so a neighbour sees
+the emitter from its own side; lights are assumed not to move (a stored point
+on a moving light would be stale).
+
+**What the image shows.** Emission seen at the visible point plus direct
+light — what :mod:`grisx.scene.pt` shows with ``max_depth=2``. At the *pixel
+centre* (G-buffer primary rays are not jittered), so the matching reference is
+``PathTracer(..., jitter=False, max_depth=2)``. Visible points on delta BSDFs
+(mirror, glass) cannot be reached by light sampling; there the pixel gets one
+BSDF-sampled ray's emission (what the path tracer does) and no reservoir.
+
+References: B. Bitterli, C. Wyman, M. Pharr, P. Shirley, A. Lefohn, W. Jarosz,
+"Spatiotemporal reservoir resampling for real-time ray tracing with dynamic
+direct lighting", ACM TOG 39(4), 2020 (Alg. 3–5, Sec. 4.3, 6.1);
+B. Bitterli, *Correlations and reuse for fast and accurate physically based
+light transport*, PhD thesis, Dartmouth 2022, Ch. 9 (pairwise MIS);
+seed 000, Eq. 6–9 (RIS/GRIS weights); seed 004, Alg. 1 (reservoirs).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import types
+from typing import Any
+
+import warp as wp
+
+from grisx.scene.bsdf import make_bsdf
+from grisx.scene.camera import CameraData, camera_ray
+from grisx.scene.frame import frame_from_normal, to_local, to_world
+from grisx.scene.gbuffer import GBuffer, GBufferData, gbuffer_kernel
+from grisx.scene.lights import (
+    LightSample,
+    emitter_radiance,
+    environment_eval,
+    environment_pdf,
+    light_pdf_emitter,
+    luminance,
+    sample_light,
+)
+from grisx.scene.reuse import (
+    SIMILARITY_DEPTH,
+    SIMILARITY_NORMAL_COS,
+    DoubleBuffer,
+    pixels_similar,
+    spatial_neighbor,
+    temporal_neighbor,
+)
+from grisx.scene.scene import SceneData, SurfaceInteraction, intersect, occluded, segment_occluded, spawn_origin, surface_material
+from grisx.theory.gris import ris_weight
+from grisx.theory.mis import balance_mis, balance_term, pairwise_mis_canonical_term, pairwise_mis_neighbor
+from grisx.theory.random import random_key, random_subkey, random_uniform
+from grisx.theory.reservoir import (
+    Reservoir,
+    confidence_capped,
+    reservoir_empty,
+    reservoir_finalize,
+    reservoir_merge,
+    reservoir_update,
+)
+
+wp.set_module_options({"enable_backward": False})
+
+__all__ = [
+    "LightPoint",
+    "LIGHT_NONE",
+    "LIGHT_TRIANGLE",
+    "LIGHT_POINT",
+    "LIGHT_ENV",
+    "VisiblePoints",
+    "ScreenSpaceRenderer",
+    "ScreenFrame",
+    "screen_frame",
+    "pixel_key",
+    "frame_key",
+    "write_pixel",
+    "visible_point_kernel",
+    "make_restir_di_kernels",
+    "ReSTIRDI",
+    "create_restir_di",
+]
+
+LIGHT_NONE = wp.constant(0)
+LIGHT_TRIANGLE = wp.constant(1)
+LIGHT_POINT = wp.constant(2)
+LIGHT_ENV = wp.constant(3)
+
+#: random-number passes inside a pixel's stream
+_PASS_INITIAL = wp.constant(10)
+_PASS_TEMPORAL = wp.constant(11)
+_PASS_SPATIAL = wp.constant(12)
+
+
+@wp.struct
+class LightPoint:
+    """A light sample in its own measure: a point on a light, or an environment direction."""
+
+    p: wp.vec3  # point on the triangle / point light position; the direction (scene → sky) for the environment
+    n: wp.vec3  # the triangle's geometric normal (winding order)
+    kind: int  # LIGHT_NONE, LIGHT_TRIANGLE, LIGHT_POINT, LIGHT_ENV
+    index: int  # scene triangle (LIGHT_TRIANGLE) or point light (LIGHT_POINT)
+
+
+@wp.struct
+class LightEval:
+    """A light sample seen from a shading point: f L_e G (RGB), its luminance p̂, and the shadow ray."""
+
+    rgb: wp.vec3
+    target: float
+    wi: wp.vec3  # unit, shading point → light
+    dist: float
+    cos_light: float  # |cos θ_y| on triangles (area ↔ solid angle), 1 otherwise
+
+
+@wp.struct
+class ScreenFrame:
+    """What every pass of a frame reads: the G-buffers and visible points of this and the last frame, seed, frame."""
+
+    g: GBufferData
+    g_prev: GBufferData
+    si: wp.array2d(dtype=SurfaceInteraction)
+    wo: wp.array2d(dtype=wp.vec3)  # unit, visible point → camera
+    si_prev: wp.array2d(dtype=SurfaceInteraction)
+    wo_prev: wp.array2d(dtype=wp.vec3)
+    seed: int
+    frame: int
+
+
+@wp.func
+def frame_key(sf: ScreenFrame, stream: int) -> wp.uint32:
+    """Random key of stream ``stream`` of this frame (stream 0: pixels; others: e.g. tiles)."""
+    return random_subkey(random_key(sf.seed, sf.frame), stream)
+
+
+@wp.func
+def pixel_key(sf: ScreenFrame, x: int, y: int, stream: int) -> wp.uint32:
+    """Random key of pass (or use) ``stream`` of pixel (x, y) in this frame."""
+    return random_subkey(random_subkey(frame_key(sf, 0), y * sf.si.shape[1] + x), stream)
+
+
+@wp.struct
+class PairwiseStep:
+    """One neighbour merged with pairwise MIS: the reservoir after it, and its pair's canonical-weight share."""
+
+    res: Reservoir
+    canonical: float
+
+
+@wp.func
+def write_pixel(image: wp.array2d(dtype=wp.vec3), nonfinite: wp.array(dtype=wp.int32), y: int, x: int, L: wp.vec3):
+    """Store a pixel estimate; a NaN/Inf one is dropped (black) and counted (the tests require 0)."""
+    if wp.isfinite(L[0]) and wp.isfinite(L[1]) and wp.isfinite(L[2]):
+        image[y, x] = L
+    else:
+        image[y, x] = wp.vec3(0.0, 0.0, 0.0)
+        wp.atomic_add(nonfinite, 0, 1)
+
+
+@wp.func
+def light_point_none() -> LightPoint:
+    lp = LightPoint()
+    lp.kind = LIGHT_NONE
+    lp.index = -1
+    return lp
+
+
+@wp.func
+def light_point_from_sample(ls: LightSample, num_emitters: int) -> LightPoint:
+    """The stored form of a :func:`sample_light` result."""
+    lp = light_point_none()
+    if ls.light < 0:
+        return lp
+    lp.p = ls.p
+    lp.n = ls.n
+    if ls.is_env != 0:
+        lp.kind = LIGHT_ENV
+    elif ls.delta != 0:
+        lp.kind = LIGHT_POINT
+        lp.index = ls.light - num_emitters
+    else:
+        lp.kind = LIGHT_TRIANGLE
+        lp.index = ls.tri
+    return lp
+
+
+@wp.func
+def visible_normal(si: SurfaceInteraction, wo: wp.vec3) -> wp.vec3:
+    """The shading normal turned to the viewer's side (two-sided surfaces are seen from either)."""
+    if wp.dot(si.ng, wo) < 0.0:
+        return -si.ns
+    return si.ns
+
+
+@wp.kernel
+def visible_point_kernel(
+    scene: SceneData,
+    cam: CameraData,
+    si_out: wp.array2d(dtype=SurfaceInteraction),
+    wo_out: wp.array2d(dtype=wp.vec3),
+):
+    """The visible point of each pixel: the same pixel-centre primary ray as the G-buffer's."""
+    y, x = wp.tid()
+    ray = camera_ray(cam, float(x) + 0.5, float(y) + 0.5, wp.vec2(0.5, 0.5))
+    si_out[y, x] = intersect(scene, ray.o, ray.d, cam.far_clip)
+    wo_out[y, x] = -ray.d
+
+
+class VisiblePoints:
+    """Per-pixel visible points (surface interaction and direction to the camera), this and the previous frame."""
+
+    def __init__(self, width: int, height: int, device: Any) -> None:
+        self.width, self.height, self.device = int(width), int(height), device
+        make = lambda: (  # noqa: E731
+            wp.zeros((self.height, self.width), dtype=SurfaceInteraction, device=device),
+            wp.zeros((self.height, self.width), dtype=wp.vec3, device=device),
+        )
+        self.buffers = DoubleBuffer(make)
+
+    @property
+    def si(self) -> wp.array:
+        return self.buffers.current[0]
+
+    @property
+    def wo(self) -> wp.array:
+        return self.buffers.current[1]
+
+    @property
+    def si_prev(self) -> wp.array:
+        return self.buffers.previous[0]
+
+    @property
+    def wo_prev(self) -> wp.array:
+        return self.buffers.previous[1]
+
+    def fill(self, built: Any, frame: int) -> None:
+        """Swap, then trace this frame's visible points (the scene must be at ``frame``)."""
+        self.buffers.swap()
+        cam = built.camera_data(float(frame), self.width, self.height)
+        wp.launch(visible_point_kernel, dim=(self.height, self.width), inputs=[built.data, cam], outputs=[self.si, self.wo], device=self.device)
+
+
+def screen_frame(gbuffer: GBuffer, vp: VisiblePoints, seed: int, frame: int) -> ScreenFrame:
+    """The :class:`ScreenFrame` of the buffers as they are now (after ``fill`` for ``frame``)."""
+    sf = ScreenFrame()
+    sf.g, sf.g_prev = gbuffer.current, gbuffer.previous
+    sf.si, sf.wo, sf.si_prev, sf.wo_prev = vp.si, vp.wo, vp.si_prev, vp.wo_prev
+    sf.seed, sf.frame = int(seed), int(frame)
+    return sf
+
+
+_KERNELS: dict[frozenset[int], Any] = {}
+
+
+def make_restir_di_kernels(kinds: frozenset[int]) -> Any:
+    """ReSTIR DI's functions and kernels compiled for the material kinds ``kinds`` (cached)."""
+    kinds = frozenset(kinds)
+    if kinds in _KERNELS:
+        return _KERNELS[kinds]
+    bsdf = make_bsdf(kinds)
+
+    @wp.func
+    def light_eval(scene: SceneData, si: SurfaceInteraction, wo: wp.vec3, lp: LightPoint) -> LightEval:
+        """f L_e G of light sample ``lp`` at visible point ``si`` (area measure on triangles; see the module docstring)."""
+        e = LightEval()
+        e.rgb = wp.vec3(0.0, 0.0, 0.0)
+        e.target = 0.0
+        e.wi = wp.vec3(0.0, 0.0, 1.0)
+        e.dist = 0.0
+        e.cos_light = 1.0
+        if lp.kind == LIGHT_NONE or si.valid == 0:
+            return e
+        le = wp.vec3(0.0, 0.0, 0.0)
+        g = float(1.0)
+        wi = lp.p
+        dist = float(1.0e30)
+        if lp.kind == LIGHT_ENV:
+            le = environment_eval(scene.lights, wi)
+        else:
+            d = lp.p - si.p
+            dist_sq = wp.dot(d, d)
+            if dist_sq <= 0.0:
+                return e
+            dist = wp.sqrt(dist_sq)
+            wi = d / dist
+            if lp.kind == LIGHT_TRIANGLE:
+                cos_light = -wp.dot(lp.n, wi)
+                if cos_light <= 0.0:
+                    return e
+                le = emitter_radiance(scene.lights, lp.index, lp.n, -wi)
+                e.cos_light = cos_light
+                g = cos_light / dist_sq  # area measure: dω = |cos θ_y| dA / d²
+            else:
+                le = scene.lights.point_intensity[lp.index]
+                g = 1.0 / dist_sq
+        m = surface_material(scene, si)
+        frame = frame_from_normal(si.ns)
+        f = bsdf.eval(m, to_local(frame, wo), to_local(frame, wi))
+        e.rgb = wp.cw_mul(f, le) * g
+        e.target = luminance(e.rgb)
+        if not (e.target > 0.0):  # also NaN
+            e.target = 0.0
+            e.rgb = wp.vec3(0.0, 0.0, 0.0)
+        e.wi = wi
+        e.dist = dist
+        return e
+
+    @wp.func
+    def light_visible(scene: SceneData, si: SurfaceInteraction, e: LightEval, lp: LightPoint) -> bool:
+        if lp.kind == LIGHT_TRIANGLE:
+            return not segment_occluded(scene, si.p, si.ng, lp.p, lp.n)
+        return not occluded(scene, spawn_origin(scene, si.p, si.ng, e.wi), e.wi, e.dist)
+
+    @wp.func
+    def target_at(scene: SceneData, si: SurfaceInteraction, wo: wp.vec3, lp: LightPoint, visibility: int) -> float:
+        """p̂ of ``lp`` at a visible point: unshadowed, or times its visibility when ``visibility`` is set."""
+        e = light_eval(scene, si, wo, lp)
+        if e.target > 0.0 and visibility != 0:
+            if not light_visible(scene, si, e, lp):
+                return 0.0
+        return e.target
+
+    @wp.func
+    def pairwise_step(
+        scene: SceneData,
+        out: Reservoir,
+        si: SurfaceInteraction,
+        wo: wp.vec3,
+        r_c: Reservoir,
+        y_c: LightPoint,
+        si_n: SurfaceInteraction,
+        wo_n: wp.vec3,
+        r_n: Reservoir,
+        y_n: LightPoint,
+        k: int,
+        total: float,
+        unbiased: int,
+        u: float,
+    ) -> PairwiseStep:
+        """Merge neighbour n's reservoir into ``out`` with its pairwise MIS weight (identity shift, J = 1),
+        and return its pair's share of the canonical sample's weight (Bitterli 2022, Ch. 9)."""
+        t_c_of_n = target_at(scene, si, wo, y_n, unbiased)  # p̂_c(y_n)
+        t_n_of_c = target_at(scene, si_n, wo_n, y_c, unbiased)  # p̂_n(y_c)
+        step = PairwiseStep()
+        step.res = reservoir_merge(
+            out, r_n, pairwise_mis_neighbor(r_n.confidence, r_n.target, r_c.confidence, t_c_of_n, k, total), t_c_of_n, 1.0, u
+        )
+        step.canonical = pairwise_mis_canonical_term(r_n.confidence, t_n_of_c, r_c.confidence, r_c.target, k, total)
+        return step
+
+    @wp.kernel
+    def initial_pass(
+        scene: SceneData,
+        sf: ScreenFrame,
+        n_light: int,
+        n_bsdf: int,
+        res_out: wp.array2d(dtype=Reservoir),
+        lp_out: wp.array2d(dtype=LightPoint),
+        base: wp.array2d(dtype=wp.vec3),
+    ):
+        y, x = wp.tid()
+        key = pixel_key(sf, x, y, _PASS_INITIAL)
+        si = sf.si[y, x]
+        wo = sf.wo[y, x]
+        ls = scene.lights
+        r = reservoir_empty()
+        sel = light_point_none()
+        if si.valid == 0:
+            base[y, x] = environment_eval(ls, -wo)
+            res_out[y, x] = r
+            lp_out[y, x] = sel
+            return
+        b = emitter_radiance(ls, si.tri, si.ng, wo)  # emission seen at x
+        m = surface_material(scene, si)
+        frame_x = frame_from_normal(si.ns)
+        wo_l = to_local(frame_x, wo)
+        if bsdf.is_delta(m) != 0:
+            # ---- delta BSDF: no light sample can reach it; one BSDF ray, as the path tracer does ----
+            bs = bsdf.sample(m, wo_l, random_uniform(key, 0), wp.vec2(random_uniform(key, 1), random_uniform(key, 2)))
+            if bs.valid != 0:
+                d = wp.normalize(to_world(frame_x, bs.wi))
+                hit = intersect(scene, spawn_origin(scene, si.p, si.ng, d), d, 1.0e30)
+                le = environment_eval(ls, d)
+                if hit.valid != 0:
+                    le = emitter_radiance(ls, hit.tri, hit.ng, -d)
+                b += wp.cw_mul(bs.weight, le)
+            base[y, x] = b
+            res_out[y, x] = r
+            lp_out[y, x] = sel
+            return
+        base[y, x] = b
+        # ---- initial candidates: light samples and BSDF samples, balance heuristic over the two ----
+        c_light = float(n_light)
+        c_bsdf = float(n_bsdf)
+        for i in range(n_light):
+            c = 4 * i + 8
+            s = sample_light(ls, si.p, random_uniform(key, c), wp.vec2(random_uniform(key, c + 1), random_uniform(key, c + 2)))
+            if s.pdf <= 0.0:
+                continue
+            lp = light_point_from_sample(s, ls.num_emitters)
+            e = light_eval(scene, si, wo, lp)
+            if e.target <= 0.0:
+                continue
+            p_light = s.pdf_area  # area density on triangles, solid angle on the environment, pmf for point lights
+            p_bsdf = float(0.0)
+            if lp.kind == LIGHT_TRIANGLE:
+                p_bsdf = bsdf.pdf(m, wo_l, to_local(frame_x, e.wi)) * e.cos_light / (e.dist * e.dist)
+            elif lp.kind == LIGHT_ENV:
+                p_bsdf = bsdf.pdf(m, wo_l, to_local(frame_x, e.wi))
+            total = balance_term(c_light, p_light) + balance_term(c_bsdf, p_bsdf)
+            w = ris_weight(balance_mis(1.0, p_light, total), e.target, p_light)  # seed 000, Eq. 6; seed 001, Eq. 15
+            r = reservoir_update(r, w, e.target, 0.0, random_uniform(key, c + 3))
+            if r.selected:
+                sel = lp
+        for j in range(n_bsdf):
+            c = 4 * (n_light + j) + 8
+            bs = bsdf.sample(m, wo_l, random_uniform(key, c), wp.vec2(random_uniform(key, c + 1), random_uniform(key, c + 2)))
+            if bs.valid == 0 or bs.delta != 0:
+                continue
+            d = wp.normalize(to_world(frame_x, bs.wi))
+            hit = intersect(scene, spawn_origin(scene, si.p, si.ng, d), d, 1.0e30)
+            lp = light_point_none()
+            if hit.valid != 0:
+                if ls.tri_emitter[hit.tri] >= 0:
+                    lp.kind = LIGHT_TRIANGLE
+                    lp.p = hit.p
+                    lp.n = hit.ng
+                    lp.index = hit.tri
+            elif ls.env_light >= 0:
+                lp.kind = LIGHT_ENV
+                lp.p = d
+            if lp.kind == LIGHT_NONE:
+                continue
+            e = light_eval(scene, si, wo, lp)
+            if e.target <= 0.0:
+                continue
+            p_bsdf = bs.pdf
+            p_light = environment_pdf(ls, d)
+            if lp.kind == LIGHT_TRIANGLE:
+                to_area = e.cos_light / (e.dist * e.dist)
+                p_bsdf = bs.pdf * to_area
+                p_light = light_pdf_emitter(ls, hit.tri, si.p, hit.p, hit.ng) * to_area
+            total = balance_term(c_light, p_light) + balance_term(c_bsdf, p_bsdf)
+            w = ris_weight(balance_mis(1.0, p_bsdf, total), e.target, p_bsdf)
+            r = reservoir_update(r, w, e.target, 0.0, random_uniform(key, c + 3))
+            if r.selected:
+                sel = lp
+        r = reservoir_finalize(r)
+        # ---- visibility before reuse: an occluded sample contributes nothing here (Bitterli et al., Sec. 6.1) ----
+        if r.ucw > 0.0:
+            if not light_visible(scene, si, light_eval(scene, si, wo, sel), sel):
+                r = reservoir_empty()
+                sel = light_point_none()
+        r.confidence = 1.0  # one initial RIS counts as one unit of confidence (M = 1)
+        res_out[y, x] = r
+        lp_out[y, x] = sel
+
+    @wp.kernel
+    def temporal_pass(
+        scene: SceneData,
+        sf: ScreenFrame,
+        history_cap: float,
+        unbiased: int,
+        normal_cos: float,
+        depth_tol: float,
+        res_in: wp.array2d(dtype=Reservoir),
+        lp_in: wp.array2d(dtype=LightPoint),
+        res_prev: wp.array2d(dtype=Reservoir),
+        lp_prev: wp.array2d(dtype=LightPoint),
+        res_out: wp.array2d(dtype=Reservoir),
+        lp_out: wp.array2d(dtype=LightPoint),
+    ):
+        y, x = wp.tid()
+        key = pixel_key(sf, x, y, _PASS_TEMPORAL)
+        r_c = res_in[y, x]
+        y_c = lp_in[y, x]
+        si = sf.si[y, x]
+        res_out[y, x] = r_c
+        lp_out[y, x] = y_c
+        if si.valid == 0:
+            return
+        tn = temporal_neighbor(sf.g, sf.g_prev, x, y, normal_cos, depth_tol)
+        if tn.valid == 0:
+            return
+        wo = sf.wo[y, x]
+        si_p = sf.si_prev[tn.y, tn.x]
+        wo_p = sf.wo_prev[tn.y, tn.x]
+        r_p = res_prev[tn.y, tn.x]
+        y_p = lp_prev[tn.y, tn.x]
+        r_p.confidence = confidence_capped(r_p.confidence, history_cap)
+        # ---- pairwise MIS between the fresh (canonical) reservoir and the history ----
+        step = pairwise_step(
+            scene, reservoir_empty(), si, wo, r_c, y_c, si_p, wo_p, r_p, y_p, 1, r_c.confidence + r_p.confidence, unbiased, random_uniform(key, 1)
+        )
+        sel = light_point_none()
+        if step.res.selected:
+            sel = y_p
+        out = reservoir_merge(step.res, r_c, step.canonical, r_c.target, 1.0, random_uniform(key, 0))
+        if out.selected:
+            sel = y_c
+        res_out[y, x] = reservoir_finalize(out)
+        lp_out[y, x] = sel
+
+    @wp.kernel
+    def spatial_pass(
+        scene: SceneData,
+        sf: ScreenFrame,
+        neighbors: int,
+        radius: float,
+        history_cap: float,
+        unbiased: int,
+        normal_cos: float,
+        depth_tol: float,
+        res_in: wp.array2d(dtype=Reservoir),
+        lp_in: wp.array2d(dtype=LightPoint),
+        res_out: wp.array2d(dtype=Reservoir),
+        lp_out: wp.array2d(dtype=LightPoint),
+    ):
+        y, x = wp.tid()
+        width = sf.si.shape[1]
+        height = sf.si.shape[0]
+        key = pixel_key(sf, x, y, _PASS_SPATIAL)
+        r_c = res_in[y, x]
+        y_c = lp_in[y, x]
+        si = sf.si[y, x]
+        res_out[y, x] = r_c
+        lp_out[y, x] = y_c
+        if si.valid == 0:
+            return
+        wo = sf.wo[y, x]
+        # ---- choose the neighbours (similar G-buffer only); k counts the accepted ones ----
+        k = int(0)
+        total = r_c.confidence
+        for i in range(neighbors):
+            nb = spatial_neighbor(x, y, width, height, radius, wp.vec2(random_uniform(key, 4 * i), random_uniform(key, 4 * i + 1)))
+            if nb.valid != 0 and pixels_similar(sf.g, x, y, sf.g, nb.x, nb.y, normal_cos, depth_tol):
+                k += 1
+                r_n = res_in[nb.y, nb.x]
+                total += confidence_capped(r_n.confidence, history_cap)
+        if k == 0:
+            return
+        # ---- merge each neighbour with its pairwise MIS weight; collect the canonical weight ----
+        out = reservoir_empty()
+        sel = light_point_none()
+        m_c = float(0.0)
+        for i in range(neighbors):
+            nb = spatial_neighbor(x, y, width, height, radius, wp.vec2(random_uniform(key, 4 * i), random_uniform(key, 4 * i + 1)))
+            if nb.valid == 0 or not pixels_similar(sf.g, x, y, sf.g, nb.x, nb.y, normal_cos, depth_tol):
+                continue
+            r_n = res_in[nb.y, nb.x]
+            y_n = lp_in[nb.y, nb.x]
+            r_n.confidence = confidence_capped(r_n.confidence, history_cap)
+            step = pairwise_step(
+                scene, out, si, wo, r_c, y_c, sf.si[nb.y, nb.x], sf.wo[nb.y, nb.x], r_n, y_n, k, total, unbiased, random_uniform(key, 4 * i + 2)
+            )
+            out = step.res
+            m_c += step.canonical
+            if out.selected:
+                sel = y_n
+        out = reservoir_merge(out, r_c, m_c, r_c.target, 1.0, random_uniform(key, 4 * neighbors))
+        if out.selected:
+            sel = y_c
+        res_out[y, x] = reservoir_finalize(out)
+        lp_out[y, x] = sel
+
+    @wp.kernel
+    def shade_pass(
+        scene: SceneData,
+        sf: ScreenFrame,
+        base: wp.array2d(dtype=wp.vec3),
+        res: wp.array2d(dtype=Reservoir),
+        lps: wp.array2d(dtype=LightPoint),
+        image: wp.array2d(dtype=wp.vec3),
+        nonfinite: wp.array(dtype=wp.int32),
+    ):
+        y, x = wp.tid()
+        L = base[y, x]
+        r = res[y, x]
+        if r.ucw > 0.0:
+            si = sf.si[y, x]
+            e = light_eval(scene, si, sf.wo[y, x], lps[y, x])
+            if e.target > 0.0 and light_visible(scene, si, e, lps[y, x]):
+                L += e.rgb * r.ucw  # seed 004, Eq. 8: f(y) · W
+            else:
+                # an occluded sample (possible when unbiased=false) is not handed to the next frame
+                c = r.confidence
+                r = reservoir_empty()
+                r.confidence = c
+                res[y, x] = r
+                lps[y, x] = light_point_none()
+        write_pixel(image, nonfinite, y, x, L)
+
+    _KERNELS[kinds] = types.SimpleNamespace(
+        light_eval=light_eval, target_at=target_at, initial_pass=initial_pass, temporal_pass=temporal_pass, spatial_pass=spatial_pass, shade_pass=shade_pass
+    )
+    return _KERNELS[kinds]
+
+
+class ScreenSpaceRenderer:
+    """What the screen-space ReSTIR renderers share: timed phases, history reset, the NaN/Inf count."""
+
+    seed: int
+    frames_rendered: int
+    timer: Any
+    nonfinite: wp.array
+
+    def _phase(self, name: str) -> Any:
+        return contextlib.nullcontext() if self.timer is None else self.timer(name)
+
+    def reset(self, seed: int | None = None) -> None:
+        """Forget all history (the next frame starts fresh), optionally with a new seed: an independent run."""
+        if seed is not None:
+            self.seed = int(seed)
+        self.frames_rendered = 0
+
+    @property
+    def nonfinite_samples(self) -> int:
+        """Pixels whose estimate was NaN/Inf and was dropped (over the renderer's lifetime; 0 expected)."""
+        return int(self.nonfinite.numpy()[0])
+
+
+class ReSTIRDI(ScreenSpaceRenderer):
+    """ReSTIR DI over a built scene; ``render_frame(frame)`` returns emitted + direct light (H×W×3)."""
+
+    def __init__(
+        self,
+        built: Any,
+        width: int,
+        height: int,
+        *,
+        seed: int = 0,
+        light_candidates: int = 32,
+        bsdf_candidates: int = 1,
+        temporal: bool = True,
+        spatial: bool = True,
+        neighbors: int = 5,
+        radius: float = 30.0,
+        history_cap: float = 20.0,
+        unbiased: bool = True,
+        timer: Any = None,
+    ) -> None:
+        self.built = built
+        self.width, self.height = int(width), int(height)
+        self.seed = int(seed)
+        self.light_candidates = int(light_candidates)
+        self.bsdf_candidates = int(bsdf_candidates)
+        self.temporal = bool(temporal)
+        self.spatial = bool(spatial)
+        self.neighbors = int(neighbors)
+        self.radius = float(radius)
+        self.history_cap = float(history_cap)
+        self.unbiased = int(bool(unbiased))
+        self.timer = timer
+        self.k = make_restir_di_kernels(frozenset(built.features.material_kinds))
+        dev = self.device = built.device
+        shape = (self.height, self.width)
+        self.gbuffer = GBuffer(self.width, self.height, dev)
+        self.vp = VisiblePoints(self.width, self.height, dev)
+        pair = lambda: (wp.zeros(shape, dtype=Reservoir, device=dev), wp.zeros(shape, dtype=LightPoint, device=dev))  # noqa: E731
+        self.initial = pair()
+        self.temporal_out = pair()
+        self.final = DoubleBuffer(pair)  # this frame's / last frame's final reservoirs
+        self.base = wp.zeros(shape, dtype=wp.vec3, device=dev)
+        self.image = wp.zeros(shape, dtype=wp.vec3, device=dev)
+        self.nonfinite = wp.zeros(1, dtype=wp.int32, device=dev)
+        self.frames_rendered = 0
+
+    def kernels(self) -> list[Any]:
+        return [visible_point_kernel, gbuffer_kernel, self.k.initial_pass, self.k.temporal_pass, self.k.spatial_pass, self.k.shade_pass]
+
+    def prepare(self, frame: int) -> None:
+        """G-buffer and visible points of ``frame`` (the scene must already be at ``frame``)."""
+        with self._phase("gbuffer"):
+            self.gbuffer.fill(self.built, float(frame))
+            self.vp.fill(self.built, frame)
+
+    def resample(self, frame: int) -> None:
+        """Initial candidates, temporal and spatial reuse into ``self.final.current``."""
+        dim = (self.height, self.width)
+        data = self.built.data
+        dev = self.device
+        self.final.swap()
+        sf = screen_frame(self.gbuffer, self.vp, self.seed, frame)
+        with self._phase("di_initial"):
+            wp.launch(
+                self.k.initial_pass,
+                dim=dim,
+                inputs=[data, sf, self.light_candidates, self.bsdf_candidates],
+                outputs=[self.initial[0], self.initial[1], self.base],
+                device=dev,
+            )
+        src = self.initial
+        if self.temporal and self.frames_rendered > 0:
+            with self._phase("di_temporal"):
+                wp.launch(
+                    self.k.temporal_pass,
+                    dim=dim,
+                    inputs=[
+                        data, sf, self.history_cap, self.unbiased, SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH,
+                        src[0], src[1], self.final.previous[0], self.final.previous[1],
+                    ],
+                    outputs=[self.temporal_out[0], self.temporal_out[1]],
+                    device=dev,
+                )
+            src = self.temporal_out
+        dst = self.final.current
+        if self.spatial and self.neighbors > 0:
+            with self._phase("di_spatial"):
+                wp.launch(
+                    self.k.spatial_pass,
+                    dim=dim,
+                    inputs=[
+                        data, sf, self.neighbors, self.radius, self.history_cap, self.unbiased, SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH,
+                        src[0], src[1],
+                    ],
+                    outputs=[dst[0], dst[1]],
+                    device=dev,
+                )
+        else:
+            wp.copy(dst[0], src[0])
+            wp.copy(dst[1], src[1])
+
+    def shade(self) -> wp.array:
+        with self._phase("di_shade"):
+            wp.launch(
+                self.k.shade_pass,
+                dim=(self.height, self.width),
+                inputs=[self.built.data, screen_frame(self.gbuffer, self.vp, self.seed, 0), self.base, self.final.current[0], self.final.current[1]],
+                outputs=[self.image, self.nonfinite],
+                device=self.device,
+            )
+        return self.image
+
+    def direct_light(self, frame: int) -> wp.array:
+        """Resample and shade ``frame`` on the prepared G-buffer (what ReSTIR GI's ``direct=restir-di`` calls)."""
+        self.resample(frame)
+        out = self.shade()
+        self.frames_rendered += 1
+        return out
+
+    def render_frame(self, frame: int) -> wp.array:
+        self.prepare(frame)
+        return self.direct_light(frame)
+
+
+def create_restir_di(ctx: Any) -> ReSTIRDI:
+    p = ctx.params
+    return ReSTIRDI(
+        ctx.built,
+        ctx.width,
+        ctx.height,
+        seed=ctx.seed,
+        light_candidates=p["light_candidates"],
+        bsdf_candidates=p["bsdf_candidates"],
+        temporal=p["temporal"],
+        spatial=p["spatial"],
+        neighbors=p["neighbors"],
+        radius=p["radius"],
+        history_cap=p["history_cap"],
+        unbiased=p["unbiased"],
+        timer=ctx.timer,
+    )

@@ -1,0 +1,935 @@
+"""ReSTIR GI: spatiotemporal reservoir resampling of indirect light (Ouyang et al. 2021; seed 004).
+
+The radiance leaving a visible point x_v toward the camera splits into what
+the path tracer's first two segments give (emission and direct light) and
+the indirect part
+
+    L_ind(x_v, ω_o) = ∫_{H²} f(ω_o, ω_i) L_r(x_s(ω_i), −ω_i) ⟨cos θ_i⟩ dω_i,
+
+where x_s(ω_i) is the first surface along ω_i (the *sample point*) and L_r
+the radiance it *reflects* toward x_v (its own emission is direct light).
+ReSTIR GI resamples sample points between pixels and frames (seed 004,
+Sec. 4–5); each frame runs the phases of its Figure 4:
+
+1. **Initial sampling** (Alg. 2). A direction from the source pdf p_q —
+   ``source=uniform`` (default, the paper's choice), ``cosine`` or ``bsdf`` —
+   a ray to x_s, and L_r at x_s by **path tracing with NEE and MIS**: the
+   reference path tracer's own ``trace_path`` (:func:`grisx.scene.pt.make_trace_path`)
+   started at x_v toward x_s, minus the emission at x_s. The **Sample** record
+   of Fig. 3 keeps the visible point and normal, the sample point and its
+   normal, the outgoing radiance and the path's random key.
+2. **Temporal resampling** (Alg. 3) into the temporal reservoir buffer: the
+   previous frame's temporal reservoir at the reprojected pixel (confidence
+   capped at 30) and the new sample with w = p̂/p (seed 004, Eq. 5, 9/10).
+3. **Spatial resampling** (Alg. 4) into the spatial reservoir buffer: the
+   previous frame's spatial reservoir (confidence capped at 500) and this
+   pixel's temporal reservoir, plus up to *maxIterations* temporal reservoirs
+   of neighbours (9 while the spatial reservoir holds fewer than half the cap,
+   else 3) that pass the similarity test (normals within 25°, depth within
+   0.05), chosen within an **adaptive radius** (10% of the image, halved after
+   each rejection down to 3 px). A pixel whose spatial reservoir is still poor
+   (confidence below ``low_m``) reuses its neighbours' previous *spatial*
+   reservoirs instead (Fig. 10).
+4. **Shading** (Eq. 8): f ⟨cos⟩ L_r(y) · W of the spatial reservoir.
+
+Both reservoir buffers are double-buffered, so a pass never reads what it writes.
+
+**Targets.** ``target=full`` is Eq. 9, p̂ = lum(L_o f ⟨cos θ_i⟩);
+``target=radiance`` is Eq. 10, p̂ = lum(L_o). Both are zero outside the
+visible point's hemisphere and where x_v is behind the sample point's surface.
+
+**Reconnection shift and Eq. 11.** A sample point x_2^q found from x_1^q is
+reused at x_1^r by connecting x_1^r to the same x_2^q; its resampling weight
+is seed 000's Eq. 9 with the Jacobian |J_{q→r}| of seed 004, Eq. 11
+(:func:`~grisx.theory.shift.reconnection_jacobian_3d`; geometric normal at x_2).
+``jacobian=false`` drops it — the bias of seed 004, Fig. 7. (Alg. 4 l. 11 of
+the paper *divides* p̂ by its J; the GRIS weight of seed 000, Eq. 9 multiplies
+by |∂T/∂x| = Eq. 11's J_{q→r}, which is what is done here.) L_r at x_2 is
+reused unchanged: the paper's Lambertian assumption (Sec. 5), exact for
+diffuse sample points, biased for glossy ones. (Re-evaluating the sample
+point's BSDF toward the new visible point — an ``exact_bsdf`` option — would
+need the path's first bounce at x_s stored with the sample; not implemented.)
+
+**Unbiased reuse** (Alg. 4 l. 16–19). Candidates are streamed with weights
+c_i p̂(y_i) W_i |J| and the kept sample y gets W = w_sum / (Z(y) p̂(y))
+(:func:`~grisx.theory.reservoir.reservoir_finalize_mis`), Z(y) the total
+confidence of the domains that can produce y: with ``unbiased=true`` each
+domain is tested by its own target and a **visibility ray** from its visible
+point to y (support counting, :func:`~grisx.theory.mis.support_count_term`);
+``unbiased=false`` counts every domain (Z = Σ c_i) — cheaper and biased where
+visibility differs between neighbours (seed 004, Fig. 9). Visibility at the
+current pixel (Alg. 4 l. 12) is tested in both modes: shading has no other
+shadow ray.
+
+**Jacobian rejection** (not in the paper; ``max_jacobian``, default 0 = off).
+A reconnection to a sample point much closer to the new visible point than
+to the old one has a huge |J| and makes a firefly. With ``max_jacobian`` = τ
+such shifts are treated as undefined (a partial bijection), and Z counts a
+domain only if its own shift to the current pixel passes the same test, so
+the estimator stays unbiased (the tests check it) with far lighter tails.
+
+**Where x_1 is.** Initial rays leave from the visible point lifted ε off its
+surface on the viewer's side (``spawn_origin``, as the path tracer's rays do),
+and targets, Jacobians and visibility are measured from that same point: at
+a concave edge a sample point lies only a few ε away, and measuring from the
+surface point instead loses it. Shadow rays are offset at both ends.
+
+**Multi-bounce tiles** (Sec. 5). ``mb_fraction`` = q: per frame, each 64×32
+tile follows full paths at x_s with probability q (Russian roulette at the
+tile level, reweighted: L_1 + (L_full − L_1)/q), otherwise only direct light
+at x_s (L_1). ``max_depth`` is the path tracer's (Mitsuba's meaning, from the
+camera), so the image estimates what ``pt`` shows.
+
+**Sample validation** (Sec. 4.3, 5). Every ``validation_interval`` frames the
+initial pass replays the path of each pixel's previous temporal and spatial
+sample with its stored random key (bit-exact on a static scene) and clears
+the reservoir when the radiance moved by more than ``validation_tolerance``
+(relative) or x_s is no longer visible.
+
+**Direct light.** ``direct=nee``: the path tracer's two first segments at the
+pixel centre (emission + NEE and BSDF sampling with MIS); ``direct=restir-di``:
+:class:`~grisx.scene.restir_di.ReSTIRDI` on the same G-buffer. Visible points
+with delta or rough-dielectric BSDFs (mirrors, glass: transmission leaves the
+sampled hemisphere) are path traced instead, with no reservoir.
+
+The image is at the pixel centre (G-buffer primary rays), so its reference is
+``PathTracer(..., jitter=False)`` at the same ``max_depth``.
+
+References: Y. Ouyang, S. Liu, M. Kettunen, M. Pharr, J. Pantaleoni, "ReSTIR GI:
+Path resampling for real-time path tracing", CGF 40(8), 2021 (seed 004:
+Alg. 1–4, Eq. 5–11, Fig. 3, 7, 9, 10); seed 000, Eq. 9 (GRIS weights);
+B. Bitterli et al. 2020, Sec. 4.3 (the 1/Z weight of the kept sample).
+"""
+
+from __future__ import annotations
+
+import math
+import types
+from typing import Any
+
+import warp as wp
+
+from grisx.scene.bsdf import MATERIAL_ROUGH_DIELECTRIC, cosine_hemisphere_pdf, make_bsdf, sample_cosine_hemisphere
+from grisx.scene.camera import CameraData, camera_ray
+from grisx.scene.frame import frame_from_normal, to_local, to_world
+from grisx.scene.gbuffer import GBuffer, GBufferData, gbuffer_kernel
+from grisx.scene.lights import emitter_radiance, environment_eval, luminance
+from grisx.scene.pt import STRATEGIES, make_trace_path
+from grisx.scene.restir_di import (
+    ReSTIRDI,
+    ScreenFrame,
+    ScreenSpaceRenderer,
+    VisiblePoints,
+    frame_key,
+    pixel_key,
+    screen_frame,
+    visible_normal,
+    visible_point_kernel,
+    write_pixel,
+)
+from grisx.scene.reuse import (
+    SIMILARITY_DEPTH,
+    SIMILARITY_NORMAL_COS,
+    DoubleBuffer,
+    NeighborPixel,
+    adaptive_radius,
+    pixels_similar,
+    spatial_neighbor,
+    temporal_neighbor,
+)
+from grisx.scene.scene import SceneData, SurfaceInteraction, intersect, occluded, segment_occluded, spawn_origin, surface_material
+from grisx.theory.gris import ris_weight
+from grisx.theory.mis import support_count_term, support_mis
+from grisx.theory.random import random_subkey, random_uniform
+from grisx.theory.reservoir import (
+    Reservoir,
+    confidence_capped,
+    reservoir_empty,
+    reservoir_finalize,
+    reservoir_finalize_mis,
+    reservoir_merge,
+    reservoir_update,
+)
+from grisx.theory.shift import reconnection_jacobian_3d
+
+wp.set_module_options({"enable_backward": False})
+
+__all__ = [
+    "GISample",
+    "SOURCES",
+    "TARGETS",
+    "DIRECT",
+    "sample_uniform_hemisphere",
+    "uniform_hemisphere_pdf",
+    "make_restir_gi_kernels",
+    "ReSTIRGI",
+    "create_restir_gi",
+]
+
+#: initial-sample source pdfs (seed 004, Sec. 4.1)
+SOURCES = {"uniform": 0, "cosine": 1, "bsdf": 2}
+#: target functions: Eq. 9 and Eq. 10
+TARGETS = {"full": 0, "radiance": 1}
+#: direct-light estimators
+DIRECT = {"nee": 0, "restir-di": 1}
+
+_SOURCE_UNIFORM = wp.constant(0)
+_SOURCE_COSINE = wp.constant(1)
+_TARGET_FULL = wp.constant(0)
+_STRATEGY_MIS = wp.constant(STRATEGIES["mis"])
+_INV_2PI = wp.constant(1.0 / (2.0 * math.pi))
+_TILE_W = wp.constant(64)
+_TILE_H = wp.constant(32)
+
+
+@wp.struct
+class GISample:
+    """Seed 004, Fig. 3: the visible point that generated the sample, the sample point, L_o, the random key."""
+
+    xv: wp.vec3  # visible point x_v
+    nv: wp.vec3  # its normal (viewer side)
+    xs: wp.vec3  # sample point x_s
+    ns: wp.vec3  # its geometric normal, turned toward x_v (the side L_o leaves on)
+    lo: wp.vec3  # radiance reflected at x_s toward x_v (emission at x_s excluded: that is direct light)
+    ray_o: wp.vec3  # the ray x_v → x_s as traced (origin offset, direction), for a bit-exact replay
+    ray_d: wp.vec3
+    key: wp.uint32  # random key of the path at x_s
+    multi: int  # 1: the tile followed multi-bounce paths
+    valid: int
+
+
+@wp.struct
+class GIEval:
+    """A sample seen from a visible point: f ⟨cos⟩ L_o (RGB), p̂, and the connecting segment."""
+
+    rgb: wp.vec3
+    target: float
+    wi: wp.vec3
+    dist: float
+
+
+@wp.func
+def sample_uniform_hemisphere(u: wp.vec2) -> wp.vec3:
+    """Uniform direction on the hemisphere z > 0 (local frame)."""
+    z = u[0]
+    r = wp.sqrt(wp.max(0.0, 1.0 - z * z))
+    phi = 2.0 * wp.pi * u[1]
+    return wp.vec3(r * wp.cos(phi), r * wp.sin(phi), z)
+
+
+@wp.func
+def uniform_hemisphere_pdf(w: wp.vec3) -> float:
+    """1 / 2π above the horizon, 0 below."""
+    if w[2] > 0.0:
+        return _INV_2PI
+    return 0.0
+
+
+@wp.func
+def gi_sample_none() -> GISample:
+    s = GISample()
+    s.key = wp.uint32(0)
+    s.multi = 0
+    s.valid = 0
+    return s
+
+
+_KERNELS: dict[frozenset[int], Any] = {}
+
+
+def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
+    """ReSTIR GI's functions and kernels compiled for the material kinds ``kinds`` (cached)."""
+    kinds = frozenset(kinds)
+    if kinds in _KERNELS:
+        return _KERNELS[kinds]
+    bsdf = make_bsdf(kinds)
+    trace_path = make_trace_path(kinds)
+    has_rough_dielectric = MATERIAL_ROUGH_DIELECTRIC in kinds
+
+    @wp.func
+    def path_traced_here(scene: SceneData, si: SurfaceInteraction) -> bool:
+        """Visible points ReSTIR GI leaves to the path tracer: delta BSDFs, and rough dielectrics."""
+        m = surface_material(scene, si)
+        if bsdf.is_delta(m) != 0:
+            return True
+        if wp.static(has_rough_dielectric):
+            if m.kind == MATERIAL_ROUGH_DIELECTRIC:
+                return True
+        return False
+
+    @wp.func
+    def domain_point(scene: SceneData, si: SurfaceInteraction, wo: wp.vec3) -> wp.vec3:
+        """x_1 of a pixel's domain: its visible point lifted off the surface on the viewer's side.
+
+        Initial rays leave from here (as the path tracer's do), so targets, Jacobians and visibility
+        are measured from the very point the samples' directions were drawn at; measured from the
+        surface point instead, a sample point a few ε away (at a concave edge) reads as behind or hidden.
+        """
+        return spawn_origin(scene, si.p, si.ng, visible_normal(si, wo))
+
+    @wp.func
+    def gi_eval(scene: SceneData, si: SurfaceInteraction, wo: wp.vec3, s: GISample, target_mode: int) -> GIEval:
+        """Sample ``s`` reconnected to visible point ``si``: f ⟨cos⟩ L_o and p̂ (Eq. 9 or 10); 0 outside the domain."""
+        e = GIEval()
+        e.rgb = wp.vec3(0.0, 0.0, 0.0)
+        e.target = 0.0
+        e.wi = wp.vec3(0.0, 0.0, 1.0)
+        e.dist = 0.0
+        if s.valid == 0 or si.valid == 0:
+            return e
+        x1 = domain_point(scene, si, wo)
+        d = s.xs - x1
+        dist = wp.length(d)
+        if dist <= 0.0:
+            return e
+        wi = d / dist
+        e.wi = wi
+        e.dist = dist
+        nv = visible_normal(si, wo)
+        if wp.dot(nv, wi) <= 0.0 or wp.dot(si.ng, wi) * wp.dot(si.ng, wo) <= 0.0 or wp.dot(s.ns, wi) >= 0.0:
+            return e  # outside the visible point's (shading and geometric) hemisphere, or x_v behind x_s's surface
+        m = surface_material(scene, si)
+        frame = frame_from_normal(si.ns)
+        f = bsdf.eval(m, to_local(frame, wo), to_local(frame, wi))
+        e.rgb = wp.cw_mul(f, s.lo)
+        t = luminance(e.rgb)  # seed 004, Eq. 9
+        if target_mode != _TARGET_FULL:
+            t = luminance(s.lo)  # seed 004, Eq. 10
+        if t > 0.0:  # false for NaN
+            e.target = t
+        else:
+            e.rgb = wp.vec3(0.0, 0.0, 0.0)
+        return e
+
+    @wp.func
+    def sample_visible(scene: SceneData, si: SurfaceInteraction, wo: wp.vec3, e: GIEval, s: GISample) -> bool:
+        """Whether the segment x_v → x_s is free (both ends lifted off their surfaces: ``segment_occluded``)."""
+        return not segment_occluded(scene, domain_point(scene, si, wo), visible_normal(si, wo), s.xs, s.ns)
+
+    @wp.func
+    def target_shifted(scene: SceneData, si: SurfaceInteraction, wo: wp.vec3, s: GISample, target_mode: int, test_visibility: int) -> float:
+        """p̂ at ``si`` of a sample reconnected from elsewhere; 0 if x_s is hidden from ``si`` (Alg. 4 l. 12)."""
+        e = gi_eval(scene, si, wo, s, target_mode)
+        if e.target > 0.0 and test_visibility != 0:
+            if not sample_visible(scene, si, wo, e, s):
+                return 0.0
+        return e.target
+
+    @wp.func
+    def shift_jacobian(
+        scene: SceneData, si_src: SurfaceInteraction, wo_src: wp.vec3, si_dst: SurfaceInteraction, wo_dst: wp.vec3, s: GISample, use_jacobian: int
+    ) -> float:
+        """|J_{q→r}| of seed 004, Eq. 11 (1 when ``jacobian=false``, or for the same visible point)."""
+        x1_src = domain_point(scene, si_src, wo_src)
+        x1_dst = domain_point(scene, si_dst, wo_dst)
+        if use_jacobian == 0 or wp.length_sq(x1_src - x1_dst) == 0.0:
+            return 1.0
+        return reconnection_jacobian_3d(x1_src, x1_dst, s.xs, s.ns)
+
+    @wp.func
+    def shift_accepted(
+        scene: SceneData, si_src: SurfaceInteraction, wo_src: wp.vec3, si_dst: SurfaceInteraction, wo_dst: wp.vec3, s: GISample, max_jacobian: float
+    ) -> bool:
+        """Whether the reconnection src → dst is used at all: |J| ≤ ``max_jacobian`` (0: always).
+
+        A shift that would magnify a sample's weight by more than the bound is treated as undefined —
+        a partial bijection. Z counting applies the same test to every domain (Alg. 4 l. 17), so the
+        estimator stays unbiased; it only loses the rare reuse that makes fireflies.
+        """
+        if max_jacobian <= 0.0:
+            return True
+        return shift_jacobian(scene, si_src, wo_src, si_dst, wo_dst, s, 1) <= max_jacobian
+
+    @wp.func
+    def domain_supports(scene: SceneData, si: SurfaceInteraction, wo: wp.vec3, s: GISample, target_mode: int, unbiased: int) -> int:
+        """Whether the domain of visible point ``si`` can produce sample ``s`` (Alg. 4 l. 17); always when biased."""
+        if unbiased == 0:
+            return 1
+        e = gi_eval(scene, si, wo, s, target_mode)
+        if e.target > 0.0 and sample_visible(scene, si, wo, e, s):
+            return 1
+        return 0
+
+    @wp.func
+    def outgoing_radiance(scene: SceneData, o: wp.vec3, d: wp.vec3, le: wp.vec3, key: wp.uint32, max_depth: int, rr_depth: int, multi: int, mb_fraction: float) -> wp.vec3:
+        """L_r at the first hit of the ray (o, d): the path tracer's estimate minus the hit's emission ``le``.
+
+        ``max_depth`` counts segments from x_v (−1: unbounded). Tiles without
+        multi-bounce paths keep one bounce (direct light at x_s, L_1); the others
+        add (L_full − L_1)/q, which share their first segments' random numbers.
+        """
+        if max_depth >= 0 and max_depth <= 2:
+            return wp.max(trace_path(scene, o, d, key, max_depth, rr_depth, _STRATEGY_MIS) - le, wp.vec3(0.0))
+        if multi != 0 and mb_fraction >= 1.0:
+            return wp.max(trace_path(scene, o, d, key, max_depth, rr_depth, _STRATEGY_MIS) - le, wp.vec3(0.0))
+        l1 = trace_path(scene, o, d, key, 2, rr_depth, _STRATEGY_MIS)
+        out = l1 - le
+        if multi != 0:
+            full = trace_path(scene, o, d, key, max_depth, rr_depth, _STRATEGY_MIS)
+            out = out + (full - l1) / mb_fraction  # tile-level Russian roulette, reweighted (seed 004, Sec. 5)
+        return wp.max(out, wp.vec3(0.0))
+
+    @wp.func
+    def validate(
+        scene: SceneData, s: GISample, max_depth: int, rr_depth: int, mb_fraction: float, tolerance: float
+    ) -> bool:
+        """Replay the sample's path with its own random numbers; false when L_o or visibility changed (Sec. 4.3)."""
+        if s.valid == 0:
+            return True
+        hit = intersect(scene, s.ray_o, s.ray_d, 1.0e30)
+        if hit.valid == 0 or wp.length(hit.p - s.xs) > 1.0e-3 * wp.max(1.0, wp.length(s.xs - s.xv)):
+            return False
+        le = emitter_radiance(scene.lights, hit.tri, hit.ng, -s.ray_d)
+        lo = outgoing_radiance(scene, s.ray_o, s.ray_d, le, s.key, max_depth, rr_depth, s.multi, mb_fraction)
+        a = luminance(lo)
+        b = luminance(s.lo)
+        return wp.abs(a - b) <= tolerance * wp.max(wp.max(a, b), 1.0e-6)
+
+    @wp.func
+    def pick_neighbor(
+        g: GBufferData,
+        g_n: GBufferData,
+        x: int,
+        y: int,
+        it: int,
+        rejections: int,
+        key: wp.uint32,
+        adaptive: int,
+        radius: float,
+        min_radius: float,
+    ) -> NeighborPixel:
+        """Alg. 4 l. 5–8: the ``it``-th random neighbour (adaptive or fixed radius); invalid if not similar."""
+        width = g.hit.shape[1]
+        height = g.hit.shape[0]
+        rad = radius
+        if adaptive != 0:
+            rad = adaptive_radius(width, height, rejections, min_radius)
+        nb = spatial_neighbor(x, y, width, height, rad, wp.vec2(random_uniform(key, 4 * it + 8), random_uniform(key, 4 * it + 9)))
+        if nb.valid != 0:
+            if not pixels_similar(g, x, y, g_n, nb.x, nb.y, SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH):
+                nb.valid = 0
+        return nb
+
+    @wp.kernel
+    def initial_pass(
+        scene: SceneData,
+        cam: CameraData,
+        sf: ScreenFrame,
+        source: int,
+        target_mode: int,
+        max_depth: int,
+        rr_depth: int,
+        mb_fraction: float,
+        direct_mode: int,
+        validate_now: int,
+        tolerance: float,
+        res_out: wp.array2d(dtype=Reservoir),
+        s_out: wp.array2d(dtype=GISample),
+        base: wp.array2d(dtype=wp.vec3),
+        res_t_prev: wp.array2d(dtype=Reservoir),
+        s_t_prev: wp.array2d(dtype=GISample),
+        res_s_prev: wp.array2d(dtype=Reservoir),
+        s_s_prev: wp.array2d(dtype=GISample),
+    ):
+        y, x = wp.tid()
+        width = sf.si.shape[1]
+        key = pixel_key(sf, x, y, 0)
+        si = sf.si[y, x]
+        wo = sf.wo[y, x]
+        r = reservoir_empty()
+        s = gi_sample_none()
+        res_out[y, x] = r
+        s_out[y, x] = s
+        base[y, x] = wp.vec3(0.0)
+        ray = camera_ray(cam, float(x) + 0.5, float(y) + 0.5, wp.vec2(0.5, 0.5))
+        if si.valid == 0:
+            if direct_mode == 0:
+                base[y, x] = environment_eval(scene.lights, ray.d)
+            return
+        # ---- sample validation: replay last frame's samples of this pixel (Sec. 4.3) ----
+        depth_from_xv = max_depth - 1  # the path at x_s continues the camera path: one segment fewer
+        if max_depth < 0:
+            depth_from_xv = -1
+        if validate_now != 0:
+            if not validate(scene, s_t_prev[y, x], depth_from_xv, rr_depth, mb_fraction, tolerance):
+                res_t_prev[y, x] = reservoir_empty()
+                s_t_prev[y, x] = gi_sample_none()
+            if not validate(scene, s_s_prev[y, x], depth_from_xv, rr_depth, mb_fraction, tolerance):
+                res_s_prev[y, x] = reservoir_empty()
+                s_s_prev[y, x] = gi_sample_none()
+        direct_key = random_subkey(key, 1)
+        if path_traced_here(scene, si):
+            # ---- mirrors and glass: the path tracer's estimate, no reservoir ----
+            full = trace_path(scene, ray.o, ray.d, direct_key, max_depth, rr_depth, _STRATEGY_MIS)
+            if direct_mode != 0:
+                full = full - trace_path(scene, ray.o, ray.d, direct_key, 2, rr_depth, _STRATEGY_MIS)  # ReSTIR DI has the rest
+            base[y, x] = full
+            return
+        if direct_mode == 0:
+            # ---- direct light: the path tracer's first two segments (emission, NEE + BSDF sampling with MIS) ----
+            dmax = max_depth
+            if max_depth < 0 or max_depth > 2:
+                dmax = 2
+            base[y, x] = trace_path(scene, ray.o, ray.d, direct_key, dmax, rr_depth, _STRATEGY_MIS)
+        r.confidence = 1.0  # one initial sample: M = 1 (Alg. 1 UPDATE), even if it carries no weight
+        res_out[y, x] = r
+        if max_depth >= 0 and max_depth <= 2:
+            return  # nothing indirect to estimate
+        # ---- Alg. 2: a direction from the source pdf p_q ----
+        nv = visible_normal(si, wo)
+        u = wp.vec2(random_uniform(key, 0), random_uniform(key, 1))
+        wi = wp.vec3(0.0)
+        source_pdf = float(0.0)
+        if source == _SOURCE_UNIFORM:
+            fv = frame_from_normal(nv)
+            wl = sample_uniform_hemisphere(u)
+            wi = to_world(fv, wl)
+            source_pdf = uniform_hemisphere_pdf(wl)
+        elif source == _SOURCE_COSINE:
+            fv = frame_from_normal(nv)
+            wl = sample_cosine_hemisphere(u)
+            wi = to_world(fv, wl)
+            source_pdf = cosine_hemisphere_pdf(wl)
+        else:
+            m = surface_material(scene, si)
+            fs = frame_from_normal(si.ns)
+            bs = bsdf.sample(m, to_local(fs, wo), random_uniform(key, 2), u)
+            if bs.valid != 0 and bs.delta == 0:
+                wi = to_world(fs, bs.wi)
+                source_pdf = bs.pdf
+        if source_pdf <= 0.0:
+            return
+        wi = wp.normalize(wi)
+        if wp.dot(wi, nv) <= 0.0:
+            return
+        if wp.dot(wi, si.ng) * wp.dot(wo, si.ng) <= 0.0:
+            return  # below the geometric surface (shading normals): not a reflection this estimator reconnects
+        o = domain_point(scene, si, wo)
+        hit = intersect(scene, o, wi, 1.0e30)
+        if hit.valid == 0:
+            return  # the sky: direct light's business
+        # ---- L_o at the sample point by path tracing (NEE + MIS), tile-level multi-bounce roulette ----
+        tile = (y // _TILE_H) * ((width + _TILE_W - 1) // _TILE_W) + x // _TILE_W
+        u_tile = random_uniform(random_subkey(frame_key(sf, 1), tile), 0)
+        s.multi = int(u_tile < mb_fraction)
+        s.key = random_subkey(key, 2)
+        le = emitter_radiance(scene.lights, hit.tri, hit.ng, -wi)
+        s.xv = si.p
+        s.nv = nv
+        s.xs = hit.p
+        ns = hit.ng
+        if wp.dot(ns, wi) > 0.0:
+            ns = -ns
+        s.ns = ns
+        s.ray_o = o
+        s.ray_d = wi
+        s.lo = outgoing_radiance(scene, o, wi, le, s.key, depth_from_xv, rr_depth, s.multi, mb_fraction)
+        s.valid = 1
+        e = gi_eval(scene, si, wo, s, target_mode)
+        if e.target > 0.0 and not sample_visible(scene, si, wo, e, s):
+            # x_s was found as the first hit, but other pixels test it with a shadow ray: use the same test
+            # here, so that every domain's support is decided by one function (else Z could miss a domain)
+            e.target = 0.0
+        r = reservoir_update(r, ris_weight(1.0, e.target, source_pdf), e.target, 0.0, 0.0)  # seed 004, Eq. 5
+        res_out[y, x] = reservoir_finalize(r)  # W = 1/p_q
+        s_out[y, x] = s
+
+    @wp.kernel
+    def temporal_pass(
+        scene: SceneData,
+        sf: ScreenFrame,
+        use_history: int,
+        cap: float,
+        target_mode: int,
+        use_jacobian: int,
+        unbiased: int,
+        max_jacobian: float,
+        res_in: wp.array2d(dtype=Reservoir),
+        s_in: wp.array2d(dtype=GISample),
+        res_prev: wp.array2d(dtype=Reservoir),
+        s_prev: wp.array2d(dtype=GISample),
+        res_out: wp.array2d(dtype=Reservoir),
+        s_out: wp.array2d(dtype=GISample),
+    ):
+        y, x = wp.tid()
+        key = pixel_key(sf, x, y, 3)
+        r_new = res_in[y, x]
+        s_new = s_in[y, x]
+        res_out[y, x] = r_new
+        s_out[y, x] = s_new
+        si = sf.si[y, x]
+        if si.valid == 0 or use_history == 0 or r_new.confidence <= 0.0:
+            return
+        tn = temporal_neighbor(sf.g, sf.g_prev, x, y, SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH)
+        if tn.valid == 0:
+            return  # reprojection failed: the history is reset (seed 004, Sec. 5)
+        wo = sf.wo[y, x]
+        si_p = sf.si_prev[tn.y, tn.x]
+        wo_p = sf.wo_prev[tn.y, tn.x]
+        r_p = res_prev[tn.y, tn.x]
+        s_p = s_prev[tn.y, tn.x]
+        r_p.confidence = confidence_capped(r_p.confidence, cap)
+        moved = int(wp.length_sq(si_p.p - si.p) > 0.0)
+        accept_p = shift_accepted(scene, si_p, wo_p, si, wo, s_p, max_jacobian)
+        # ---- Alg. 3: the history reservoir (reconnected if the visible point moved), then the new sample ----
+        out = reservoir_empty()
+        sel = gi_sample_none()
+        t_p = target_shifted(scene, si, wo, s_p, target_mode, moved)
+        if not accept_p:
+            t_p = 0.0
+        out = reservoir_merge(out, r_p, r_p.confidence, t_p, shift_jacobian(scene, si_p, wo_p, si, wo, s_p, use_jacobian), random_uniform(key, 0))
+        if out.selected:
+            sel = s_p
+        out = reservoir_merge(out, r_new, r_new.confidence, r_new.target, 1.0, random_uniform(key, 1))
+        if out.selected:
+            sel = s_new
+        # ---- W = w / (Z p̂): Z counts the domains that can produce the kept sample (Alg. 3 l. 6 with Alg. 4's Z) ----
+        z = support_count_term(r_new.confidence, out.target)
+        if sel.valid != 0 and domain_supports(scene, si_p, wo_p, sel, target_mode, unbiased * moved) != 0 and (
+            unbiased == 0 or shift_accepted(scene, si_p, wo_p, si, wo, sel, max_jacobian)
+        ):
+            z += r_p.confidence
+        out = reservoir_finalize_mis(out, support_mis(1.0, out.target, z))
+        res_out[y, x] = out
+        s_out[y, x] = sel
+
+    @wp.kernel
+    def spatial_pass(
+        scene: SceneData,
+        sf: ScreenFrame,
+        use_history: int,
+        temporal_cap: float,
+        spatial_cap: float,
+        iterations_low: int,
+        iterations_high: int,
+        adaptive: int,
+        radius: float,
+        min_radius: float,
+        low_m: float,
+        target_mode: int,
+        use_jacobian: int,
+        unbiased: int,
+        max_jacobian: float,
+        res_t: wp.array2d(dtype=Reservoir),
+        s_t: wp.array2d(dtype=GISample),
+        res_s_prev: wp.array2d(dtype=Reservoir),
+        s_s_prev: wp.array2d(dtype=GISample),
+        res_out: wp.array2d(dtype=Reservoir),
+        s_out: wp.array2d(dtype=GISample),
+    ):
+        y, x = wp.tid()
+        key = pixel_key(sf, x, y, 4)
+        r_t = res_t[y, x]
+        s_own = s_t[y, x]
+        res_out[y, x] = r_t
+        s_out[y, x] = s_own
+        si = sf.si[y, x]
+        if si.valid == 0 or r_t.confidence <= 0.0:
+            return
+        wo = sf.wo[y, x]
+        out = reservoir_empty()
+        sel = gi_sample_none()
+        # ---- Alg. 4 l. 2: last frame's spatial reservoir of this surface (reprojected) ----
+        c_s = float(0.0)
+        si_h = si
+        wo_h = wo
+        s_h = gi_sample_none()
+        if use_history != 0:
+            tn = temporal_neighbor(sf.g, sf.g_prev, x, y, SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH)
+            if tn.valid != 0:
+                r_h = res_s_prev[tn.y, tn.x]
+                s_h = s_s_prev[tn.y, tn.x]
+                si_h = sf.si_prev[tn.y, tn.x]
+                wo_h = sf.wo_prev[tn.y, tn.x]
+                r_h.confidence = confidence_capped(r_h.confidence, spatial_cap)
+                c_s = r_h.confidence
+                moved = int(wp.length_sq(si_h.p - si.p) > 0.0)
+                t_h = target_shifted(scene, si, wo, s_h, target_mode, moved)
+                if not shift_accepted(scene, si_h, wo_h, si, wo, s_h, max_jacobian):
+                    t_h = 0.0
+                out = reservoir_merge(out, r_h, c_s, t_h, shift_jacobian(scene, si_h, wo_h, si, wo, s_h, use_jacobian), random_uniform(key, 0))
+                if out.selected:
+                    sel = s_h
+        # ---- this pixel's temporal reservoir ----
+        r_t.confidence = confidence_capped(r_t.confidence, temporal_cap)
+        out = reservoir_merge(out, r_t, r_t.confidence, r_t.target, 1.0, random_uniform(key, 1))
+        if out.selected:
+            sel = s_own
+        # ---- Alg. 4 l. 4–14: neighbours' temporal reservoirs (spatial ones while this pixel's M is low: Fig. 10) ----
+        iterations = iterations_high
+        if c_s < 0.5 * spatial_cap:
+            iterations = iterations_low
+        from_spatial = int(use_history != 0 and c_s < low_m)
+        g_n = sf.g
+        if from_spatial != 0:
+            g_n = sf.g_prev
+        rejections = int(0)
+        for it in range(iterations):
+            nb = pick_neighbor(sf.g, g_n, x, y, it, rejections, key, adaptive, radius, min_radius)
+            if nb.valid == 0:
+                rejections += 1
+                continue
+            r_n = res_t[nb.y, nb.x]
+            s_n = s_t[nb.y, nb.x]
+            si_n = sf.si[nb.y, nb.x]
+            wo_n = sf.wo[nb.y, nb.x]
+            c_n = confidence_capped(r_n.confidence, temporal_cap)
+            if from_spatial != 0:
+                r_n = res_s_prev[nb.y, nb.x]
+                s_n = s_s_prev[nb.y, nb.x]
+                si_n = sf.si_prev[nb.y, nb.x]
+                wo_n = sf.wo_prev[nb.y, nb.x]
+                c_n = confidence_capped(r_n.confidence, spatial_cap)
+            r_n.confidence = c_n
+            t_n = target_shifted(scene, si, wo, s_n, target_mode, 1)  # Alg. 4 l. 11–12
+            if not shift_accepted(scene, si_n, wo_n, si, wo, s_n, max_jacobian):
+                t_n = 0.0
+            out = reservoir_merge(out, r_n, c_n, t_n, shift_jacobian(scene, si_n, wo_n, si, wo, s_n, use_jacobian), random_uniform(key, 4 * it + 10))
+            if out.selected:
+                sel = s_n
+        # ---- Alg. 4 l. 15–19: Z = confidence of the domains that can produce the kept sample ----
+        z = support_count_term(r_t.confidence, out.target)
+        if sel.valid != 0:
+            if c_s > 0.0:
+                moved = int(wp.length_sq(si_h.p - si.p) > 0.0)
+                if domain_supports(scene, si_h, wo_h, sel, target_mode, unbiased * moved) != 0 and (
+                    unbiased == 0 or shift_accepted(scene, si_h, wo_h, si, wo, sel, max_jacobian)
+                ):
+                    z += c_s
+            rejections = int(0)
+            for it in range(iterations):
+                nb = pick_neighbor(sf.g, g_n, x, y, it, rejections, key, adaptive, radius, min_radius)
+                if nb.valid == 0:
+                    rejections += 1
+                    continue
+                c_n = float(0.0)
+                si_n = sf.si[nb.y, nb.x]
+                wo_n = sf.wo[nb.y, nb.x]
+                if from_spatial != 0:
+                    r_n = res_s_prev[nb.y, nb.x]
+                    c_n = confidence_capped(r_n.confidence, spatial_cap)
+                    si_n = sf.si_prev[nb.y, nb.x]
+                    wo_n = sf.wo_prev[nb.y, nb.x]
+                else:
+                    r_n = res_t[nb.y, nb.x]
+                    c_n = confidence_capped(r_n.confidence, temporal_cap)
+                if c_n > 0.0 and domain_supports(scene, si_n, wo_n, sel, target_mode, unbiased) != 0 and (
+                    unbiased == 0 or shift_accepted(scene, si_n, wo_n, si, wo, sel, max_jacobian)
+                ):
+                    z += c_n
+        out = reservoir_finalize_mis(out, support_mis(1.0, out.target, z))
+        res_out[y, x] = out
+        s_out[y, x] = sel
+
+    @wp.kernel
+    def shade_pass(
+        scene: SceneData,
+        sf: ScreenFrame,
+        target_mode: int,
+        base: wp.array2d(dtype=wp.vec3),
+        res: wp.array2d(dtype=Reservoir),
+        samples: wp.array2d(dtype=GISample),
+        direct: wp.array2d(dtype=wp.vec3),
+        use_direct: int,
+        image: wp.array2d(dtype=wp.vec3),
+        nonfinite: wp.array(dtype=wp.int32),
+    ):
+        y, x = wp.tid()
+        L = base[y, x]
+        if use_direct != 0:
+            L += direct[y, x]
+        r = res[y, x]
+        if r.ucw > 0.0:
+            e = gi_eval(scene, sf.si[y, x], sf.wo[y, x], samples[y, x], target_mode)
+            L += e.rgb * r.ucw  # seed 004, Eq. 8 (with Eq. 6's W from the spatial reservoir)
+        write_pixel(image, nonfinite, y, x, L)
+
+    _KERNELS[kinds] = types.SimpleNamespace(
+        gi_eval=gi_eval, initial_pass=initial_pass, temporal_pass=temporal_pass, spatial_pass=spatial_pass, shade_pass=shade_pass
+    )
+    return _KERNELS[kinds]
+
+
+class ReSTIRGI(ScreenSpaceRenderer):
+    """ReSTIR GI over a built scene; ``render_frame(frame)`` returns the full image (H×W×3, linear)."""
+
+    def __init__(
+        self,
+        built: Any,
+        width: int,
+        height: int,
+        *,
+        seed: int = 0,
+        source: str = "uniform",
+        target: str = "full",
+        jacobian: bool = True,
+        unbiased: bool = True,
+        temporal: bool = True,
+        spatial: bool = True,
+        temporal_cap: float = 30.0,
+        spatial_cap: float = 500.0,
+        iterations_low: int = 9,
+        iterations_high: int = 3,
+        adaptive_radius: bool = True,
+        radius: float = 30.0,
+        min_radius: float = 3.0,
+        low_m: float = 10.0,
+        max_depth: int = 16,
+        rr_depth: int = 5,
+        mb_fraction: float = 0.25,
+        validation_interval: int = 6,
+        validation_tolerance: float = 0.2,
+        direct: str = "nee",
+        max_jacobian: float = 0.0,
+        timer: Any = None,
+    ) -> None:
+        self.built = built
+        self.width, self.height = int(width), int(height)
+        self.seed = int(seed)
+        self.source = SOURCES[source]
+        self.target = TARGETS[target]
+        self.jacobian = int(bool(jacobian))
+        self.unbiased = int(bool(unbiased))
+        self.temporal = bool(temporal)
+        self.spatial = bool(spatial)
+        self.temporal_cap = float(temporal_cap)
+        self.spatial_cap = float(spatial_cap)
+        self.iterations_low = int(iterations_low)
+        self.iterations_high = int(iterations_high)
+        self.adaptive = int(bool(adaptive_radius))
+        self.radius = float(radius)
+        self.min_radius = float(min_radius)
+        self.low_m = float(low_m)
+        self.max_depth = int(max_depth)
+        self.rr_depth = int(rr_depth)
+        self.mb_fraction = float(mb_fraction)
+        self.validation_interval = int(validation_interval)
+        self.validation_tolerance = float(validation_tolerance)
+        self.direct = DIRECT[direct]
+        self.max_jacobian = float(max_jacobian)
+        self.timer = timer
+        self.k = make_restir_gi_kernels(frozenset(built.features.material_kinds))
+        dev = self.device = built.device
+        shape = (self.height, self.width)
+        self.di = None
+        if self.direct == DIRECT["restir-di"]:
+            self.di = ReSTIRDI(built, width, height, seed=seed + 7919, timer=timer)
+            self.gbuffer, self.vp = self.di.gbuffer, self.di.vp
+        else:
+            self.gbuffer = GBuffer(self.width, self.height, dev)
+            self.vp = VisiblePoints(self.width, self.height, dev)
+        pair = lambda: (wp.zeros(shape, dtype=Reservoir, device=dev), wp.zeros(shape, dtype=GISample, device=dev))  # noqa: E731
+        self.initial = pair()  # the initial sample buffer (as one-sample reservoirs)
+        self.temporal_buf = DoubleBuffer(pair)  # temporal reservoir buffer
+        self.spatial_buf = DoubleBuffer(pair)  # spatial reservoir buffer
+        self.base = wp.zeros(shape, dtype=wp.vec3, device=dev)
+        self.image = wp.zeros(shape, dtype=wp.vec3, device=dev)
+        self.nonfinite = wp.zeros(1, dtype=wp.int32, device=dev)
+        self.frames_rendered = 0
+
+    def reset(self, seed: int | None = None) -> None:
+        """Forget all history (the next frame starts fresh), optionally with a new seed: an independent run."""
+        super().reset(seed)
+        if self.di is not None:
+            self.di.reset(None if seed is None else int(seed) + 7919)
+
+    def kernels(self) -> list[Any]:
+        ks = [visible_point_kernel, gbuffer_kernel, self.k.initial_pass, self.k.temporal_pass, self.k.spatial_pass, self.k.shade_pass]
+        return ks + (self.di.kernels() if self.di is not None else [])
+
+    def render_frame(self, frame: int) -> wp.array:
+        dim = (self.height, self.width)
+        dev = self.device
+        data = self.built.data
+        history = int(self.frames_rendered > 0)
+        if self.di is not None:
+            self.di.prepare(frame)
+        else:
+            with self._phase("gbuffer"):
+                self.gbuffer.fill(self.built, float(frame))
+                self.vp.fill(self.built, frame)
+        cam = self.built.camera_data(float(frame), self.width, self.height)
+        sf = screen_frame(self.gbuffer, self.vp, self.seed, frame)
+        self.temporal_buf.swap()
+        self.spatial_buf.swap()
+        validate_now = int(history and self.validation_interval > 0 and frame % self.validation_interval == 0)
+        with self._phase("gi_initial"):
+            wp.launch(
+                self.k.initial_pass,
+                dim=dim,
+                inputs=[
+                    data, cam, sf, self.source, self.target, self.max_depth, self.rr_depth,
+                    self.mb_fraction, self.direct, validate_now, self.validation_tolerance,
+                ],
+                outputs=[
+                    self.initial[0], self.initial[1], self.base, self.temporal_buf.previous[0], self.temporal_buf.previous[1],
+                    self.spatial_buf.previous[0], self.spatial_buf.previous[1],
+                ],
+                device=dev,
+            )
+        t_out = self.temporal_buf.current
+        with self._phase("gi_temporal"):
+            wp.launch(
+                self.k.temporal_pass,
+                dim=dim,
+                inputs=[
+                    data, sf, int(history and self.temporal), self.temporal_cap, self.target, self.jacobian, self.unbiased,
+                    self.max_jacobian, self.initial[0], self.initial[1], self.temporal_buf.previous[0], self.temporal_buf.previous[1],
+                ],
+                outputs=[t_out[0], t_out[1]],
+                device=dev,
+            )
+        s_out = self.spatial_buf.current
+        if self.spatial:
+            with self._phase("gi_spatial"):
+                wp.launch(
+                    self.k.spatial_pass,
+                    dim=dim,
+                    inputs=[
+                        data, sf, history, self.temporal_cap, self.spatial_cap, self.iterations_low, self.iterations_high,
+                        self.adaptive, self.radius, self.min_radius, self.low_m, self.target, self.jacobian, self.unbiased,
+                        self.max_jacobian, t_out[0], t_out[1], self.spatial_buf.previous[0], self.spatial_buf.previous[1],
+                    ],
+                    outputs=[s_out[0], s_out[1]],
+                    device=dev,
+                )
+        else:
+            wp.copy(s_out[0], t_out[0])
+            wp.copy(s_out[1], t_out[1])
+        direct = self.base
+        if self.di is not None:
+            direct = self.di.direct_light(frame)
+        with self._phase("gi_shade"):
+            wp.launch(
+                self.k.shade_pass,
+                dim=dim,
+                inputs=[data, sf, self.target, self.base, s_out[0], s_out[1], direct, int(self.di is not None)],
+                outputs=[self.image, self.nonfinite],
+                device=dev,
+            )
+        self.frames_rendered += 1
+        return self.image
+
+    @property
+    def nonfinite_samples(self) -> int:
+        """Pixels whose estimate was NaN/Inf and was dropped (over the renderer's lifetime; 0 expected)."""
+        return super().nonfinite_samples + (self.di.nonfinite_samples if self.di is not None else 0)
+
+
+def create_restir_gi(ctx: Any) -> ReSTIRGI:
+    p = ctx.params
+    return ReSTIRGI(
+        ctx.built,
+        ctx.width,
+        ctx.height,
+        seed=ctx.seed,
+        timer=ctx.timer,
+        **{k: p[k] for k in _FACTORY_PARAMS},
+    )
+
+
+_FACTORY_PARAMS = (
+    "source", "target", "jacobian", "unbiased", "temporal", "spatial", "temporal_cap", "spatial_cap", "iterations_low",
+    "iterations_high", "adaptive_radius", "radius", "min_radius", "low_m", "max_depth", "rr_depth", "mb_fraction",
+    "validation_interval", "validation_tolerance", "direct", "max_jacobian",
+)
