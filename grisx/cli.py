@@ -33,7 +33,8 @@ class _Parser(argparse.ArgumentParser):
     """argparse with one-line errors (the CLI contract)."""
 
     def error(self, message: str) -> NoReturn:
-        raise GrisxError(f"{self.prog}: {message}")
+        # subcommands name themselves ("grisx render: ..."); the top level is already "grisx: error:"
+        raise GrisxError(message if self.prog == "grisx" else f"{self.prog}: {message}")
 
 
 def _count(text: str) -> int:
