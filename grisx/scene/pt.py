@@ -40,7 +40,7 @@ from grisx.scene.bsdf import make_bsdf
 from grisx.scene.camera import CameraData, camera_ray
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.lights import emitter_radiance, environment_eval, environment_pdf, light_pdf_emitter, sample_light
-from grisx.scene.scene import SceneData, intersect, occluded, segment_occluded, spawn_origin, surface_material
+from grisx.scene.scene import SceneData, intersect, light_occluded, spawn_origin, surface_material
 from grisx.theory.mis import power_heuristic
 from grisx.theory.random import random_key, random_subkey, random_uniform
 
@@ -116,12 +116,7 @@ def make_trace_path(kinds: frozenset[int]) -> Any:
                     wi = to_local(frame, ls.wi)
                     f = bsdf.eval(m, wo, wi)
                     if wp.length_sq(f) > 0.0:
-                        blocked = bool(False)
-                        if ls.is_env != 0:
-                            blocked = occluded(scene, spawn_origin(scene, si.p, si.ng, ls.wi), ls.wi, ls.dist)
-                        else:
-                            blocked = segment_occluded(scene, si.p, si.ng, ls.p, wp.where(ls.delta != 0, wp.vec3(0.0), ls.n))
-                        if not blocked:
+                        if not light_occluded(scene, si.p, si.ng, ls):
                             w = float(1.0)
                             if ls.delta == 0 and use_bsdf_emission:
                                 w = power_heuristic(ls.pdf, bsdf.pdf(m, wo, wi))

@@ -136,6 +136,7 @@ register(
             Param("radius", 30.0, "spatial reuse radius in pixels", minimum=1.0),
             Param("history_cap", 20.0, "cap on a reused reservoir's confidence M (the history cap)", minimum=0.0),
             Param("unbiased", True, "true: targets at other pixels include their visibility (shadow rays), unbiased; false: unshadowed, cheaper, biased", kind="bool"),
+            Param("jitter", True, "visible point uniform over the pixel each frame (box filter: what pt estimates); false: pixel centres", kind="bool"),
         ),
     )
 )
@@ -168,11 +169,35 @@ register(
             Param("validation_tolerance", 0.2, "relative change of L_o that invalidates a sample", minimum=0.0),
             Param("direct", "nee", "direct light: nee (path-traced, NEE + BSDF with MIS) or restir-di", kind="choice", choices=("nee", "restir-di")),
             Param("max_jacobian", 0.0, "reject reconnections with |J| above this (counted the same way in Z: still unbiased); 0: never (the paper)", minimum=0.0),
+            Param("jitter", True, "visible point uniform over the pixel each frame (box filter: what pt estimates); false: pixel centres", kind="bool"),
         ),
     )
 )
 
 # ---- restir-pt (issue 11): registered here by grisx.scene.restir_pt ----
+
+register(
+    RenderMethod(
+        "restir-pt",
+        "ReSTIR PT (Lin et al. 2022): path reservoirs with temporal and spatial GRIS reuse through replay, reconnection or hybrid shifts",
+        "grisx.scene.restir_pt",
+        "create_restir_pt",
+        params=(
+            Param("shift", "hybrid", "path shift: hybrid (replay until two rough vertices, then reconnect), reconnection (at x2) or replay", kind="choice", choices=("hybrid", "reconnection", "replay")),
+            Param("candidates", 1, "initial path-tracer candidates per pixel and frame (1 real-time, 32 offline)", kind="int", minimum=1),
+            Param("max_bounces", 9, "longest path in segments after the primary vertex (the pt reference with max_depth = max_bounces + 1)", kind="int", minimum=1, maximum=64),
+            Param("temporal", True, "temporal reuse (generalized balance MIS)", kind="bool"),
+            Param("spatial_rounds", 1, "rounds of spatial reuse (pairwise MIS)", kind="int", minimum=0, maximum=8),
+            Param("neighbors", 3, "spatial neighbours per round", kind="int", minimum=0, maximum=16),
+            Param("radius", 20.0, "spatial reuse radius in pixels", minimum=1.0),
+            Param("history_cap", 20.0, "temporal confidence cap (<= 0: none)"),
+            Param("rough_threshold", 0.2, "hybrid shift: vertices rougher than this may be reconnected", minimum=0.0),
+            Param("near_field", 0.01, "hybrid shift: reconnection segments must be longer than this fraction of the scene radius", minimum=0.0),
+            Param("jacobian", True, "use shift Jacobians (false: |J| = 1, the biased ablation)", kind="bool"),
+            Param("jacobian_max", 0.0, "reject shifts with |J| outside [1/J_max, J_max] (0: no threshold)", minimum=0.0),
+        ),
+    )
+)
 
 
 def method_params(method: str, params: Mapping[str, Any] | None) -> dict[str, Any]:

@@ -247,16 +247,30 @@ def visible_normal(si: SurfaceInteraction, wo: wp.vec3) -> wp.vec3:
     return si.ns
 
 
+#: random stream of the visible points' sub-pixel jitter (apart from every pass's ``pixel_key`` streams)
+JITTER_STREAM = wp.constant(7919)
+
+
 @wp.kernel
 def visible_point_kernel(
     scene: SceneData,
     cam: CameraData,
+    seed: int,
+    frame: int,
+    jitter: int,
     si_out: wp.array2d(dtype=SurfaceInteraction),
     wo_out: wp.array2d(dtype=wp.vec3),
 ):
-    """The visible point of each pixel: the same pixel-centre primary ray as the G-buffer's."""
+    """The visible point of each pixel: a fresh uniform point of the pixel each frame (``jitter``, a box
+    filter — the quantity ``pt`` estimates), or the pixel centre the G-buffer sees."""
     y, x = wp.tid()
-    ray = camera_ray(cam, float(x) + 0.5, float(y) + 0.5, wp.vec2(0.5, 0.5))
+    px = float(x) + 0.5
+    py = float(y) + 0.5
+    if jitter != 0:
+        key = random_subkey(random_subkey(random_key(seed, frame), y * cam.width + x), JITTER_STREAM)
+        px = float(x) + random_uniform(key, 0)
+        py = float(y) + random_uniform(key, 1)
+    ray = camera_ray(cam, px, py, wp.vec2(0.5, 0.5))
     si_out[y, x] = intersect(scene, ray.o, ray.d, cam.far_clip)
     wo_out[y, x] = -ray.d
 
@@ -288,11 +302,17 @@ class VisiblePoints:
     def wo_prev(self) -> wp.array:
         return self.buffers.previous[1]
 
-    def fill(self, built: Any, frame: int) -> None:
+    def fill(self, built: Any, frame: int, seed: int = 0, jitter: bool = False) -> None:
         """Swap, then trace this frame's visible points (the scene must be at ``frame``)."""
         self.buffers.swap()
         cam = built.camera_data(float(frame), self.width, self.height)
-        wp.launch(visible_point_kernel, dim=(self.height, self.width), inputs=[built.data, cam], outputs=[self.si, self.wo], device=self.device)
+        wp.launch(
+            visible_point_kernel,
+            dim=(self.height, self.width),
+            inputs=[built.data, cam, int(seed), int(frame), int(bool(jitter))],
+            outputs=[self.si, self.wo],
+            device=self.device,
+        )
 
 
 def screen_frame(gbuffer: GBuffer, vp: VisiblePoints, seed: int, frame: int) -> ScreenFrame:
@@ -692,6 +712,7 @@ class ReSTIRDI(ScreenSpaceRenderer):
         radius: float = 30.0,
         history_cap: float = 20.0,
         unbiased: bool = True,
+        jitter: bool = True,
         timer: Any = None,
     ) -> None:
         self.built = built
@@ -705,6 +726,7 @@ class ReSTIRDI(ScreenSpaceRenderer):
         self.radius = float(radius)
         self.history_cap = float(history_cap)
         self.unbiased = int(bool(unbiased))
+        self.jitter = bool(jitter)
         self.timer = timer
         self.k = make_restir_di_kernels(frozenset(built.features.material_kinds))
         dev = self.device = built.device
@@ -727,7 +749,7 @@ class ReSTIRDI(ScreenSpaceRenderer):
         """G-buffer and visible points of ``frame`` (the scene must already be at ``frame``)."""
         with self._phase("gbuffer"):
             self.gbuffer.fill(self.built, float(frame))
-            self.vp.fill(self.built, frame)
+            self.vp.fill(self.built, frame, self.seed, self.jitter)
 
     def resample(self, frame: int) -> None:
         """Initial candidates, temporal and spatial reuse into ``self.final.current``."""
@@ -813,5 +835,6 @@ def create_restir_di(ctx: Any) -> ReSTIRDI:
         radius=p["radius"],
         history_cap=p["history_cap"],
         unbiased=p["unbiased"],
+        jitter=p["jitter"],
         timer=ctx.timer,
     )

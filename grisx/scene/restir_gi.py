@@ -110,7 +110,7 @@ from typing import Any
 import warp as wp
 
 from grisx.scene.bsdf import MATERIAL_ROUGH_DIELECTRIC, cosine_hemisphere_pdf, make_bsdf, sample_cosine_hemisphere
-from grisx.scene.camera import CameraData, camera_ray
+from grisx.scene.camera import CameraData
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.gbuffer import GBuffer, GBufferData, gbuffer_kernel
 from grisx.scene.lights import emitter_radiance, environment_eval, luminance
@@ -441,10 +441,12 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         res_out[y, x] = r
         s_out[y, x] = s
         base[y, x] = wp.vec3(0.0)
-        ray = camera_ray(cam, float(x) + 0.5, float(y) + 0.5, wp.vec2(0.5, 0.5))
+        # the visible point's camera ray (through the lens centre, as visible_point_kernel traces it)
+        ray_o = wp.transform_point(cam.to_world, wp.vec3(0.0, 0.0, 0.0))
+        ray_d = -wo
         if si.valid == 0:
             if direct_mode == 0:
-                base[y, x] = environment_eval(scene.lights, ray.d)
+                base[y, x] = environment_eval(scene.lights, ray_d)
             return
         # ---- sample validation: replay last frame's samples of this pixel (Sec. 4.3) ----
         depth_from_xv = max_depth - 1  # the path at x_s continues the camera path: one segment fewer
@@ -460,9 +462,9 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         direct_key = random_subkey(key, 1)
         if path_traced_here(scene, si):
             # ---- mirrors and glass: the path tracer's estimate, no reservoir ----
-            full = trace_path(scene, ray.o, ray.d, direct_key, max_depth, rr_depth, _STRATEGY_MIS)
+            full = trace_path(scene, ray_o, ray_d, direct_key, max_depth, rr_depth, _STRATEGY_MIS)
             if direct_mode != 0:
-                full = full - trace_path(scene, ray.o, ray.d, direct_key, 2, rr_depth, _STRATEGY_MIS)  # ReSTIR DI has the rest
+                full = full - trace_path(scene, ray_o, ray_d, direct_key, 2, rr_depth, _STRATEGY_MIS)  # ReSTIR DI has the rest
             base[y, x] = full
             return
         if direct_mode == 0:
@@ -470,7 +472,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
             dmax = max_depth
             if max_depth < 0 or max_depth > 2:
                 dmax = 2
-            base[y, x] = trace_path(scene, ray.o, ray.d, direct_key, dmax, rr_depth, _STRATEGY_MIS)
+            base[y, x] = trace_path(scene, ray_o, ray_d, direct_key, dmax, rr_depth, _STRATEGY_MIS)
         r.confidence = 1.0  # one initial sample: M = 1 (Alg. 1 UPDATE), even if it carries no weight
         res_out[y, x] = r
         if max_depth >= 0 and max_depth <= 2:
@@ -781,6 +783,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
         validation_tolerance: float = 0.2,
         direct: str = "nee",
         max_jacobian: float = 0.0,
+        jitter: bool = True,
         timer: Any = None,
     ) -> None:
         self.built = built
@@ -807,13 +810,14 @@ class ReSTIRGI(ScreenSpaceRenderer):
         self.validation_tolerance = float(validation_tolerance)
         self.direct = DIRECT[direct]
         self.max_jacobian = float(max_jacobian)
+        self.jitter = bool(jitter)
         self.timer = timer
         self.k = make_restir_gi_kernels(frozenset(built.features.material_kinds))
         dev = self.device = built.device
         shape = (self.height, self.width)
         self.di = None
         if self.direct == DIRECT["restir-di"]:
-            self.di = ReSTIRDI(built, width, height, seed=seed + 7919, timer=timer)
+            self.di = ReSTIRDI(built, width, height, seed=seed + 7919, jitter=jitter, timer=timer)
             self.gbuffer, self.vp = self.di.gbuffer, self.di.vp
         else:
             self.gbuffer = GBuffer(self.width, self.height, dev)
@@ -847,7 +851,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
         else:
             with self._phase("gbuffer"):
                 self.gbuffer.fill(self.built, float(frame))
-                self.vp.fill(self.built, frame)
+                self.vp.fill(self.built, frame, self.seed, self.jitter)
         cam = self.built.camera_data(float(frame), self.width, self.height)
         sf = screen_frame(self.gbuffer, self.vp, self.seed, frame)
         self.temporal_buf.swap()
@@ -931,5 +935,5 @@ def create_restir_gi(ctx: Any) -> ReSTIRGI:
 _FACTORY_PARAMS = (
     "source", "target", "jacobian", "unbiased", "temporal", "spatial", "temporal_cap", "spatial_cap", "iterations_low",
     "iterations_high", "adaptive_radius", "radius", "min_radius", "low_m", "max_depth", "rr_depth", "mb_fraction",
-    "validation_interval", "validation_tolerance", "direct", "max_jacobian",
+    "validation_interval", "validation_tolerance", "direct", "max_jacobian", "jitter",
 )

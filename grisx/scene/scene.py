@@ -41,7 +41,7 @@ import warp as wp
 from grisx.device import resolve_device
 from grisx.errors import InvalidParameterError, InvalidValueError
 from grisx.scene.camera import Camera, CameraData, CameraPath
-from grisx.scene.lights import ConstantEnvironment, EnvMap, LightSet, PointLight, build_light_set
+from grisx.scene.lights import ConstantEnvironment, EnvMap, LightSample, LightSet, PointLight, build_light_set
 from grisx.scene.material import (
     MATERIAL_CONDUCTOR,
     MATERIAL_DIELECTRIC,
@@ -66,6 +66,7 @@ __all__ = [
     "intersect",
     "occluded",
     "segment_occluded",
+    "light_occluded",
     "surface_material",
     "spawn_origin",
     "TRI_HAS_NORMALS",
@@ -284,6 +285,21 @@ def segment_occluded(scene: SceneData, p0: wp.vec3, n0: wp.vec3, p1: wp.vec3, n1
     if dist <= 0.0:
         return False
     return wp.mesh_query_ray_anyhit(scene.mesh, o, e / dist, dist)
+
+
+@wp.func
+def light_occluded(scene: SceneData, p: wp.vec3, ng: wp.vec3, ls: LightSample) -> bool:
+    """Whether next-event sample ``ls`` is hidden from surface point ``p`` (geometric normal ``ng``).
+
+    The environment is a direction (a ray to infinity); emitters are surface
+    points (:func:`segment_occluded`); point lights are points off every surface.
+    """
+    if ls.is_env != 0:
+        return occluded(scene, spawn_origin(scene, p, ng, ls.wi), ls.wi, ls.dist)
+    n1 = ls.n
+    if ls.delta != 0:
+        n1 = wp.vec3(0.0, 0.0, 0.0)
+    return segment_occluded(scene, p, ng, ls.p, n1)
 
 
 @wp.func

@@ -21,6 +21,16 @@ x₂^q, and n is the dimension of the scene: n = 3 gives seed 004's squared
 distances, n = 2 (flatland, where solid angle is plane angle and dω = cos φ
 dA / r) gives the plain ratio. :func:`reconnection_jacobian` is that
 formula; ``reconnection_jacobian_2d`` / ``_3d`` compute its inputs from points.
+
+**Random replay** (Lin et al. 2022, Sec. 7). A path regenerated at pixel r
+from pixel q's random numbers u has, in path space (solid-angle product
+measure), the Jacobian of ω ↦ u ↦ ω' — the ratio of the sampling densities
+of the replayed directions,
+
+    |J_{q→r}| = Π_l p_q(ω_l) / Π_l p_r(ω'_l),
+
+(:func:`replay_jacobian`); the hybrid shift multiplies it with Eq. 11 at its
+reconnection vertex.
 """
 
 from __future__ import annotations
@@ -36,6 +46,7 @@ __all__ = [
     "reconnection_jacobian",
     "reconnection_jacobian_2d",
     "reconnection_jacobian_3d",
+    "replay_jacobian",
 ]
 
 
@@ -106,3 +117,15 @@ def reconnection_jacobian_2d(x1_src: wp.vec2, x1_dst: wp.vec2, x2: wp.vec2, n2: 
 def reconnection_jacobian_3d(x1_src: wp.vec3, x1_dst: wp.vec3, x2: wp.vec3, n2: wp.vec3) -> float:
     """Eq. 11 in 3D: reuse sample point ``x2`` (normal ``n2``) at ``x1_dst`` instead of ``x1_src``."""
     return _reconnection_jacobian_points(x1_src, x1_dst, x2, n2, 3)
+
+
+@wp.func
+def replay_jacobian(pdf_src: float, pdf_dst: float) -> float:
+    """|J| = Π p_src(ω_l) / Π p_dst(ω'_l) of random replay (Lin et al. 2022, Sec. 7); 0 where p_dst = 0 (the shift fails).
+
+    ``pdf_src`` and ``pdf_dst`` are the products of the replayed directions' sampling
+    densities in the source and destination domains.
+    """
+    if pdf_dst > 0.0 and pdf_src > 0.0:
+        return pdf_src / pdf_dst
+    return 0.0

@@ -32,9 +32,9 @@ def cornell(device):
     return build_builtin("cornell-box").build(device)
 
 
-def _reference(built, max_depth: int = 2, spp: int = 4096) -> tuple[np.ndarray, np.ndarray]:
-    """Image mean of the pixel-centre path tracer and its standard error, per channel."""
-    pt = PathTracer(built, W, H, spp=spp, max_depth=max_depth, seed=99, jitter=False)
+def _reference(built, max_depth: int = 2, spp: int = 4096, jitter: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Image mean of the path tracer (pixel centres, or box-filtered with ``jitter``) and its standard error."""
+    pt = PathTracer(built, W, H, spp=spp, max_depth=max_depth, seed=99, jitter=jitter)
     pt.add_samples(0, spp)
     assert pt.nonfinite_samples == 0
     mean = pt.mean().astype(np.float64).reshape(-1, 3)
@@ -54,9 +54,9 @@ def _runs(renderer, runs: int, frames: int) -> tuple[np.ndarray, np.ndarray]:
     return est
 
 
-def _z(built, runs: int, frames: int, k: float, **params):
-    ref, ref_se = _reference(built)
-    est, se = _runs(ReSTIRDI(built, W, H, **params), runs, frames)
+def _z(built, runs: int, frames: int, k: float, jitter: bool = False, **params):
+    ref, ref_se = _reference(built, jitter=jitter)
+    est, se = _runs(ReSTIRDI(built, W, H, jitter=jitter, **params), runs, frames)
     return z_test(est, np.sqrt(se**2 + ref_se**2), ref, k=k)
 
 
@@ -71,8 +71,9 @@ def _z(built, runs: int, frames: int, k: float, **params):
         {"spatial": False},
         {"light_candidates": 4, "bsdf_candidates": 2},
         {"light_candidates": 0, "bsdf_candidates": 1},  # BSDF sampling alone
+        {"jitter": True},  # box-filtered pixels (the renderer's default) against the jittered path tracer
     ],
-    ids=["default", "spatial-only", "temporal-only", "4+2-candidates", "bsdf-only"],
+    ids=["default", "spatial-only", "temporal-only", "4+2-candidates", "bsdf-only", "jittered"],
 )
 def test_unbiased_restir_di_converges_to_direct_light(cornell, params):
     result = _z(cornell, 64, 6, DEFAULT_K, **params)

@@ -1,0 +1,755 @@
+"""Shift mappings of whole light paths: random replay, reconnection and their hybrid.
+
+GRIS reuses a path x̄ sampled at pixel j in pixel i by a *shift map* T_{j→i}
+that turns it into a path of pixel i, weighting it by (seed 000, Eq. 9;
+seed 003, Sec. 5.1)
+
+    w = m_j(T(x̄)) · p̂_i(T(x̄)) · W_x̄ · |∂T/∂x̄|.
+
+This module holds the three shifts of ReSTIR PT (Lin et al. 2022, Sec. 7), as
+one specialized Warp function that every path-reuse renderer calls (ReSTIR PT,
+and later G-PT's inner/outer shifts, Suffix ReSTIR's suffix shifts and
+ReSTCV's T_{i→j}). Paths live in **path space with the solid-angle product
+measure**: a path x₁ → x₂ → … → x_n starts at the pixel's primary vertex x₁
+(the *domain*: :class:`Domain`), and its integrand is
+
+    f(x̄) = Π_{i<n} f_s(x_i) |cos θ_i| · L_e(x_n → x_{n−1})
+
+(BSDF evals carry the cosine, grisx's Mitsuba convention; a delta lobe
+counts as weight × lobe probability). A path also carries the *technique*
+t that made its last segment — next-event estimation or BSDF sampling — and
+the integrand of the labelled path is m_t(x̄) f(x̄), m_t the power heuristic
+between the two techniques in the path's current domain (Σ_t m_t = 1, so the
+labelled integrals sum to the pixel's). Shifts keep the label, and because
+replay regenerates the last segment *with its technique*, m_t must be part of
+f in every domain: a label-dependent shift applied to an unlabelled integrand
+is biased (the tests catch it). The target of resampling is
+p̂(x̄) = luminance(m_t f)(x̄) (:func:`path_target`).
+
+**Random replay.** A path is identified by its random seed ``key``: the
+uniforms of vertex i are ``random_uniform(key, 8 i + d)`` (d = 0–2: next-event
+estimation, 3–5: BSDF sampling), so re-running the path tracer at pixel i with
+j's key gives T(x̄). In path space its Jacobian is the ratio of the sampling
+densities of the replayed directions (Lin et al. 2022, Sec. 7.1)
+
+    |∂T/∂x̄| = Π_l p_j(ω_l) / p_i(ω'_l).
+
+**Reconnection.** Connect x₁' of pixel i to x₂ of the source path and keep
+everything after it. The solid angle at x₁ maps to the one at x₁' through the
+area at x₂, so |∂T/∂x̄| is seed 004's Eq. 11,
+
+    |J| = |cos φ₂'| / |cos φ₂| · ‖x₁ − x₂‖² / ‖x₁' − x₂‖²,
+
+(:func:`grisx.theory.shift.reconnection_jacobian`, ``dims = 3``). Defined only
+where x₁, x₁' and x₂ are not delta surfaces.
+
+**Hybrid.** Replay up to the *reconnection vertex* x_k, the second vertex of the
+first pair (x_{k−1}, x_k) of consecutive rough vertices (roughness > 0.2;
+emitter end points count as rough) more than a near-field distance apart,
+then reconnect x_{k−1}' → x_k and keep the suffix. Its Jacobian is the product
+of the two above: the replayed prefix's density ratio times Eq. 11 at x_k.
+
+**Partial bijections.** Each shift is defined on part of path space only
+(seed 000, Sec. 3.1): it fails on a blocked or missed replay, a delta vertex
+where it must reconnect, an occluded reconnection segment, and — for the
+hybrid shift to be its own inverse — when the shifted prefix would have
+picked a *different* reconnection vertex (an earlier qualifying pair, or a
+near/smooth x_{k−1}'). A **Jacobian rejection threshold** (|J| outside
+[1/J_max, J_max]) discards shifts whose weight would explode; it is symmetric
+in J ↔ 1/J, so T restricted to the accepted set is still a bijection and MIS
+stays unbiased.
+
+Invertibility: T_{i→j}(T_{j→i}(x̄)) = x̄ with |J_{i→j}| · |J_{j→i}| = 1, and
+:func:`make_path_shift`'s ``shift`` is both directions (call it with the
+other domain). The :class:`PathSample` record stores what every shift needs:
+the seed, the length and how the last vertex was reached (next-event estimation
+or BSDF sampling), the reconnection vertex (index, position, normals,
+material, outgoing direction ``rc_wi``, the cached suffix f beyond its BSDF),
+the replayed directions' density product and the path's f in its own domain.
+
+**Sampling into a path reservoir.** ``stream_candidates`` traces one path
+from a domain (next-event estimation at every non-delta vertex, BSDF
+sampling, no Russian roulette) and streams every light connection and emitter
+hit into a :class:`PathReservoir` with its reconnection data chosen by the same
+rule the shift checks; ``settle`` re-evaluates the kept path as the shift
+measures it (geometric segments instead of the offset rays that sampled them,
+so T⁻¹(T(x̄)) = x̄ holds to rounding) and finalizes the UCW. Renderers that reuse
+paths start from these two.
+
+References: D. Lin, M. Kettunen, B. Bitterli, J. Pantaleoni, C. Yuksel,
+C. Wyman, "Generalized resampled importance sampling", SIGGRAPH 2022
+(restated in seed 000 Sec. 3.2.2 and seed 003 Sec. 5.1); seed 004 Eq. 11.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Iterable
+from typing import Any
+
+import warp as wp
+
+from grisx.errors import InvalidParameterError
+from grisx.scene.bsdf import make_bsdf
+from grisx.scene.frame import frame_from_normal, to_local, to_world
+from grisx.scene.material import Material
+from grisx.scene.lights import emitter_radiance, environment_eval, environment_pdf, light_pdf_emitter, luminance, sample_light
+from grisx.scene.scene import SceneData, SurfaceInteraction, intersect, light_occluded, occluded, segment_occluded, spawn_origin, surface_material
+from grisx.theory.mis import power_heuristic, target_from
+from grisx.theory.gris import ris_weight
+from grisx.theory.random import random_uniform
+from grisx.theory.reservoir import Reservoir, reservoir_finalize, reservoir_update
+from grisx.theory.shift import reconnection_jacobian, replay_jacobian
+
+wp.set_module_options({"enable_backward": False})
+
+__all__ = [
+    "Domain",
+    "PathSample",
+    "PathReservoir",
+    "ShiftParams",
+    "PathShiftResult",
+    "PathShiftFuncs",
+    "make_path_shift",
+    "shift_params",
+    "path_dim",
+    "rc_pair_ok",
+    "path_target",
+    "path_sample_empty",
+    "vertex_material",
+    "vertex_from_hit",
+    "target_to",
+    "target_back",
+    "jacobian_accepted",
+    "technique_mis",
+    "EmitterHit",
+    "emitter_hit",
+    "SHIFT_MODES",
+    "SHIFT_REPLAY",
+    "SHIFT_RECONNECTION",
+    "SHIFT_HYBRID",
+    "VERTEX_SURFACE",
+    "VERTEX_AREA_LIGHT",
+    "VERTEX_POINT_LIGHT",
+    "VERTEX_ENV",
+    "DIM_NEE",
+    "DIM_BSDF",
+]
+
+SHIFT_REPLAY = wp.constant(0)
+SHIFT_RECONNECTION = wp.constant(1)
+SHIFT_HYBRID = wp.constant(2)
+#: user-facing names of the shifts, in the order of their constants
+SHIFT_MODES = {"replay": 0, "reconnection": 1, "hybrid": 2}
+
+VERTEX_SURFACE = wp.constant(0)  # a surface vertex with a BSDF (followed by more of the path)
+VERTEX_AREA_LIGHT = wp.constant(1)  # end point on an emissive triangle
+VERTEX_POINT_LIGHT = wp.constant(2)  # end point on a point light (a delta in direction)
+VERTEX_ENV = wp.constant(3)  # end point on the environment: ``rc_p`` holds the direction
+
+DIM_NEE = wp.constant(0)  # counters 8i + 0..2: light selection, point on the light
+DIM_BSDF = wp.constant(3)  # counters 8i + 3..5: lobe, direction
+_FAR = wp.constant(1.0e30)
+
+
+@wp.struct
+class Domain:
+    """A pixel's integration domain: its primary vertex x₁ (surface record) and ω_o toward the camera."""
+
+    p: wp.vec3
+    ng: wp.vec3
+    ns: wp.vec3
+    uv: wp.vec2
+    material: int
+    tri: int
+    wo: wp.vec3
+    valid: int  # 0: the camera ray missed (no path space to reuse into)
+
+
+@wp.struct
+class PathSample:
+    """A path x₁ → … → x_n of some domain, stored as what its shifts need (see the module docstring)."""
+
+    key: wp.uint32  # the random seed: replaying it regenerates every sampled direction
+    length: int  # n − 1 segments after x₁ (1 … max bounces); 0: no path
+    end_nee: int  # 1: x_n was reached by next-event estimation, 0: by BSDF sampling
+    rc_index: int  # k ≥ 2: the reconnection vertex x_k; 0: none (replayed whole)
+    pdf_replay: float  # Π density of the replayed directions (x₁ … x_{k−2}, or all) in this domain
+    rc_p: wp.vec3  # x_k (a direction for VERTEX_ENV)
+    rc_ng: wp.vec3
+    rc_ns: wp.vec3
+    rc_uv: wp.vec2
+    rc_material: int
+    rc_tri: int
+    rc_kind: int  # VERTEX_*
+    rc_wi: wp.vec3  # direction x_k → x_{k+1} (surface x_k only)
+    rc_cos: float  # cos at x_k of the segment to x_{k−1} (geometric normal; Eq. 11's φ₂)
+    rc_dist: float  # ‖x_{k−1} − x_k‖
+    suffix: wp.vec3  # f beyond x_k's BSDF (Π f_s|cos| · L_e · m_t); a point light's intensity when x_k is one
+    end_light_pdf: float  # k = n − 1: light-sampling density of the last segment (for m_t at x_k)
+    end_delta: int  # k = n − 1: the last segment ends on a delta light (m_t = 1)
+    f: wp.vec3  # m_t · f(x̄) in this domain (RGB); the target is its luminance
+
+
+@wp.struct
+class PathReservoir:
+    """A path reservoir: the bookkeeping (w_sum, target, confidence, UCW) and the kept path."""
+
+    res: Reservoir
+    path: PathSample
+
+
+@wp.struct
+class ShiftParams:
+    """Which shift and its thresholds (runtime: one compiled kernel serves all three shifts)."""
+
+    mode: int  # SHIFT_REPLAY, SHIFT_RECONNECTION, SHIFT_HYBRID
+    rough_threshold: float  # hybrid: vertices rougher than this may be reconnected (0.2, Lin et al. 2022)
+    near_distance: float  # hybrid: the pair must be farther apart than this (world units)
+    jacobian_max: float  # reject shifts with |J| ∉ [1/J_max, J_max]; <= 0: no threshold
+    use_jacobian: int  # 0: pretend |J| = 1 (the wrong-Jacobian ablation; biased)
+
+
+@wp.struct
+class PathShiftResult:
+    """T(x̄) as a :class:`PathSample` of the destination domain, |∂T/∂x̄|, and whether T was defined."""
+
+    path: PathSample
+    jacobian: float
+    valid: wp.bool
+
+
+@wp.func
+def path_dim(vertex: int, dim: int) -> int:
+    """Counter of random dimension ``dim`` at path vertex x_``vertex`` (8 per vertex, as the path tracer)."""
+    return 8 * vertex + dim
+
+
+@wp.func
+def path_target(x: PathSample) -> float:
+    """p̂(x̄) = luminance(m_t f)(x̄): the resampling target of a path in its domain (0 for no path)."""
+    if x.length < 1:
+        return 0.0
+    t = luminance(x.f)
+    if t > 0.0:  # false for NaN
+        return t
+    return 0.0
+
+
+@wp.func
+def path_sample_empty() -> PathSample:
+    """No path (length 0, f = 0)."""
+    x = PathSample()
+    x.length = 0
+    x.f = wp.vec3(0.0)
+    x.rc_index = 0
+    x.pdf_replay = 0.0
+    return x
+
+
+@wp.func
+def rc_pair_ok(sp: ShiftParams, rough_prev: float, rough_cur: float, dist: float, index: int) -> bool:
+    """Whether (x_{index−1}, x_index) may be the reconnection pair: the hybrid's rule, or x₂ for pure reconnection.
+
+    Emitter end points pass roughness 1. Replay never reconnects.
+    """
+    if sp.mode == SHIFT_HYBRID:
+        return rough_prev > sp.rough_threshold and rough_cur > sp.rough_threshold and dist > sp.near_distance
+    if sp.mode == SHIFT_RECONNECTION:
+        return index == 2 and rough_prev > 0.0 and rough_cur > 0.0
+    return False
+
+
+@wp.struct
+class EmitterHit:
+    """What a BSDF-sampled ray from p along d finds: emitted radiance, NEE's density for it, distance."""
+
+    radiance: wp.vec3
+    light_pdf: float  # solid angle, incl. selection: the competitor in m_t
+    dist: float  # ‖hit − p‖ (1e30 for the environment)
+
+
+@wp.func
+def emitter_hit(scene: SceneData, p: wp.vec3, d: wp.vec3, si: SurfaceInteraction) -> EmitterHit:
+    """Emission reached from ``p`` along ``d`` (the environment if ``si`` missed)."""
+    e = EmitterHit()
+    e.dist = _FAR
+    if si.valid == 0:
+        e.radiance = environment_eval(scene.lights, d)
+        e.light_pdf = environment_pdf(scene.lights, d)
+    else:
+        e.radiance = emitter_radiance(scene.lights, si.tri, si.ng, -d)
+        e.light_pdf = light_pdf_emitter(scene.lights, si.tri, p, si.p, si.ng)
+        e.dist = wp.length(si.p - p)
+    return e
+
+
+@wp.func
+def technique_mis(end_nee: int, light_delta: int, bsdf_delta: int, light_pdf: float, bsdf_pdf: float) -> float:
+    """m_t: the power-heuristic weight of the technique that made the last segment (NEE or BSDF sampling).
+
+    Part of the integrand: paths carry their technique, and a shift keeps it, so the target of a
+    path is luminance(m_t · f) in every domain (Lin et al. 2022 keep the NEE/BSDF MIS weight in f).
+    A delta light or delta lobe has no competitor (weight 1).
+    """
+    if end_nee != 0:
+        if light_delta != 0:
+            return 1.0
+        return power_heuristic(light_pdf, bsdf_pdf)
+    if bsdf_delta != 0:
+        return 1.0
+    return power_heuristic(bsdf_pdf, light_pdf)
+
+
+@wp.func
+def jacobian_accepted(jacobian: float, sp: ShiftParams) -> bool:
+    """The rejection threshold |J| ∈ [1/J_max, J_max] (symmetric in J ↔ 1/J, so T stays a bijection)."""
+    if not (jacobian > 0.0) or not wp.isfinite(jacobian):
+        return False
+    if sp.jacobian_max > 0.0:
+        return jacobian <= sp.jacobian_max and jacobian * sp.jacobian_max >= 1.0
+    return True
+
+
+@wp.func
+def vertex_from_hit(si: SurfaceInteraction, wo: wp.vec3) -> Domain:
+    """A path vertex (or a pixel's domain) at hit ``si`` seen from direction ``wo`` (unit, away from the surface)."""
+    v = Domain()
+    v.p = si.p
+    v.ng = si.ng
+    v.ns = si.ns
+    v.uv = si.uv
+    v.material = si.material
+    v.tri = si.tri
+    v.wo = wo
+    v.valid = si.valid
+    return v
+
+
+@wp.func
+def target_to(s: PathShiftResult) -> float:
+    """p̂_{←src}(y) seen from the destination of ``s`` = T(y): p̂_dst(T(y)) · |∂T/∂y| (seed 001, Eq. 16); 0 if T failed."""
+    if s.valid:
+        return target_from(path_target(s.path), s.jacobian)
+    return 0.0
+
+
+@wp.func
+def target_back(x: PathSample, s: PathShiftResult) -> float:
+    """p̂_{←src}(T(x)) = p̂_src(x) / |∂T/∂x| for ``s`` = T(x): the source domain's target carried over (seed 001, Eq. 16)."""
+    if s.valid:
+        return target_from(path_target(x), 1.0 / s.jacobian)
+    return 0.0
+
+
+@wp.func
+def _shift_failed(x: PathSample) -> PathShiftResult:
+    r = PathShiftResult()
+    r.path = x
+    r.path.f = wp.vec3(0.0)
+    r.jacobian = 0.0
+    r.valid = False
+    return r
+
+
+@wp.func
+def vertex_material(scene: SceneData, material: int, uv: wp.vec2) -> Material:
+    """The material of a stored vertex (material id, uv) with its texture resolved, as at the hit."""
+    si = SurfaceInteraction()
+    si.material = material
+    si.uv = uv
+    return surface_material(scene, si)
+
+
+@dataclasses.dataclass(frozen=True)
+class PathShiftFuncs:
+    """Warp funcs of the path shifts compiled for a set of material kinds.
+
+    ``shift(scene, dst: Domain, x: PathSample, sp: ShiftParams) -> PathShiftResult``
+    is T into ``dst`` (and T⁻¹: call it with the source domain);
+    ``roughness(scene, material) -> float`` is the hybrid rule's roughness of a material id;
+    ``stream_candidates(scene, dom, key, max_bounces, weight_scale, sp, pr, ukey, ucounter) -> PathReservoir``
+    traces one path and streams its candidates (with their reconnection data) into a path
+    reservoir, and ``settle(scene, dom, pr, sp) -> PathReservoir`` finalizes it.
+    """
+
+    kinds: frozenset[int]
+    shift: Any
+    roughness: Any
+    stream_candidates: Any
+    settle: Any
+
+
+@wp.func
+def _endpoint_light(x: PathSample, index: int, kind: int, p: wp.vec3, n: wp.vec3, tri: int, cos_rc: float, dist: float, suffix: wp.vec3, pdf_replay: float) -> PathSample:
+    """``x`` with its reconnection vertex set to the end point x_index on a light."""
+    out = x
+    out.rc_index = index
+    out.rc_kind = kind
+    out.rc_p = p
+    out.rc_ng = n
+    out.rc_ns = n
+    out.rc_tri = tri
+    out.rc_material = -1
+    out.rc_cos = cos_rc
+    out.rc_dist = dist
+    out.suffix = suffix
+    out.pdf_replay = pdf_replay
+    return out
+
+
+_CACHE: dict[frozenset[int], PathShiftFuncs] = {}
+
+
+def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
+    """The path shifts specialized to the scene's material kinds ``kinds`` (cached)."""
+    key = frozenset(int(k) for k in kinds)
+    if key in _CACHE:
+        return _CACHE[key]
+    bsdf = make_bsdf(key)
+
+    @wp.func
+    def roughness(scene: SceneData, material: int) -> float:
+        return bsdf.roughness(scene.materials[material])
+
+    @wp.func
+    def rc_roughness(scene: SceneData, x: PathSample) -> float:
+        if x.rc_kind == VERTEX_SURFACE:
+            return bsdf.roughness(scene.materials[x.rc_material])
+        return 1.0  # emitter end points
+
+    @wp.func
+    def shift(scene: SceneData, dst: Domain, x: PathSample, sp: ShiftParams) -> PathShiftResult:
+        res = _shift_failed(x)
+        if dst.valid == 0 or x.length < 1:
+            return res
+        k = x.rc_index
+        if sp.mode == SHIFT_RECONNECTION and k != 2:
+            return res  # pure reconnection does not fall back to replay
+        if sp.mode == SHIFT_REPLAY and k != 0:
+            return res
+        n = x.length + 1  # index of the end vertex x_n
+        key = x.key
+        v = dst  # the current vertex x_i'
+        f = wp.vec3(1.0, 1.0, 1.0)
+        pdf = float(1.0)
+        jac_rc = float(1.0)
+        cos_dst = float(0.0)
+        dist_dst = float(0.0)
+        done = bool(False)
+        i = int(1)
+        while i < n and not done:
+            m = vertex_material(scene, v.material, v.uv)
+            frame = frame_from_normal(v.ns)
+            wo_l = to_local(frame, v.wo)
+            rough = bsdf.roughness(m)
+            if k != 0 and i == k - 1:
+                # ---- reconnection x'_{k−1} → x_k (seed 004, Eq. 11) ----
+                if bsdf.is_delta(m) != 0:
+                    return res
+                d = x.rc_p
+                dist = float(_FAR)
+                if x.rc_kind != VERTEX_ENV:
+                    dd = x.rc_p - v.p
+                    dist = wp.length(dd)
+                    if dist <= 0.0:
+                        return res
+                    d = dd / dist
+                if not rc_pair_ok(sp, rough, rc_roughness(scene, x), dist, k):
+                    return res  # x'_{k−1} would not pick x_k: T⁻¹ would differ
+                fo = bsdf.eval(m, wo_l, to_local(frame, d))
+                if wp.length_sq(fo) <= 0.0:
+                    return res
+                if x.rc_kind == VERTEX_ENV:
+                    if occluded(scene, spawn_origin(scene, v.p, v.ng, d), d, dist):
+                        return res
+                else:
+                    n_k = x.rc_ng  # both ends lifted off their surfaces; a point light is no surface
+                    if x.rc_kind == VERTEX_POINT_LIGHT:
+                        n_k = wp.vec3(0.0, 0.0, 0.0)
+                    if segment_occluded(scene, v.p, v.ng, x.rc_p, n_k):
+                        return res
+                f = wp.cw_mul(f, fo)
+                pdf_bsdf = bsdf.pdf(m, wo_l, to_local(frame, d))  # for m_t when x_k is the end vertex
+                if x.rc_kind == VERTEX_SURFACE:
+                    mk = vertex_material(scene, x.rc_material, x.rc_uv)
+                    frame_k = frame_from_normal(x.rc_ns)
+                    wo_k = to_local(frame_k, -d)
+                    wi_k = to_local(frame_k, x.rc_wi)
+                    fk = bsdf.eval(mk, wo_k, wi_k)
+                    f = wp.cw_mul(f, wp.cw_mul(fk, x.suffix))
+                    if k == n - 1:
+                        # x_k's new incoming direction changes its BSDF density: the technique weight m_t
+                        f = f * technique_mis(x.end_nee, x.end_delta, 0, x.end_light_pdf, bsdf.pdf(mk, wo_k, wi_k))
+                    cos_dst = wp.dot(x.rc_ng, -d)
+                    jac_rc = reconnection_jacobian(x.rc_cos, cos_dst, x.rc_dist, dist, 3)
+                elif x.rc_kind == VERTEX_AREA_LIGHT:
+                    f = wp.cw_mul(f, emitter_radiance(scene.lights, x.rc_tri, x.rc_ng, -d))
+                    f = f * technique_mis(x.end_nee, 0, 0, light_pdf_emitter(scene.lights, x.rc_tri, v.p, x.rc_p, x.rc_ng), pdf_bsdf)
+                    cos_dst = wp.dot(x.rc_ng, -d)
+                    jac_rc = reconnection_jacobian(x.rc_cos, cos_dst, x.rc_dist, dist, 3)
+                elif x.rc_kind == VERTEX_POINT_LIGHT:
+                    f = f * (1.0 / (dist * dist))
+                    f = wp.cw_mul(f, x.suffix)  # intensity / d²; a delta position: |J| = 1, m_t = 1
+                    cos_dst = 1.0
+                else:
+                    f = wp.cw_mul(f, environment_eval(scene.lights, d))  # same direction: |J| = 1
+                    f = f * technique_mis(x.end_nee, 0, 0, environment_pdf(scene.lights, d), pdf_bsdf)
+                    cos_dst = 1.0
+                dist_dst = dist
+                done = True
+            elif i == n - 1 and x.end_nee != 0:
+                # ---- the last segment: next-event estimation, replayed ----
+                if bsdf.is_delta(m) != 0:
+                    return res
+                c = path_dim(i, DIM_NEE)
+                ls = sample_light(scene.lights, v.p, random_uniform(key, c), wp.vec2(random_uniform(key, c + 1), random_uniform(key, c + 2)))
+                if ls.pdf <= 0.0 or wp.length_sq(ls.radiance) <= 0.0:
+                    return res
+                fo = bsdf.eval(m, wo_l, to_local(frame, ls.wi))
+                if wp.length_sq(fo) <= 0.0:
+                    return res
+                if light_occluded(scene, v.p, v.ng, ls):
+                    return res
+                if rc_pair_ok(sp, rough, 1.0, ls.dist, n):
+                    return res  # the shifted path would reconnect here; the source did not
+                f = wp.cw_mul(f, wp.cw_mul(fo, ls.radiance)) * technique_mis(1, ls.delta, 0, ls.pdf, bsdf.pdf(m, wo_l, to_local(frame, ls.wi)))
+                pdf = pdf * ls.pdf
+                done = True
+            else:
+                # ---- BSDF sampling, replayed ----
+                c = path_dim(i, DIM_BSDF)
+                bs = bsdf.sample(m, wo_l, random_uniform(key, c), wp.vec2(random_uniform(key, c + 1), random_uniform(key, c + 2)))
+                if bs.valid == 0 or not (bs.pdf > 0.0):
+                    return res
+                f = wp.cw_mul(f, bs.weight * bs.pdf)  # f_s|cos θ| (a delta lobe: weight × lobe probability)
+                pdf = pdf * bs.pdf
+                d = wp.normalize(to_world(frame, bs.wi))
+                si = intersect(scene, spawn_origin(scene, v.p, v.ng, d), d, 1.0e30)
+                if i == n - 1:
+                    # the end vertex, reached by BSDF sampling
+                    eh = emitter_hit(scene, v.p, d, si)
+                    if rc_pair_ok(sp, rough, 1.0, eh.dist, n):
+                        return res
+                    f = wp.cw_mul(f, eh.radiance) * technique_mis(0, 0, bs.delta, eh.light_pdf, bs.pdf)
+                    done = True
+                else:
+                    if si.valid == 0:
+                        return res
+                    # the replayed prefix may not offer an earlier reconnection pair than the source's
+                    if rc_pair_ok(sp, rough, bsdf.roughness(scene.materials[si.material]), wp.length(si.p - v.p), i + 1):
+                        return res
+                    v = vertex_from_hit(si, -d)
+                    i += 1
+        if not done or not (pdf > 0.0):
+            return res
+        jac = replay_jacobian(x.pdf_replay, pdf) * jac_rc  # Lin et al. 2022, Sec. 7: replay density ratio × Eq. 11
+        if not jacobian_accepted(jac, sp):
+            return res
+        if sp.use_jacobian == 0:
+            jac = 1.0
+        out = PathShiftResult()
+        out.path = x
+        out.path.pdf_replay = pdf
+        out.path.rc_cos = cos_dst
+        out.path.rc_dist = dist_dst
+        out.path.f = f
+        out.jacobian = jac
+        out.valid = True
+        return out
+
+    # ---- sampling paths into a path reservoir (what every path-reuse renderer starts from) ----
+    @wp.func
+    def stream_path_candidates(
+        scene: SceneData,
+        dom: Domain,
+        key: wp.uint32,
+        max_bounces: int,
+        weight_scale: float,
+        sp: ShiftParams,
+        pr: PathReservoir,
+        ukey: wp.uint32,
+        ucounter: int,
+    ) -> PathReservoir:
+        """Trace one path from ``dom`` with seed ``key`` and stream every light connection and emitter hit into ``pr``.
+
+        Next-event estimation at every non-delta vertex, BSDF sampling, no Russian roulette, at
+        most ``max_bounces`` segments after x₁. Each candidate x̄_l gets the RIS weight
+        w_l = ``weight_scale`` · p̂(x̄_l) / p(x̄_l) (seed 000, Eq. 6; m_t is inside p̂, so with
+        ``weight_scale`` = 1/N over N traced paths the MIS weights sum to one) and its
+        reconnection data under ``sp``'s rule. Reservoir decisions use ``random_uniform(ukey,
+        ucounter + j)``, j < 2 · max_bounces. Call :func:`settle` once after the last path.
+        """
+        r = pr.res
+        sel = pr.path
+        ucount = ucounter
+        if dom.valid == 0:
+            return pr
+        v = dom  # the current vertex x_i
+        fthru = wp.vec3(1.0, 1.0, 1.0)  # f of x₁ … x_i (BSDF factors so far)
+        pdf = float(1.0)  # density of the directions sampled so far
+        cur = path_sample_empty()  # the walk's reconnection data (k = 0 until a pair qualifies)
+        cur.key = key
+        suffix_thru = wp.vec3(1.0, 1.0, 1.0)  # f factors after x_k's BSDF
+        i = int(1)
+        while i <= max_bounces:
+            m = vertex_material(scene, v.material, v.uv)
+            frame_l = frame_from_normal(v.ns)
+            wo_l = to_local(frame_l, v.wo)
+            rough = bsdf.roughness(m)
+            # -- next-event estimation: candidate x₁ … x_i → light --
+            if bsdf.is_delta(m) == 0:
+                c = path_dim(i, DIM_NEE)
+                ls = sample_light(scene.lights, v.p, random_uniform(key, c), wp.vec2(random_uniform(key, c + 1), random_uniform(key, c + 2)))
+                if ls.pdf > 0.0 and wp.length_sq(ls.radiance) > 0.0:
+                    wi_l = to_local(frame_l, ls.wi)
+                    fo = bsdf.eval(m, wo_l, wi_l)
+                    if wp.length_sq(fo) > 0.0:
+                        if not light_occluded(scene, v.p, v.ng, ls):
+                            mis = technique_mis(1, ls.delta, 0, ls.pdf, bsdf.pdf(m, wo_l, wi_l))  # Veach Eq. 9.13
+                            cand_x = cur
+                            cand_x.length = i
+                            cand_x.end_nee = 1
+                            cand_x.f = wp.cw_mul(fthru, wp.cw_mul(fo, ls.radiance)) * mis  # m_t · f
+                            if cur.rc_index == i:
+                                cand_x.rc_wi = ls.wi
+                                cand_x.suffix = ls.radiance  # m_t is re-evaluated at x_k by the shift
+                                cand_x.end_light_pdf = ls.pdf
+                                cand_x.end_delta = ls.delta
+                            elif cur.rc_index != 0:
+                                cand_x.suffix = wp.cw_mul(suffix_thru, wp.cw_mul(fo, ls.radiance)) * mis
+                            elif rc_pair_ok(sp, rough, 1.0, ls.dist, i + 1):
+                                kind = VERTEX_AREA_LIGHT
+                                lp = ls.p
+                                sfx = wp.vec3(1.0, 1.0, 1.0)
+                                if ls.is_env != 0:
+                                    kind = VERTEX_ENV
+                                    lp = ls.wi
+                                elif ls.delta != 0:
+                                    kind = VERTEX_POINT_LIGHT
+                                    sfx = ls.radiance * (ls.dist * ls.dist)
+                                cand_x = _endpoint_light(cand_x, i + 1, kind, lp, ls.n, ls.tri, wp.dot(ls.n, -ls.wi), ls.dist, sfx, pdf)
+                            else:
+                                cand_x.pdf_replay = pdf * ls.pdf
+                            t = path_target(cand_x)
+                            w = ris_weight(weight_scale, t, pdf * ls.pdf)  # seed 000, Eq. 6 (m_t is inside t)
+                            r = reservoir_update(r, w, t, 0.0, random_uniform(ukey, ucount))
+                            ucount += 1
+                            if r.selected:
+                                sel = cand_x
+            # -- BSDF sampling --
+            c = path_dim(i, DIM_BSDF)
+            bs = bsdf.sample(m, wo_l, random_uniform(key, c), wp.vec2(random_uniform(key, c + 1), random_uniform(key, c + 2)))
+            if bs.valid == 0 or not (bs.pdf > 0.0):
+                break
+            fac = bs.weight * bs.pdf
+            fthru = wp.cw_mul(fthru, fac)
+            pdf_before = pdf
+            pdf = pdf * bs.pdf
+            d = wp.normalize(to_world(frame_l, bs.wi))
+            if cur.rc_index == i:
+                cur.rc_wi = d
+            elif cur.rc_index != 0:
+                suffix_thru = wp.cw_mul(suffix_thru, fac)
+            si = intersect(scene, spawn_origin(scene, v.p, v.ng, d), d, 1.0e30)
+            eh = emitter_hit(scene, v.p, d, si)
+            le = eh.radiance
+            lpdf = eh.light_pdf
+            dist = eh.dist
+            # -- emitter reached by BSDF sampling: candidate x₁ … x_{i+1} --
+            if wp.length_sq(le) > 0.0:
+                mis = technique_mis(0, 0, bs.delta, lpdf, bs.pdf)
+                cand_x = cur
+                cand_x.length = i
+                cand_x.end_nee = 0
+                cand_x.f = wp.cw_mul(fthru, le) * mis  # m_t · f
+                if cur.rc_index == i:
+                    cand_x.suffix = le  # m_t is re-evaluated at x_k by the shift
+                    cand_x.end_light_pdf = lpdf
+                    cand_x.end_delta = 0
+                elif cur.rc_index != 0:
+                    cand_x.suffix = wp.cw_mul(suffix_thru, le) * mis
+                elif rc_pair_ok(sp, rough, 1.0, dist, i + 1):
+                    if si.valid == 0:
+                        cand_x = _endpoint_light(cand_x, i + 1, VERTEX_ENV, d, -d, -1, 1.0, dist, wp.vec3(1.0, 1.0, 1.0), pdf_before)
+                    else:
+                        cand_x = _endpoint_light(cand_x, i + 1, VERTEX_AREA_LIGHT, si.p, si.ng, si.tri, wp.dot(si.ng, v.p - si.p) / dist, dist, wp.vec3(1.0, 1.0, 1.0), pdf_before)
+                else:
+                    cand_x.pdf_replay = pdf
+                t = path_target(cand_x)
+                w = ris_weight(weight_scale, t, pdf)
+                r = reservoir_update(r, w, t, 0.0, random_uniform(ukey, ucount))
+                ucount += 1
+                if r.selected:
+                    sel = cand_x
+            if si.valid == 0 or i >= max_bounces:
+                break
+            # -- advance to x_{i+1}; is (x_i, x_{i+1}) the reconnection pair? --
+            if cur.rc_index == 0 and rc_pair_ok(sp, rough, roughness(scene, si.material), dist, i + 1):
+                cur.rc_index = i + 1
+                cur.rc_kind = VERTEX_SURFACE
+                cur.rc_p = si.p
+                cur.rc_ng = si.ng
+                cur.rc_ns = si.ns
+                cur.rc_uv = si.uv
+                cur.rc_material = si.material
+                cur.rc_tri = si.tri
+                cur.rc_cos = wp.dot(si.ng, v.p - si.p) / dist  # the geometric segment, as the shift measures it
+                cur.rc_dist = dist
+                cur.pdf_replay = pdf_before
+                suffix_thru = wp.vec3(1.0, 1.0, 1.0)
+            v = vertex_from_hit(si, -d)
+            i += 1
+        out = PathReservoir()
+        out.res = r
+        out.path = sel
+        return out
+
+    @wp.func
+    def settle(scene: SceneData, dom: Domain, pr: PathReservoir, sp: ShiftParams) -> PathReservoir:
+        """Re-evaluate a kept path that reconnects as the shifts see it, and finalize (UCW, seed 000 Eq. 8).
+
+        Sampling traces offset rays; the shifts measure geometric segments. Storing the
+        shift's own evaluation makes T⁻¹(T(y)) = y hold to rounding (a replayed path is
+        already computed exactly as its replay). A path the shift cannot reproduce is dropped.
+        """
+        r = pr.res
+        sel = pr.path
+        if sel.length > 0 and sel.rc_index != 0:
+            own = shift(scene, dom, sel, sp)
+            if own.valid and path_target(own.path) > 0.0:
+                sel = own.path
+                r.target = path_target(sel)
+            else:
+                r.w_sum = 0.0
+                sel = path_sample_empty()
+        out = PathReservoir()
+        out.res = reservoir_finalize(r)
+        out.path = sel
+        return out
+
+    funcs = PathShiftFuncs(kinds=key, shift=shift, roughness=roughness, stream_candidates=stream_path_candidates, settle=settle)
+    _CACHE[key] = funcs
+    return funcs
+
+
+def shift_params(
+    name: str,
+    *,
+    rough_threshold: float = 0.2,
+    near_distance: float = 0.0,
+    jacobian_max: float = 0.0,
+    jacobian: bool = True,
+) -> ShiftParams:
+    """A :class:`ShiftParams` record for the shift ``name`` (replay, reconnection or hybrid)."""
+    if name not in SHIFT_MODES:
+        raise InvalidParameterError(f"unknown shift '{name}' (known: {', '.join(SHIFT_MODES)})")
+    if not rough_threshold >= 0.0 or not near_distance >= 0.0 or not jacobian_max >= 0.0:
+        raise InvalidParameterError("shift thresholds must be >= 0")
+    sp = ShiftParams()
+    sp.mode = SHIFT_MODES[name]
+    sp.rough_threshold = float(rough_threshold)
+    sp.near_distance = float(near_distance)
+    sp.jacobian_max = float(jacobian_max)
+    sp.use_jacobian = int(bool(jacobian))
+    return sp

@@ -1,0 +1,445 @@
+"""ReSTIR PT: spatiotemporal reuse of whole paths with generalized RIS (Lin et al. 2022).
+
+Each pixel's integral is the radiance leaving its primary vertex x₁ toward the
+camera, an integral over paths x₁ → … → x_n of f(x̄) (see
+:mod:`grisx.scene.path_shift` for the measure and the shifts). Per frame:
+
+``# ---- primary vertices ----``
+    a jittered camera ray per pixel gives x₁ (the pixel's *domain*, as the
+    reference path tracer jitters its rays, so both estimate the same pixel
+    integral); emission seen directly is added outside the reservoir.
+``# ---- initial candidates ----``
+    ``candidates`` path-tracer samples from x₁ with next-event estimation at
+    every vertex, no Russian roulette, at most ``max_bounces`` segments after
+    x₁ (``stream_candidates`` of :func:`~grisx.scene.path_shift.make_path_shift`).
+    Every light connection and every emitter hit is one candidate path x̄_l
+    labelled with its technique t, target p̂ = luminance(m_t f) (m_t the power
+    heuristic between the two techniques, see ``path_shift``) and RIS weight
+    w_l = p̂(x̄_l) / (N p(x̄_l)) over N samples (seed 000, Eq. 6), so
+    ``reservoir_update`` keeps one path with UCW W = Σ w / p̂(y) (Eq. 8). The
+    canonical reservoir has confidence 1 (one frame: the unit of the history cap).
+``# ---- temporal reuse ----``
+    merge the previous frame's reservoir at the motion-reprojected pixel, its
+    confidence capped at ``history_cap`` (20), with the *generalized balance
+    heuristic* over the two domains (seed 001, Eqs. 15–16), each p̂_{←j}
+    evaluated through the shift (seed 000, Eq. 9).
+``# ---- spatial reuse ----``
+    ``spatial_rounds`` rounds, each merging ``neighbors`` (3) random pixels
+    within ``radius`` (20 px) that pass the G-buffer similarity test, with
+    *pairwise MIS* against the canonical reservoir (Bitterli 2022; Lin et al.
+    2022) — one shift of each neighbour's path into this pixel and one of
+    this pixel's path into each neighbour.
+``# ---- shading ----``
+    the pixel value L_e(x₁) + (m_t f)(y) · W_y; the reservoir becomes next
+    frame's history.
+
+All estimator math (``reservoir_update``/``merge``/``finalize``,
+``ris_weight``, ``resampling_weight``, ``balance_mis``, pairwise MIS,
+``confidence_capped``, ``target_from``, ``power_heuristic``, the Jacobians
+``reconnection_jacobian`` and ``replay_jacobian``) is grisx.theory's; the
+shifts and the candidate sampler are
+:func:`grisx.scene.path_shift.make_path_shift`'s. The wrong-Jacobian ablation
+(``jacobian=false``: |J| = 1 in every weight) is biased and the tests show it.
+
+Temporal reuse evaluates the previous frame's domains with the current
+frame's geometry: exact for static scenes (how accumulation converges),
+an approximation when objects move (as in Lin et al. 2022).
+
+References: D. Lin et al., "Generalized resampled importance sampling:
+foundations of ReSTIR", SIGGRAPH 2022; B. Bitterli, PhD thesis (2022), Ch. 9.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import warp as wp
+
+from grisx.errors import InvalidParameterError
+from grisx.scene.camera import CameraData, camera_ray
+from grisx.scene.gbuffer import GBuffer, GBufferData
+from grisx.scene.lights import emitter_radiance, environment_eval
+from grisx.scene.path_shift import (
+    Domain,
+    PathReservoir,
+    PathSample,
+    ShiftParams,
+    make_path_shift,
+    path_sample_empty,
+    path_target,
+    shift_params,
+    target_back,
+    target_to,
+    vertex_from_hit,
+)
+from grisx.scene.reuse import SIMILARITY_DEPTH, SIMILARITY_NORMAL_COS, NeighborPixel, pixels_similar, spatial_neighbor, temporal_neighbor
+from grisx.scene.scene import SceneData, intersect
+from grisx.theory.gris import resampling_weight
+from grisx.theory.mis import balance_mis, balance_term, pairwise_mis_canonical_term, pairwise_mis_neighbor
+from grisx.theory.random import random_key, random_subkey, random_uniform
+from grisx.theory.reservoir import Reservoir, confidence_capped, reservoir_empty, reservoir_finalize, reservoir_merge, reservoir_update
+
+wp.set_module_options({"enable_backward": False})
+
+__all__ = ["PathReservoir", "path_reservoir", "RestirPT", "create_restir_pt", "make_restir_pt_kernels"]
+
+# random streams of a pixel (inside the (seed, frame) → pixel key)
+_STREAM_CAMERA = wp.constant(0)
+_STREAM_RESAMPLE = wp.constant(1)
+_STREAM_TEMPORAL = wp.constant(2)
+_STREAM_SPATIAL = wp.constant(3)  # + round
+_STREAM_PATHS = wp.constant(64)  # + candidate: the path's own seed (replayed by shifts)
+
+
+@wp.func
+def path_reservoir(r: Reservoir, path: PathSample) -> PathReservoir:
+    """The finalized reservoir (UCW W = w_sum / p̂(y), seed 000, Eq. 8) with its kept path."""
+    pr = PathReservoir()
+    pr.res = reservoir_finalize(r)
+    pr.path = path
+    return pr
+
+
+@wp.func
+def _spatial_candidate(
+    g: GBufferData, domains: wp.array2d(dtype=Domain), inp: wp.array2d(dtype=PathReservoir), x: int, y: int, radius: float, u: wp.vec2
+) -> NeighborPixel:
+    """A random pixel within ``radius`` that may take part in spatial reuse: a hit, similar, with a reservoir."""
+    nb = spatial_neighbor(x, y, domains.shape[1], domains.shape[0], radius, u)
+    if nb.valid != 0:
+        if domains[nb.y, nb.x].valid == 0 or inp[nb.y, nb.x].res.confidence <= 0.0:
+            nb.valid = 0
+        elif not pixels_similar(g, x, y, g, nb.x, nb.y, SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH):
+            nb.valid = 0
+    return nb
+
+
+@wp.func
+def _pixel_key(seed: int, frame: int, pixel: int) -> wp.uint32:
+    return random_subkey(random_key(seed, frame), pixel)
+
+
+_KERNELS: dict[frozenset[int], dict[str, Any]] = {}
+
+
+def make_restir_pt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
+    """The passes of ReSTIR PT compiled for the material kinds ``kinds`` (cached)."""
+    kinds = frozenset(kinds)
+    if kinds in _KERNELS:
+        return _KERNELS[kinds]
+    shifts = make_path_shift(kinds)
+    shift = shifts.shift
+    sample_paths = shifts.stream_candidates
+    settle = shifts.settle
+
+    # ---- primary vertices ----
+    @wp.kernel
+    def primary_pass(scene: SceneData, cam: CameraData, seed: int, frame: int, domains: wp.array2d(dtype=Domain), direct: wp.array2d(dtype=wp.vec3)):
+        y, x = wp.tid()
+        key = random_subkey(_pixel_key(seed, frame, y * cam.width + x), _STREAM_CAMERA)
+        ray = camera_ray(cam, float(x) + random_uniform(key, 0), float(y) + random_uniform(key, 1), wp.vec2(random_uniform(key, 2), random_uniform(key, 3)))
+        si = intersect(scene, ray.o, ray.d, 1.0e30)
+        if si.valid == 0:
+            direct[y, x] = environment_eval(scene.lights, ray.d)
+        else:
+            direct[y, x] = emitter_radiance(scene.lights, si.tri, si.ng, -ray.d)
+        domains[y, x] = vertex_from_hit(si, -ray.d)  # valid = 0 where the ray missed
+
+    # ---- initial candidates ----
+    @wp.kernel
+    def initial_pass(
+        scene: SceneData,
+        seed: int,
+        frame: int,
+        candidates: int,
+        max_bounces: int,
+        sp: ShiftParams,
+        domains: wp.array2d(dtype=Domain),
+        out: wp.array2d(dtype=PathReservoir),
+    ):
+        y, x = wp.tid()
+        width = domains.shape[1]
+        pk = _pixel_key(seed, frame, y * width + x)
+        ukey = random_subkey(pk, _STREAM_RESAMPLE)
+        dom = domains[y, x]
+        pr = PathReservoir()
+        pr.res = reservoir_empty()
+        pr.path = path_sample_empty()
+        inv_n = 1.0 / float(candidates)
+        if dom.valid != 0:
+            for cand in range(candidates):
+                key = random_subkey(pk, _STREAM_PATHS + cand)  # the path's seed: shifts replay it
+                pr = sample_paths(scene, dom, key, max_bounces, inv_n, sp, pr, ukey, cand * 2 * max_bounces)
+            pr.res.confidence = 1.0  # one frame's canonical sample: the unit of the history cap
+        out[y, x] = settle(scene, dom, pr, sp)
+
+    # ---- temporal reuse ----
+    @wp.kernel
+    def temporal_pass(
+        scene: SceneData,
+        seed: int,
+        frame: int,
+        sp: ShiftParams,
+        history_cap: float,
+        g: GBufferData,
+        g_prev: GBufferData,
+        domains: wp.array2d(dtype=Domain),
+        domains_prev: wp.array2d(dtype=Domain),
+        canonical: wp.array2d(dtype=PathReservoir),
+        history: wp.array2d(dtype=PathReservoir),
+        out: wp.array2d(dtype=PathReservoir),
+    ):
+        y, x = wp.tid()
+        can = canonical[y, x]
+        out[y, x] = can
+        dom_i = domains[y, x]
+        if dom_i.valid == 0:
+            return
+        nb = temporal_neighbor(g, g_prev, x, y, SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH)
+        if nb.valid == 0:
+            return
+        prev = history[nb.y, nb.x]
+        dom_j = domains_prev[nb.y, nb.x]
+        if dom_j.valid == 0 or prev.res.confidence <= 0.0:
+            return
+        ukey = random_subkey(_pixel_key(seed, frame, y * domains.shape[1] + x), _STREAM_TEMPORAL)
+        c_i = can.res.confidence
+        c_j = confidence_capped(prev.res.confidence, history_cap)
+        # canonical path y_c: p̂_i(y_c) and p̂_{←j}(y_c) through T_{i→j} (seed 001, Eq. 16)
+        t_c = path_target(can.path)
+        t_cj = target_to(shift(scene, dom_j, can.path, sp))
+        m_c = balance_mis(c_i, t_c, balance_term(c_i, t_c) + balance_term(c_j, t_cj))  # seed 001, Eq. 15
+        # history path y_t shifted into this pixel: p̂_i(T(y_t)) and p̂_{←j}(T(y_t)) = p̂_j(y_t) / |J|
+        s_t = shift(scene, dom_i, prev.path, sp)
+        t_ti = path_target(s_t.path)  # 0 where the shift failed
+        t_tj = target_back(prev.path, s_t)
+        m_t = balance_mis(c_j, t_tj, balance_term(c_j, t_tj) + balance_term(c_i, t_ti))
+        r = reservoir_empty()
+        r = reservoir_update(r, resampling_weight(m_c, t_c, can.res.ucw, 1.0), t_c, c_i, random_uniform(ukey, 0))
+        sel = path_sample_empty()
+        if r.selected:
+            sel = can.path
+        other = prev.res
+        other.confidence = c_j
+        r = reservoir_merge(r, other, m_t, t_ti, s_t.jacobian, random_uniform(ukey, 1))  # seed 000, Eq. 9
+        if r.selected:
+            sel = s_t.path
+        out[y, x] = path_reservoir(r, sel)
+
+    # ---- spatial reuse ----
+    @wp.kernel
+    def spatial_pass(
+        scene: SceneData,
+        seed: int,
+        frame: int,
+        round_index: int,
+        neighbors: int,
+        radius: float,
+        sp: ShiftParams,
+        g: GBufferData,
+        domains: wp.array2d(dtype=Domain),
+        inp: wp.array2d(dtype=PathReservoir),
+        out: wp.array2d(dtype=PathReservoir),
+    ):
+        y, x = wp.tid()
+        width = domains.shape[1]
+        can = inp[y, x]
+        out[y, x] = can
+        dom_i = domains[y, x]
+        if dom_i.valid == 0:
+            return
+        ukey = random_subkey(_pixel_key(seed, frame, y * width + x), _STREAM_SPATIAL + round_index)
+        # pass 1: which neighbours take part (k and the total confidence C of pairwise MIS)
+        k = int(0)
+        c_c = can.res.confidence
+        total = c_c
+        for q in range(neighbors):
+            nb = _spatial_candidate(g, domains, inp, x, y, radius, wp.vec2(random_uniform(ukey, 2 * q), random_uniform(ukey, 2 * q + 1)))
+            if nb.valid != 0:
+                k += 1
+                total += inp[nb.y, nb.x].res.confidence
+        if k == 0:
+            return
+        # pass 2: the canonical path's pairwise weight m_c = Σ_q (pair q's canonical share)
+        t_c = path_target(can.path)
+        m_c = float(0.0)
+        for q in range(neighbors):
+            nb = _spatial_candidate(g, domains, inp, x, y, radius, wp.vec2(random_uniform(ukey, 2 * q), random_uniform(ukey, 2 * q + 1)))
+            if nb.valid != 0:
+                t_cq = target_to(shift(scene, domains[nb.y, nb.x], can.path, sp))  # p̂_{←q}(y_c), seed 001, Eq. 16
+                m_c += pairwise_mis_canonical_term(inp[nb.y, nb.x].res.confidence, t_cq, c_c, t_c, k, total)
+        r = reservoir_empty()
+        r = reservoir_update(r, resampling_weight(m_c, t_c, can.res.ucw, 1.0), t_c, c_c, random_uniform(ukey, 100))
+        sel = path_sample_empty()
+        if r.selected:
+            sel = can.path
+        # pass 3: each neighbour's path shifted here, weighted against the canonical domain
+        for q in range(neighbors):
+            nb = _spatial_candidate(g, domains, inp, x, y, radius, wp.vec2(random_uniform(ukey, 2 * q), random_uniform(ukey, 2 * q + 1)))
+            if nb.valid != 0:
+                other = inp[nb.y, nb.x]
+                s = shift(scene, dom_i, other.path, sp)
+                t_qi = path_target(s.path)  # 0 where the shift failed
+                t_qq = target_back(other.path, s)
+                m_q = pairwise_mis_neighbor(other.res.confidence, t_qq, c_c, t_qi, k, total)
+                r = reservoir_merge(r, other.res, m_q, t_qi, s.jacobian, random_uniform(ukey, 101 + q))  # seed 000, Eq. 9
+                if r.selected:
+                    sel = s.path
+        out[y, x] = path_reservoir(r, sel)
+
+    # ---- shading ----
+    @wp.kernel
+    def shade_pass(
+        direct: wp.array2d(dtype=wp.vec3),
+        reservoirs: wp.array2d(dtype=PathReservoir),
+        image: wp.array2d(dtype=wp.vec3),
+        nonfinite: wp.array(dtype=wp.int32),
+    ):
+        y, x = wp.tid()
+        pr = reservoirs[y, x]
+        L = direct[y, x]
+        if pr.res.ucw > 0.0 and pr.path.length > 0:
+            L = L + pr.path.f * pr.res.ucw  # f(y) · W_y (seed 000, Eq. 7)
+        if not (wp.isfinite(L[0]) and wp.isfinite(L[1]) and wp.isfinite(L[2])):
+            L = wp.vec3(0.0)
+            wp.atomic_add(nonfinite, 0, 1)
+        image[y, x] = L
+
+    kernels = {"primary": primary_pass, "initial": initial_pass, "temporal": temporal_pass, "spatial": spatial_pass, "shade": shade_pass}
+    _KERNELS[kinds] = kernels
+    return kernels
+
+
+class RestirPT:
+    """ReSTIR PT over a built scene; ``render_frame(frame)`` runs one frame's passes (see the module docstring)."""
+
+    def __init__(
+        self,
+        built: Any,
+        width: int,
+        height: int,
+        *,
+        shift: str = "hybrid",
+        candidates: int = 1,
+        max_bounces: int = 9,
+        temporal: bool = True,
+        spatial_rounds: int = 1,
+        neighbors: int = 3,
+        radius: float = 20.0,
+        history_cap: float = 20.0,
+        rough_threshold: float = 0.2,
+        near_field: float = 0.01,
+        jacobian: bool = True,
+        jacobian_max: float = 0.0,
+        seed: int = 0,
+        timer: Any = None,
+    ) -> None:
+        if candidates < 1 or max_bounces < 1 or spatial_rounds < 0 or neighbors < 0 or radius <= 0.0:
+            raise InvalidParameterError("restir-pt needs candidates >= 1, max_bounces >= 1, spatial_rounds >= 0, neighbors >= 0, radius > 0")
+        self.built = built
+        self.width, self.height = int(width), int(height)
+        self.candidates = int(candidates)
+        self.max_bounces = int(max_bounces)
+        self.temporal = bool(temporal)
+        self.spatial_rounds = int(spatial_rounds)
+        self.neighbors = int(neighbors)
+        self.radius = float(radius)
+        self.history_cap = float(history_cap)
+        self.seed = int(seed)
+        self.timer = timer
+        # the near field is a fraction of the scene's radius, so one default fits every scene's scale
+        self.shift_params = shift_params(
+            shift,
+            rough_threshold=rough_threshold,
+            near_distance=float(near_field) * float(built.data.scene_radius),
+            jacobian_max=jacobian_max,
+            jacobian=jacobian,
+        )
+        self.k = make_restir_pt_kernels(frozenset(built.features.material_kinds))
+        dev = built.device
+        shape = (self.height, self.width)
+        self.gbuffer = GBuffer(self.width, self.height, dev)
+        self.domains = [wp.zeros(shape, dtype=Domain, device=dev) for _ in range(2)]  # current, previous
+        self.buffers = [wp.zeros(shape, dtype=PathReservoir, device=dev) for _ in range(3)]  # 0: history, 1–2: scratch
+        self.direct = wp.zeros(shape, dtype=wp.vec3, device=dev)
+        self.image = wp.zeros(shape, dtype=wp.vec3, device=dev)
+        self.nonfinite = wp.zeros(1, dtype=wp.int32, device=dev)
+        self.has_history = False
+
+    def kernels(self) -> list[Any]:
+        return list(self.k.values())
+
+    def _pass(self, name: str):
+        if self.timer is not None:
+            return self.timer(name)
+        import contextlib
+
+        return contextlib.nullcontext()
+
+    def render_frame(self, frame: int) -> wp.array:
+        """One frame: primary vertices, initial candidates, temporal and spatial reuse, shading."""
+        b = self.built
+        dev = b.device
+        dim = (self.height, self.width)
+        k = self.k
+        with self._pass("gbuffer"):
+            self.gbuffer.fill(b, float(frame))
+        self.domains.reverse()  # the previous frame's domains become "previous"
+        dom, dom_prev = self.domains
+        cam = b.camera_data(float(frame), self.width, self.height)
+        with self._pass("primary"):
+            wp.launch(k["primary"], dim=dim, inputs=[b.data, cam, self.seed, int(frame)], outputs=[dom, self.direct], device=dev)
+        history, cur, other = self.buffers
+        with self._pass("initial"):
+            wp.launch(
+                k["initial"],
+                dim=dim,
+                inputs=[b.data, self.seed, int(frame), self.candidates, self.max_bounces, self.shift_params, dom],
+                outputs=[cur],
+                device=dev,
+            )
+        if self.temporal and self.has_history:
+            with self._pass("temporal"):
+                wp.launch(
+                    k["temporal"],
+                    dim=dim,
+                    inputs=[b.data, self.seed, int(frame), self.shift_params, self.history_cap, self.gbuffer.current, self.gbuffer.previous, dom, dom_prev, cur, history],
+                    outputs=[other],
+                    device=dev,
+                )
+            cur, other = other, cur
+        for rnd in range(self.spatial_rounds):
+            with self._pass("spatial"):
+                wp.launch(
+                    k["spatial"],
+                    dim=dim,
+                    inputs=[b.data, self.seed, int(frame), rnd, self.neighbors, self.radius, self.shift_params, self.gbuffer.current, dom, cur],
+                    outputs=[other],
+                    device=dev,
+                )
+            cur, other = other, cur
+        with self._pass("shade"):
+            wp.launch(k["shade"], dim=dim, inputs=[self.direct, cur], outputs=[self.image, self.nonfinite], device=dev)
+        self.buffers = [cur, history, other]  # this frame's reservoirs are the next frame's history
+        self.has_history = True
+        return self.image
+
+    @property
+    def nonfinite_samples(self) -> int:
+        """Pixels dropped because they were NaN or Inf (over the renderer's lifetime; 0 expected)."""
+        return int(self.nonfinite.numpy()[0])
+
+    def reservoirs_array(self) -> wp.array:
+        """The last frame's path reservoirs on the device (H×W ``PathReservoir``)."""
+        return self.buffers[0]
+
+    def reservoirs(self) -> np.ndarray:
+        """The last frame's path reservoirs (structured NumPy array), for tests and debugging."""
+        return self.buffers[0].numpy()
+
+
+def create_restir_pt(ctx: Any) -> RestirPT:
+    # every registered param is a keyword of RestirPT; spp does not apply (one path sample per candidate)
+    params = {k: v for k, v in ctx.params.items() if k != "spp"}
+    return RestirPT(ctx.built, ctx.width, ctx.height, seed=ctx.seed, timer=ctx.timer, **params)
