@@ -394,6 +394,16 @@ def _safe_name(text: str) -> str:
     return "".join(c if c.isalnum() or c in "-_.=" else "_" for c in text)
 
 
+def _reference_max_depth(method: str) -> int | None:
+    """The path-tracer depth a method's images estimate (None: the scene's full depth)."""
+    try:
+        from grisx.scene.render import METHODS
+    except ImportError:  # no scene layer: fake renderers in tests
+        return None
+    spec = METHODS.get(method)
+    return None if spec is None else spec.reference_max_depth
+
+
 def render_study(
     scenes: Sequence[str],
     methods: Sequence[MethodSpec | str | tuple[str, Mapping[str, Any]]],
@@ -475,7 +485,17 @@ def render_study(
         scene_out.update(scanline=y_line, methods={})
         kept_images: dict[str, np.ndarray] = {}
         xt_rows: dict[str, np.ndarray] = {}
+        method_refs: dict[str, np.ndarray] = {}
         for spec in specs:
+            # a method that estimates less than the full image (restir-di: emitted + direct light) is judged
+            # against the path tracer at the depth it renders
+            depth = _reference_max_depth(spec.method)
+            if depth is None:
+                spec_ref = ref
+            else:
+                got_d = reference(scene, res=res, spp=reference_spp, device=device, seed=reference_seed, max_depth=depth)
+                spec_ref = M.check_image(getattr(got_d, "image", got_d), f"max_depth={depth} reference of scene '{scene}'")
+            method_refs[spec.label] = spec_ref
             # accumulate=True: the renderer averages the frames (and keeps a static camera, which is what
             # convergence against one reference needs); per-frame images are recovered from the averages
             kw = dict(spp=spp, accumulate=True, res=res, device=device, params=dict(spec.params))
@@ -494,13 +514,13 @@ def render_study(
                 seconds = float(seconds_elapsed) - state["callback"]
                 n = len(records) + 1  # frames count from 1
                 what = f"scene '{scene}' method '{spec.label}' frame {n}"
-                average, _ = M.check_images(image, ref, what, f"reference of scene '{scene}'")
+                average, _ = M.check_images(image, spec_ref, what, f"reference of scene '{scene}'")
                 frame = n * average - (n - 1) * state["average"]  # this frame alone, from two running averages
                 state["average"] = average
                 rec: dict[str, Any] = {"frame": n, "seconds": seconds, "renderer_seconds": float(seconds_elapsed)}
                 for name in names:
-                    rec[name] = float(M.METRICS[name](average, ref))
-                    rec[f"frame_{name}"] = float(M.METRICS[name](frame, ref))
+                    rec[name] = float(M.METRICS[name](average, spec_ref))
+                    rec[f"frame_{name}"] = float(M.METRICS[name](frame, spec_ref))
                 if n in checkpoints:
                     kept[n] = average  # final metrics (FLIP) after the run: keep callbacks light
                 lines.append(frame[y_line].astype(np.float32))
@@ -526,11 +546,12 @@ def render_study(
             kept[len(records)] = final_image
             for n, image in kept.items():
                 for name in finals:
-                    records[n - 1][name] = float(M.METRICS[name](image, ref))
+                    records[n - 1][name] = float(M.METRICS[name](image, spec_ref))
             primary = last[names[0]]
             scene_out["methods"][spec.label] = {
                 "method": spec.method,
                 "params": dict(spec.params),
+                "reference_max_depth": depth,
                 "frames": len(records),
                 "seconds": last["seconds"],
                 "seconds_per_frame": last["seconds"] / len(records),
@@ -570,10 +591,10 @@ def render_study(
                                                         title=f"{scene} on {env['device']}", budget=budget)
             exposure = display_exposure(ref)
             if "flip" in (*names, *finals):  # FLIP maps share a fixed [0, 1] scale across methods and studies
-                maps = {lab: M.flip(img, ref, return_map=True)[1] for lab, img in kept_images.items()}
+                maps = {lab: M.flip(img, method_refs[lab], return_map=True)[1] for lab, img in kept_images.items()}
                 map_label, map_range = "HDR-FLIP error map", (0.0, 1.0)
             else:
-                maps = {lab: M.relative_squared_error_map(img, ref).reshape(height, width, -1).mean(axis=-1)
+                maps = {lab: M.relative_squared_error_map(img, method_refs[lab]).reshape(height, width, -1).mean(axis=-1)
                         for lab, img in kept_images.items()}
                 map_label, map_range = f"relative squared error (eps={M.RELMSE_EPSILON:g})", None
             captions = {lab: f"{names[0]} {m['final'][names[0]]:.3g}, {m['seconds']:.2f} s, {m['frames']} fr"

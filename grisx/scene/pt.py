@@ -190,6 +190,12 @@ def make_path_tracer_kernel(kinds: frozenset[int]) -> Any:
     return sample_pass
 
 
+@wp.kernel
+def _scale(total: wp.array2d(dtype=wp.vec3), s: float, out: wp.array2d(dtype=wp.vec3)):
+    y, x = wp.tid()
+    out[y, x] = total[y, x] * s
+
+
 class PathTracer:
     """Progressive path tracing of a built scene: ``spp`` sample passes per frame."""
 
@@ -223,10 +229,11 @@ class PathTracer:
         self.total = wp.zeros((self.height, self.width), dtype=wp.vec3, device=dev)
         self.total_sq = wp.zeros((self.height, self.width), dtype=wp.vec3, device=dev)
         self.nonfinite = wp.zeros(1, dtype=wp.int32, device=dev)
+        self.image = wp.zeros((self.height, self.width), dtype=wp.vec3, device=dev)
         self.samples = 0
 
     def kernels(self) -> list[Any]:
-        return [self.kernel]
+        return [self.kernel, _scale]
 
     def reset(self) -> None:
         self.total.zero_()
@@ -246,15 +253,16 @@ class PathTracer:
             )
             self.samples += 1
 
-    def render_frame(self, frame: int) -> np.ndarray:
-        """A fresh ``spp``-sample estimate of frame ``frame`` (linear RGB, H×W×3)."""
+    def render_frame(self, frame: int) -> wp.array:
+        """A fresh ``spp``-sample estimate of frame ``frame`` (linear RGB, H×W, on the device)."""
         self.reset()
         if self.timer is not None:
             with self.timer("pt"):
                 self.add_samples(frame, self.spp)
         else:
             self.add_samples(frame, self.spp)
-        return self.mean()
+        wp.launch(_scale, dim=self.total.shape, inputs=[self.total, 1.0 / max(self.samples, 1)], outputs=[self.image], device=self.built.device)
+        return self.image
 
     def mean(self) -> np.ndarray:
         return self.total.numpy() / max(self.samples, 1)

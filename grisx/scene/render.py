@@ -34,6 +34,23 @@ from grisx.theory.toys.base import Param
 __all__ = ["METHODS", "RenderMethod", "RenderContext", "RenderResult", "PassTimer", "render", "load_scene", "parse_res", "method_params"]
 
 
+wp.set_module_options({"enable_backward": False})
+
+
+@wp.kernel
+def _accumulate(acc: wp.array2d(dtype=wp.vec3d), img: wp.array2d(dtype=wp.vec3)):
+    y, x = wp.tid()
+    v = img[y, x]
+    acc[y, x] = acc[y, x] + wp.vec3d(wp.float64(v[0]), wp.float64(v[1]), wp.float64(v[2]))
+
+
+@wp.kernel
+def _average(acc: wp.array2d(dtype=wp.vec3d), inv_n: wp.float64, out: wp.array2d(dtype=wp.vec3)):
+    y, x = wp.tid()
+    a = acc[y, x] * inv_n
+    out[y, x] = wp.vec3(wp.float32(a[0]), wp.float32(a[1]), wp.float32(a[2]))
+
+
 class PassTimer:
     """Wall-clock seconds per named pass, measured between device synchronizations."""
 
@@ -81,6 +98,8 @@ class RenderMethod:
     factory: str
     params: tuple[Param, ...] = ()
     kind: str = "radiance"  # "radiance" (linear RGB) or "debug" (a G-buffer view)
+    #: the path tracer's max_depth whose image this method estimates (None: the scene's own)
+    reference_max_depth: int | None = None
 
     def create(self, ctx: RenderContext) -> Any:
         return getattr(importlib.import_module(self.module), self.factory)(ctx)
@@ -127,6 +146,7 @@ register(
         "ReSTIR DI (Bitterli et al. 2020): 32 light + 1 BSDF candidates, visibility before reuse, temporal and spatial reuse with pairwise MIS; emitted + direct light (pt's max_depth=2)",
         "grisx.scene.restir_di",
         "create_restir_di",
+        reference_max_depth=2,
         params=(
             Param("light_candidates", 32, "initial light-sampled candidates per pixel", kind="int", minimum=0, maximum=1024),
             Param("bsdf_candidates", 1, "initial BSDF-sampled candidates per pixel", kind="int", minimum=0, maximum=64),
@@ -312,7 +332,10 @@ def render(
     renderer = spec.create(RenderContext(built, width, height, {**resolved, "spp": int(spp)}, int(seed), timer, method))
     for kernel in renderer.kernels() if hasattr(renderer, "kernels") else ():
         wp.load_module(kernel.module, device=dev)  # compiling is not rendering: keep it off the clock
-    acc = None
+    for kernel in (_accumulate, _average):
+        wp.load_module(kernel.module, device=dev)
+    acc = None  # running sum: on the device (float64) for device frames, on the host otherwise
+    average = None
     image = None
     synchronize(dev)
     start = time.perf_counter()
@@ -320,13 +343,26 @@ def render(
         with timer("scene_update"):
             built.set_frame(float(f))
         frame_img = renderer.render_frame(f)
-        synchronize(dev)
-        host = frame_img.numpy() if isinstance(frame_img, wp.array) else np.asarray(frame_img)
-        if accumulate:
-            acc = host.astype(np.float64) if acc is None else acc + host
-            image = (acc / (f + 1)).astype(np.float32)
+        need_host = on_frame is not None or f == frames - 1  # data stays on the device otherwise
+        if isinstance(frame_img, wp.array):
+            if accumulate:
+                if acc is None:
+                    acc = wp.zeros(frame_img.shape, dtype=wp.vec3d, device=dev)
+                    average = wp.empty(frame_img.shape, dtype=wp.vec3, device=dev)
+                wp.launch(_accumulate, dim=frame_img.shape, inputs=[acc, frame_img], device=dev)
+                if need_host:
+                    wp.launch(_average, dim=frame_img.shape, inputs=[acc, wp.float64(1.0 / (f + 1))], outputs=[average], device=dev)
+                    image = average.numpy()
+            elif need_host:
+                image = frame_img.numpy()
         else:
-            image = host.astype(np.float32)
+            host = np.asarray(frame_img)
+            if accumulate:
+                acc = host.astype(np.float64) if acc is None else acc + host
+                image = (acc / (f + 1)).astype(np.float32)
+            else:
+                image = host.astype(np.float32)
+        synchronize(dev)
         if on_frame is not None:
             on_frame(f, image, time.perf_counter() - start)
         if progress is not None:

@@ -126,7 +126,7 @@ def test_same_seed_same_image_other_seed_other_image():
     images = []
     for seed in (5, 5, 6):
         pt = PathTracer(built, 12, 12, spp=2, seed=seed)
-        images.append(pt.render_frame(0))
+        images.append(pt.render_frame(0).numpy())
     np.testing.assert_array_equal(images[0], images[1])
     assert not np.array_equal(images[0], images[2])
 
@@ -135,7 +135,7 @@ def test_same_seed_same_image_other_seed_other_image():
 def test_no_nan_or_inf_on_any_builtin_scene(name):
     built = build_builtin(name).build("cpu")
     pt = PathTracer(built, 12, 8, spp=2, seed=0)
-    img = pt.render_frame(0)
+    img = pt.render_frame(0).numpy()
     assert pt.nonfinite_samples == 0
     assert np.all(np.isfinite(img)) and np.all(img >= 0)
     assert img.max() > 0  # every built-in scene shows some light
