@@ -57,28 +57,17 @@
 #    and what the balance heuristic costs (toy analogues of seed 001, Figs. 3–4).
 
 # %% Setup
-import os
-import sys
 import time
-from pathlib import Path
 
 import matplotlib
 import numpy as np
 
 
-def _in_notebook() -> bool:
-    """True inside a Jupyter kernel (then figures are shown inline)."""
-    try:
-        from IPython import get_ipython
-    except ImportError:
-        return False
-    shell = get_ipython()
-    return shell is not None and "IPKernelApp" in getattr(shell, "config", {})
+# quick mode, device, figure folder and the off-screen backend (before pyplot is imported)
+from grisx.tutorial import tutorial_setup
 
-
-INTERACTIVE = _in_notebook()
-if not INTERACTIVE:
-    matplotlib.use("Agg")
+setup = tutorial_setup(globals().get("__file__"))
+INTERACTIVE = setup.interactive
 import matplotlib.pyplot as plt  # noqa: E402
 import matplotlib.ticker  # noqa: E402
 import warp as wp  # noqa: E402
@@ -86,34 +75,16 @@ import warp as wp  # noqa: E402
 from grisx.testing import BIASED_K, DEFAULT_K, z_test  # noqa: E402
 from grisx.theory.toys import run_toy  # noqa: E402
 
-QUICK = os.environ.get("GRISX_QUICK", "").strip().lower() not in ("", "0", "false", "no") or "--quick" in sys.argv
+QUICK = setup.quick
 TRIALS = 10_000 if QUICK else 200_000
 SEED = 0
-DEVICE = os.environ.get("GRISX_DEVICE", "cpu")
-wp.set_device(DEVICE)
+DEVICE = setup.device
 
-
-def _default_out() -> Path:
-    try:
-        return Path(__file__).resolve().parent / "out"
-    except NameError:
-        return Path("out") if Path.cwd().name == "tutorials" else Path("tutorials") / "out"
-
-
-OUT = Path(os.environ.get("GRISX_TUTORIAL_OUT") or _default_out())
-OUT.mkdir(parents=True, exist_ok=True)
-T_START = time.perf_counter()
+OUT = setup.out
+T_START = setup.start
 print(f"mode: {'QUICK' if QUICK else 'default'}  trials per run: {TRIALS:,}  seed: {SEED}  figures -> {OUT}")
 
-
-def save(fig, name: str) -> None:
-    path = OUT / name
-    fig.savefig(path, dpi=120, bbox_inches="tight")
-    print(f"wrote {path}")
-    if INTERACTIVE:
-        plt.show()
-    else:
-        plt.close(fig)
+save = setup.save
 
 
 def run(name: str, method: str, trials: int = TRIALS, **params):
