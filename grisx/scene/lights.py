@@ -88,6 +88,7 @@ import warp as wp
 
 from grisx.errors import InvalidParameterError, InvalidValueError
 from grisx.imageio import srgb_decode
+from grisx.theory.gris import LUMINANCE_WEIGHTS, luminance
 from grisx.scene.distribution import (
     AliasTable,
     PiecewiseConstant2D,
@@ -132,9 +133,6 @@ ENV_NONE = wp.constant(0)
 ENV_CONSTANT = wp.constant(1)
 ENV_ENVMAP = wp.constant(2)
 
-#: Mitsuba's (Rec. 709) luminance weights of linear RGB
-LUMINANCE_WEIGHTS = (0.212671, 0.715160, 0.072169)
-_LUM = wp.constant(wp.vec3(*LUMINANCE_WEIGHTS))
 #: ``dist`` of an environment sample (an infinitely distant light)
 _ENV_DIST = wp.constant(1.0e30)
 _INV_FOUR_PI = wp.constant(1.0 / (4.0 * math.pi))
@@ -298,12 +296,6 @@ class LightSample:
 
 
 # ---- small samplers and conversions ---------------------------------------------------
-
-
-@wp.func
-def luminance(c: wp.vec3) -> float:
-    """Mitsuba's luminance of linear RGB."""
-    return wp.dot(c, _LUM)
 
 
 @wp.func

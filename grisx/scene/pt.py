@@ -40,7 +40,7 @@ from grisx.scene.bsdf import make_bsdf
 from grisx.scene.camera import CameraData, camera_ray
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.lights import emitter_radiance, environment_eval, environment_pdf, light_pdf_emitter, sample_light
-from grisx.scene.scene import SceneData, intersect, light_occluded, spawn_origin, surface_material
+from grisx.scene.scene import SceneData, finite_or_dropped, intersect, light_occluded, spawn_origin, surface_material
 from grisx.theory.mis import power_heuristic
 from grisx.theory.random import random_key, random_subkey, random_uniform
 
@@ -179,10 +179,7 @@ def make_path_tracer_kernel(kinds: frozenset[int]) -> Any:
             py = float(y) + random_uniform(key, 1)
         ray = camera_ray(cam, px, py, wp.vec2(random_uniform(key, 2), random_uniform(key, 3)))
         L = trace_path(scene, ray.o, ray.d, random_subkey(key, 1), max_depth, rr_depth, strategy)
-        # a NaN/Inf sample would poison the pixel forever: drop it, and count it (the tests require 0)
-        if not (wp.isfinite(L[0]) and wp.isfinite(L[1]) and wp.isfinite(L[2])):
-            L = wp.vec3(0.0, 0.0, 0.0)
-            wp.atomic_add(nonfinite, 0, 1)
+        L = finite_or_dropped(L, nonfinite)
         total[y, x] = total[y, x] + L
         total_sq[y, x] = total_sq[y, x] + wp.cw_mul(L, L)
 

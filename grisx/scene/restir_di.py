@@ -102,7 +102,7 @@ from grisx.scene.reuse import (
     spatial_neighbor,
     temporal_neighbor,
 )
-from grisx.scene.scene import SceneData, SurfaceInteraction, intersect, occluded, segment_occluded, spawn_origin, surface_material
+from grisx.scene.scene import SceneData, SurfaceInteraction, finite_or_dropped, intersect, occluded, segment_occluded, spawn_origin, surface_material
 from grisx.theory.gris import ris_weight
 from grisx.theory.mis import balance_mis, balance_term, pairwise_mis_canonical_term, pairwise_mis_neighbor
 from grisx.theory.random import random_key, random_subkey, random_uniform
@@ -205,11 +205,7 @@ class PairwiseStep:
 @wp.func
 def write_pixel(image: wp.array2d(dtype=wp.vec3), nonfinite: wp.array(dtype=wp.int32), y: int, x: int, L: wp.vec3):
     """Store a pixel estimate; a NaN/Inf one is dropped (black) and counted (the tests require 0)."""
-    if wp.isfinite(L[0]) and wp.isfinite(L[1]) and wp.isfinite(L[2]):
-        image[y, x] = L
-    else:
-        image[y, x] = wp.vec3(0.0, 0.0, 0.0)
-        wp.atomic_add(nonfinite, 0, 1)
+    image[y, x] = finite_or_dropped(L, nonfinite)
 
 
 @wp.func

@@ -137,7 +137,7 @@ from grisx.scene.reuse import (
     spatial_neighbor,
     temporal_neighbor,
 )
-from grisx.scene.scene import SceneData, SurfaceInteraction, intersect, occluded, segment_occluded, spawn_origin, surface_material
+from grisx.scene.scene import SceneData, SurfaceInteraction, intersect, segment_occluded, spawn_origin, surface_material
 from grisx.theory.gris import ris_weight
 from grisx.theory.mis import support_count_term, support_mis
 from grisx.theory.random import random_subkey, random_uniform

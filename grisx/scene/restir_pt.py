@@ -74,7 +74,7 @@ from grisx.scene.path_shift import (
     vertex_from_hit,
 )
 from grisx.scene.reuse import SIMILARITY_DEPTH, SIMILARITY_NORMAL_COS, NeighborPixel, pixels_similar, spatial_neighbor, temporal_neighbor
-from grisx.scene.scene import SceneData, intersect
+from grisx.scene.scene import SceneData, finite_or_dropped, intersect
 from grisx.theory.gris import resampling_weight
 from grisx.theory.mis import balance_mis, balance_term, pairwise_mis_canonical_term, pairwise_mis_neighbor
 from grisx.theory.random import random_key, random_subkey, random_uniform
@@ -301,10 +301,7 @@ def make_restir_pt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         L = direct[y, x]
         if pr.res.ucw > 0.0 and pr.path.length > 0:
             L = L + pr.path.f * pr.res.ucw  # f(y) · W_y (seed 000, Eq. 7)
-        if not (wp.isfinite(L[0]) and wp.isfinite(L[1]) and wp.isfinite(L[2])):
-            L = wp.vec3(0.0)
-            wp.atomic_add(nonfinite, 0, 1)
-        image[y, x] = L
+        image[y, x] = finite_or_dropped(L, nonfinite)
 
     kernels = {"primary": primary_pass, "initial": initial_pass, "temporal": temporal_pass, "spatial": spatial_pass, "shade": shade_pass}
     _KERNELS[kinds] = kernels

@@ -67,6 +67,7 @@ __all__ = [
     "occluded",
     "segment_occluded",
     "light_occluded",
+    "finite_or_dropped",
     "surface_material",
     "spawn_origin",
     "TRI_HAS_NORMALS",
@@ -300,6 +301,19 @@ def light_occluded(scene: SceneData, p: wp.vec3, ng: wp.vec3, ls: LightSample) -
     if ls.delta != 0:
         n1 = wp.vec3(0.0, 0.0, 0.0)
     return segment_occluded(scene, p, ng, ls.p, n1)
+
+
+@wp.func
+def finite_or_dropped(L: wp.vec3, nonfinite: wp.array(dtype=wp.int32)) -> wp.vec3:
+    """``L``, or black if any channel is NaN/Inf — then counted in ``nonfinite[0]``.
+
+    A non-finite sample would poison an accumulated pixel forever; every renderer
+    drops it here and reports the count (``nonfinite_samples``; the tests require 0).
+    """
+    if wp.isfinite(L[0]) and wp.isfinite(L[1]) and wp.isfinite(L[2]):
+        return L
+    wp.atomic_add(nonfinite, 0, 1)
+    return wp.vec3(0.0, 0.0, 0.0)
 
 
 @wp.func

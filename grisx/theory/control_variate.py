@@ -72,7 +72,7 @@ from __future__ import annotations
 
 import warp as wp
 
-from grisx.theory.gris import ucw_from_source_pdf
+from grisx.theory.gris import luminance, ucw_from_source_pdf
 from grisx.theory.mis import balance_mis, balance_term, target_from
 from grisx.theory.reservoir import confidence_capped
 
@@ -113,7 +113,6 @@ Q_INIT = wp.constant(1.0)
 #: cap of the compositing weights q_j = M_j (Sec. 5.3, following GRIS)
 Q_CAP = wp.constant(20.0)
 
-_LUMA = wp.constant(wp.vec3(0.2126, 0.7152, 0.0722))
 
 
 @wp.struct
@@ -138,12 +137,6 @@ class DifferenceSample:
     f_own: wp.vec3
     f_shifted: wp.vec3
     jacobian: float
-
-
-@wp.func
-def luminance(f: wp.vec3) -> float:
-    """Rec. 709 luminance: ReSTIR's scalar target p̂ for a colour integrand (seed 002, Sec. 4)."""
-    return wp.dot(_LUMA, f)
 
 
 @wp.func

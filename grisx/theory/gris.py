@@ -25,13 +25,27 @@ unknown pdf, GRIS can be applied again to its own output: that chain is ReSTIR.
 
 Every renderer and toy computes its weights through :func:`resampling_weight`;
 there is no other copy of Eq. 9 in grisx.
+
+A colour integrand needs a scalar target: grisx uses its :func:`luminance`
+(Rec. 709 weights as Mitsuba gives them), p̂ = lum(f), everywhere — in the
+toys, the ReSTIR renderers and the light-selection powers alike.
 """
 
 from __future__ import annotations
 
 import warp as wp
 
-__all__ = ["resampling_weight", "ris_weight", "ucw_from_source_pdf"]
+__all__ = ["resampling_weight", "ris_weight", "ucw_from_source_pdf", "luminance", "LUMINANCE_WEIGHTS"]
+
+#: Rec. 709 luminance weights of linear RGB, as Mitsuba 3 gives them
+LUMINANCE_WEIGHTS = (0.212671, 0.715160, 0.072169)
+_LUMINANCE = wp.constant(wp.vec3(*LUMINANCE_WEIGHTS))
+
+
+@wp.func
+def luminance(c: wp.vec3) -> float:
+    """lum(c): the scalar resampling target p̂ of a colour integrand value c."""
+    return wp.dot(c, _LUMINANCE)
 
 
 @wp.func

@@ -182,7 +182,7 @@ def test_scalar_helpers_hand_computed():
     wp.launch(_scalar_funcs_kernel, dim=3, inputs=[wp.array(x, dtype=float), out], device="cpu")
     o = out.numpy()
     np.testing.assert_allclose(o[:, 0], [3.0, 20.0, 0.0])  # q_j = min(M_j, 20)
-    np.testing.assert_allclose(o[:, 1], x * (0.2126 + 2 * 0.7152 + 3 * 0.0722), rtol=1e-6)  # Rec. 709 luminance
+    np.testing.assert_allclose(o[:, 1], x * (0.212671 + 2 * 0.715160 + 3 * 0.072169), rtol=1e-6)  # Rec. 709 luminance (Mitsuba)
     np.testing.assert_allclose(o[:, 2], x / (4 * 0.5), rtol=1e-6)  # f / (N p)
     np.testing.assert_allclose(o[:, 3], [2 / 3.0, 2 / 25.0, 0.0], rtol=1e-6)  # w f / p̂, 0 where p̂ = 0
     np.testing.assert_allclose(o[:, 4], 2 * x + 1, rtol=1e-6)  # α F_j + diff
