@@ -58,6 +58,9 @@ from grisx.device import resolve_device
 from grisx.errors import GrisxError
 from grisx.theory.toys import run_toy
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from toys import cpu_model, ladder  # noqa: E402  (benchmarks/toys.py: the shared trial ladder and CPU-model probe)
+
 #: (label, problem, method, params) of every benchmarked variant; the first is the baseline
 VARIANTS: tuple[tuple[str, str, str, dict[str, Any]], ...] = (
     ("mmis K=1", "final-gather", "mmis", {"prefixes": 4, "suffixes": 1}),
@@ -76,10 +79,6 @@ BIASED: tuple[tuple[str, str, str, dict[str, Any]], ...] = (
 BASELINE = "mmis K=1"
 LADDER = (10_000, 30_000, 100_000, 300_000, 1_000_000, 3_000_000, 10_000_000)
 WORK_KEYS = ("canonical_suffixes", "borrowed_suffixes", "shifts", "gather_rays", "support_rays", "rays")
-
-
-def ladder(max_trials: int) -> list[int]:
-    return [n for n in LADDER if n <= max_trials] or [max_trials]
 
 
 def run_variant(label: str, problem: str, method: str, params: dict[str, Any], trials: int, seed: int, device: str, repeats: int) -> dict[str, Any]:
@@ -135,16 +134,6 @@ def equal_time(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
             }
         )
     return out
-
-
-def cpu_model() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.lower().startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
 
 
 def fmt(v: Any, spec: str) -> str:
@@ -219,7 +208,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    counts = ladder(max_trials)
+    counts = ladder(max_trials, LADDER)
     print(f"device {device} ({cpu_model() if device.is_cpu else device.name}), warp {wp.config.version}, numpy {np.__version__}, seed {args.seed}")
     print(f"trial ladder {counts}, best of {args.repeats}")
 

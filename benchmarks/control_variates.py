@@ -56,7 +56,7 @@ from grisx.errors import GrisxError
 from grisx.theory.toys import run_toy
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from toys import cpu_model  # noqa: E402  (benchmarks/toys.py: the one copy of the CPU-model lookup)
+from toys import cpu_model, ladder  # noqa: E402  (benchmarks/toys.py: the shared trial ladder and CPU-model probe)
 
 PROBLEM = "chromatic-cv"
 #: (label, method, params) of every benchmarked estimator
@@ -73,12 +73,6 @@ BASELINE = "restir"
 LADDER = (100, 300, 1000, 3000, 10_000, 30_000, 100_000, 300_000, 1_000_000)
 EPSILON = 1e-3
 
-
-def ladder(max_trials: int) -> list[int]:
-    counts = [n for n in LADDER if n <= max_trials]
-    if not counts or counts[-1] != max_trials:
-        counts.append(max_trials)
-    return counts
 
 
 def summarize(label: str, runs: list[Any]) -> dict[str, Any]:
@@ -212,7 +206,7 @@ def main(argv: list[str] | None = None) -> int:
     scene = {"size": args.size, "frames": args.frames}
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    counts = ladder(max_trials)
+    counts = ladder(max_trials, LADDER)
     print(f"device {device} ({cpu_model() if device.is_cpu else device.name}), warp {wp.config.version}, numpy {np.__version__}, seed {args.seed}")
     print(f"{PROBLEM} {scene}, trial ladder {counts}, best of {args.repeats}")
 

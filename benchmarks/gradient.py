@@ -93,8 +93,7 @@ BASELINES = {"f1-f2": "gradient-after", "gradient-row": "gradient-with spatial=n
 
 def summarize(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """benchmarks/toys.py's equal-time summary against this script's baselines, plus variance and time ratios."""
-    _toys.BASELINES = BASELINES
-    out = _toys.equal_time(rows)
+    out = _toys.equal_time(rows, BASELINES)
     by_key = {(s["problem"], s["method"]): s for s in out}
     for s in out:
         base = by_key[(s["problem"], s["baseline"])]

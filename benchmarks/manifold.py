@@ -58,7 +58,7 @@ from grisx.errors import GrisxError
 from grisx.theory.toys import run_toy
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from toys import cpu_model  # noqa: E402  (the sibling benchmark's CPU-model probe)
+from toys import cpu_model, ladder  # noqa: E402  (benchmarks/toys.py: the shared trial ladder and CPU-model probe)
 
 PROBLEM = "sms-toy"
 BASELINE = "SMS"
@@ -73,12 +73,6 @@ CAPS = (2, 8, 32, 128)
 LADDER = (1_000, 3_000, 10_000, 30_000, 100_000, 300_000, 1_000_000, 3_000_000)
 TABLE1 = ("success_rate", "newton_per_sample", "bernoulli_per_solution", "newton_per_solution")
 
-
-def ladder(max_trials: int) -> list[int]:
-    counts = [n for n in LADDER if n <= max_trials]
-    if not counts or counts[-1] != max_trials:
-        counts.append(max_trials)
-    return counts
 
 
 def run_method(label: str, method: str, params: dict[str, Any], trials: int, seed: int, device: str, repeats: int) -> dict[str, Any]:
@@ -217,7 +211,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    counts = ladder(max_trials)
+    counts = ladder(max_trials, LADDER)
     device_name = cpu_model() if device.is_cpu else device.name
     print(f"device {device} ({device_name}), warp {wp.config.version}, numpy {np.__version__}, seed {args.seed}")
     print(f"trial ladder {counts}, best of {args.repeats}")

@@ -242,7 +242,7 @@ def main(argv: list[str] | None = None) -> int:
         ratio = f"{s['mse_ratio']:7.2f}" if s["mse_ratio"] else "      -"
         mse = f"{s['mse']:11.4g}" if s["mse"] is not None else "          -"
         print(f"{s['scene']:20s} {s['method']:24s} {s['frames']:7d} {mse} {ratio}")
-    print(f"\nsingle frames (second half of each run): relMSE of a frame, pt's / the method's, and per-frame efficiency vs pt")
+    print("\nsingle frames (second half of each run): relMSE of a frame, pt's / the method's, and per-frame efficiency vs pt")
     print(f"{'scene':20s} {'method':24s} {'relMSE':>10s} {'ratio':>7s} {'ms':>8s} {'eff.':>6s}")
     for s in summary:
         print(f"{s['scene']:20s} {s['method']:24s} {s['frame_relmse']:10.4g} {s['frame_relmse_ratio']:7.2f} {1e3 * s['frame_seconds']:8.2f} {s['frame_efficiency_ratio']:6.2f}")

@@ -190,8 +190,9 @@ def anchor(device: Any, trials: int, seed: int, repeats: int) -> dict[str, Any]:
 
 
 # ---- run time against error ---------------------------------------------------
-def ladder(max_trials: int) -> list[int]:
-    counts = [n for n in LADDER if n <= max_trials]
+def ladder(max_trials: int, steps: tuple[int, ...] = LADDER) -> list[int]:
+    """The trial counts of ``steps`` up to ``max_trials``, ending at ``max_trials`` (shared by the toy benchmarks)."""
+    counts = [n for n in steps if n <= max_trials]
     if not counts or counts[-1] != max_trials:
         counts.append(max_trials)
     return counts
@@ -221,7 +222,7 @@ def run_method(problem: str, label: str, method: str, params: dict[str, Any], tr
     }
 
 
-def equal_time(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+def equal_time(rows: list[dict[str, Any]], baselines: dict[str, str] = BASELINES) -> list[dict[str, Any]]:
     """Per method at its largest count: throughput, efficiency, RMSE within the baseline's time."""
     largest: dict[tuple[str, str], dict[str, Any]] = {}
     for r in rows:
@@ -229,7 +230,7 @@ def equal_time(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
         if key not in largest or r["trials"] > largest[key]["trials"]:
             largest[key] = r
     out = []
-    for problem, base_label in BASELINES.items():
+    for problem, base_label in baselines.items():
         base = largest[(problem, base_label)]
         budget = base["seconds"]
         base_eff = 1.0 / (base["variance_per_trial"] * base["seconds"] / base["trials"])
