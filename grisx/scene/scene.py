@@ -613,11 +613,13 @@ class BuiltScene:
 
     def set_frame(self, frame: float) -> bool:
         """Move objects to ``frame``; returns whether any geometry moved (the BVH is refit only then)."""
+        self.frame = frame
+        if not self.features.animated_objects:
+            return False  # static geometry: transforms stay identity, nothing to upload or refit
         new = self.transforms_at(frame)
         prev = self.transforms_at(max(frame - 1.0, 0.0))
         self.object_transforms_prev.assign(prev.astype(np.float32))
         moved = not np.array_equal(new, self._host_transforms)
-        self.frame = frame
         if not moved:
             return False
         self._host_transforms = new

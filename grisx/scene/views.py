@@ -27,13 +27,10 @@ class GBufferView:
     def render_frame(self, frame: int) -> np.ndarray:
         with self.timer("gbuffer"):
             self.gbuffer.fill(self.built, float(frame))
-        fields = self.gbuffer.numpy()
-        self._fields = fields
-        if self.view == "gbuffer":
-            return _as_rgb(fields["albedo"])
-        if self.view == "motion":
-            return _as_rgb(fields["motion"])
-        return _as_rgb(fields[self.view])
+        if self.view == "gbuffer":  # every field is written out: read them all back
+            self._fields = self.gbuffer.numpy()
+            return _as_rgb(self._fields["albedo"])
+        return _as_rgb(getattr(self.gbuffer.current, self.view).numpy())  # only the field shown
 
     def extra(self) -> dict[str, np.ndarray]:
         if self.view != "gbuffer":
