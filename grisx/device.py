@@ -11,12 +11,13 @@ import functools
 import os
 import sys
 import tempfile
+from collections.abc import Iterable
 
 import warp as wp
 
 from grisx.errors import DeviceError
 
-__all__ = ["init", "resolve_device", "cuda_available", "synchronize"]
+__all__ = ["init", "resolve_device", "cuda_available", "synchronize", "specialized_module"]
 
 
 #: a line Warp's native library prints on every machine without a GPU; on such
@@ -76,3 +77,18 @@ def resolve_device(device: str | None = "cpu") -> wp.context.Device:
 def synchronize(device: wp.context.Device) -> None:
     """Wait for all work on ``device``; call before reading a clock."""
     wp.synchronize_device(device)
+
+
+def specialized_module(owner: str, kinds: Iterable[int]) -> wp.context.Module:
+    """The Warp module for ``owner``'s kernels specialized to the material kinds ``kinds``.
+
+    Warp compiles a module as one unit, and a kernel defined inside a factory lands in
+    its Python module's Warp module by default. Every new specialization would then
+    recompile all earlier ones with it (a process rendering k scenes compiles
+    1 + 2 + … + k kernel sets; on CUDA that is minutes per set). One module per
+    (owner, kinds) compiles each set once and caches it on its own.
+    """
+    name = f"{owner}.kinds_" + "_".join(str(int(k)) for k in sorted(kinds))
+    module = wp.get_module(name)
+    module.options["enable_backward"] = False
+    return module

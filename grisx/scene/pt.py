@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 import warp as wp
 
+from grisx.device import specialized_module
 from grisx.scene.bsdf import make_bsdf
 from grisx.scene.camera import CameraData, camera_ray
 from grisx.scene.frame import frame_from_normal, to_local, to_world
@@ -153,7 +154,9 @@ def make_path_tracer_kernel(kinds: frozenset[int]) -> Any:
         return _KERNELS[kinds]
     trace_path = make_trace_path(kinds)
 
-    @wp.kernel
+    module = specialized_module(__name__, kinds)
+
+    @wp.kernel(module=module)
     def sample_pass(
         scene: SceneData,
         cam: CameraData,

@@ -82,6 +82,7 @@ from typing import Any
 import warp as wp
 
 from grisx.scene.bsdf import make_bsdf
+from grisx.device import specialized_module
 from grisx.scene.camera import CameraData, camera_ray
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.gbuffer import GBuffer, GBufferData, gbuffer_kernel
@@ -419,7 +420,9 @@ def make_restir_di_kernels(kinds: frozenset[int]) -> Any:
         step.canonical = pairwise_mis_canonical_term(r_n.confidence, t_n_of_c, r_c.confidence, r_c.target, k, total)
         return step
 
-    @wp.kernel
+    module = specialized_module(__name__, kinds)
+
+    @wp.kernel(module=module)
     def initial_pass(
         scene: SceneData,
         sf: ScreenFrame,
@@ -526,7 +529,7 @@ def make_restir_di_kernels(kinds: frozenset[int]) -> Any:
         res_out[y, x] = r
         lp_out[y, x] = sel
 
-    @wp.kernel
+    @wp.kernel(module=module)
     def temporal_pass(
         scene: SceneData,
         sf: ScreenFrame,
@@ -572,7 +575,7 @@ def make_restir_di_kernels(kinds: frozenset[int]) -> Any:
         res_out[y, x] = reservoir_finalize(out)
         lp_out[y, x] = sel
 
-    @wp.kernel
+    @wp.kernel(module=module)
     def spatial_pass(
         scene: SceneData,
         sf: ScreenFrame,
@@ -634,7 +637,7 @@ def make_restir_di_kernels(kinds: frozenset[int]) -> Any:
         res_out[y, x] = reservoir_finalize(out)
         lp_out[y, x] = sel
 
-    @wp.kernel
+    @wp.kernel(module=module)
     def shade_pass(
         scene: SceneData,
         sf: ScreenFrame,

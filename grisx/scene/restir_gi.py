@@ -111,6 +111,7 @@ import warp as wp
 
 from grisx.scene.bsdf import MATERIAL_ROUGH_DIELECTRIC, cosine_hemisphere_pdf, make_bsdf, sample_cosine_hemisphere
 from grisx.scene.camera import CameraData
+from grisx.device import specialized_module
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.gbuffer import GBuffer, GBufferData, gbuffer_kernel
 from grisx.scene.lights import emitter_radiance, environment_eval, luminance
@@ -410,7 +411,9 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
                 nb.valid = 0
         return nb
 
-    @wp.kernel
+    module = specialized_module(__name__, kinds)
+
+    @wp.kernel(module=module)
     def initial_pass(
         scene: SceneData,
         cam: CameraData,
@@ -536,7 +539,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         res_out[y, x] = reservoir_finalize(r)  # W = 1/p_q
         s_out[y, x] = s
 
-    @wp.kernel
+    @wp.kernel(module=module)
     def temporal_pass(
         scene: SceneData,
         sf: ScreenFrame,
@@ -595,7 +598,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         res_out[y, x] = out
         s_out[y, x] = sel
 
-    @wp.kernel
+    @wp.kernel(module=module)
     def spatial_pass(
         scene: SceneData,
         sf: ScreenFrame,
@@ -723,7 +726,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         res_out[y, x] = out
         s_out[y, x] = sel
 
-    @wp.kernel
+    @wp.kernel(module=module)
     def shade_pass(
         scene: SceneData,
         sf: ScreenFrame,

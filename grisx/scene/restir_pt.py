@@ -58,6 +58,7 @@ import warp as wp
 
 from grisx.errors import InvalidParameterError
 from grisx.scene.camera import CameraData, camera_ray
+from grisx.device import specialized_module
 from grisx.scene.gbuffer import GBuffer, GBufferData
 from grisx.scene.lights import emitter_radiance, environment_eval
 from grisx.scene.path_shift import (
@@ -134,7 +135,9 @@ def make_restir_pt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     settle = shifts.settle
 
     # ---- primary vertices ----
-    @wp.kernel
+    module = specialized_module(__name__, kinds)
+
+    @wp.kernel(module=module)
     def primary_pass(scene: SceneData, cam: CameraData, seed: int, frame: int, domains: wp.array2d(dtype=Domain), direct: wp.array2d(dtype=wp.vec3)):
         y, x = wp.tid()
         key = random_subkey(_pixel_key(seed, frame, y * cam.width + x), _STREAM_CAMERA)
@@ -147,7 +150,7 @@ def make_restir_pt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         domains[y, x] = vertex_from_hit(si, -ray.d)  # valid = 0 where the ray missed
 
     # ---- initial candidates ----
-    @wp.kernel
+    @wp.kernel(module=module)
     def initial_pass(
         scene: SceneData,
         seed: int,
@@ -175,7 +178,7 @@ def make_restir_pt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         out[y, x] = settle(scene, dom, pr, sp)
 
     # ---- temporal reuse ----
-    @wp.kernel
+    @wp.kernel(module=module)
     def temporal_pass(
         scene: SceneData,
         seed: int,
@@ -228,7 +231,7 @@ def make_restir_pt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         out[y, x] = path_reservoir(r, sel)
 
     # ---- spatial reuse ----
-    @wp.kernel
+    @wp.kernel(module=module)
     def spatial_pass(
         scene: SceneData,
         seed: int,
@@ -289,7 +292,7 @@ def make_restir_pt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         out[y, x] = path_reservoir(r, sel)
 
     # ---- shading ----
-    @wp.kernel
+    @wp.kernel(module=module)
     def shade_pass(
         direct: wp.array2d(dtype=wp.vec3),
         reservoirs: wp.array2d(dtype=PathReservoir),
