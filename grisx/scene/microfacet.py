@@ -199,8 +199,8 @@ def fresnel_dielectric(cos_i: float, eta: float) -> FresnelDielectric:
     f = 0.5 * (a_s * a_s + a_p * a_p)
     if eta == 1.0:
         f = 0.0  # index-matched: no interface
-    elif ci == 0.0:
-        f = 1.0  # grazing: everything reflects
+    elif ci == 0.0 or cos_t_sqr <= 0.0:
+        f = 1.0  # grazing, or total internal reflection (else 0/0 when ci underflows with ct = 0)
     r.f = f
     r.cos_t = ct
     if cos_i >= 0.0:

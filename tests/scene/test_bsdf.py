@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 import scipy.integrate
 import warp as wp
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
@@ -311,6 +311,7 @@ def test_dielectric_total_internal_reflection_and_grazing(device):
 
 @settings(max_examples=20, deadline=None)
 @given(st.floats(0.0, 1.0), st.sampled_from(["Au", "Ag", "Cu", "Al", "Cr"]), st.floats(1.01, 2.5))
+@example(1.0e-45, "Au", 2.0)  # a float32 denormal from inside: total internal reflection, once 0/0 = NaN
 def test_fresnel_matches_complex_oracle(cos_i, name, eta):
     eta_c, k_c = conductor_material(name)
     c, d = fresnel_gpu([cos_i, -cos_i], eta_c, k_c, "cpu")
