@@ -31,6 +31,7 @@ import numpy as np
 import warp as wp
 
 from grisx.errors import InvalidParameterError
+from grisx.theory.random import random_key, random_subkey, random_uniform
 
 wp.set_module_options({"enable_backward": False})
 
@@ -43,6 +44,10 @@ __all__ = [
     "lookat",
     "camera_ray",
     "camera_project",
+    "CameraSample",
+    "CAMERA_SAMPLE_STREAM",
+    "camera_sample_key",
+    "sample_camera",
     "FOV_AXES",
 ]
 
@@ -219,6 +224,42 @@ def camera_ray(cam: CameraData, px: float, py: float, u_lens: wp.vec2) -> Camera
     r.o = wp.transform_point(cam.to_world, o_cam)
     r.d = wp.normalize(wp.transform_vector(cam.to_world, d_cam))
     return r
+
+
+#: random stream of a pixel's camera sample (apart from every renderer's own per-pixel streams)
+CAMERA_SAMPLE_STREAM = wp.constant(7919)
+
+
+@wp.struct
+class CameraSample:
+    """Where a primary ray leaves from: a continuous pixel position and a point of the unit lens square."""
+
+    pixel: wp.vec2
+    lens: wp.vec2
+
+
+@wp.func
+def camera_sample_key(seed: int, frame: int, pixel: int) -> wp.uint32:
+    """The key of pixel ``pixel``'s camera sample in ``frame`` (one per pixel and frame).
+
+    The G-buffer, the screen-space ReSTIR renderers' visible points and ReSTIR PT's primary
+    vertices all draw from it, so in one frame they see the same point of each pixel: the
+    similarity tests and motion vectors of the G-buffer then describe the points reused.
+    """
+    return random_subkey(random_subkey(random_key(seed, frame), pixel), CAMERA_SAMPLE_STREAM)
+
+
+@wp.func
+def sample_camera(key: wp.uint32, x: int, y: int, jitter: int) -> CameraSample:
+    """Pixel (x, y)'s camera sample: with ``jitter`` a uniform point of the pixel (a box filter) and of
+    the lens (counters 0–3 of ``key``), else the pixel centre through the lens centre."""
+    s = CameraSample()
+    s.pixel = wp.vec2(float(x) + 0.5, float(y) + 0.5)
+    s.lens = wp.vec2(0.5, 0.5)
+    if jitter != 0:
+        s.pixel = wp.vec2(float(x) + random_uniform(key, 0), float(y) + random_uniform(key, 1))
+        s.lens = wp.vec2(random_uniform(key, 2), random_uniform(key, 3))
+    return s
 
 
 @wp.func

@@ -22,7 +22,7 @@ from __future__ import annotations
 import warp as wp
 
 from grisx.scene.bsdf import bsdf_albedo, bsdf_roughness
-from grisx.scene.camera import CameraData, camera_project, camera_ray
+from grisx.scene.camera import CameraData, camera_project, camera_ray, camera_sample_key, sample_camera
 from grisx.scene.lights import emitter_radiance, environment_eval
 from grisx.scene.scene import BuiltScene, SceneData, intersect, surface_material
 
@@ -72,12 +72,14 @@ def gbuffer_kernel(
     cam_prev: CameraData,
     transforms: wp.array(dtype=wp.mat44),
     transforms_prev: wp.array(dtype=wp.mat44),
+    seed: int,
+    frame: int,
+    jitter: int,
     g: GBufferData,
 ):
     y, x = wp.tid()
-    px = float(x) + 0.5
-    py = float(y) + 0.5
-    ray = camera_ray(cam, px, py, wp.vec2(0.5, 0.5))
+    cs = sample_camera(camera_sample_key(seed, frame, y * cam.width + x), x, y, jitter)
+    ray = camera_ray(cam, cs.pixel[0], cs.pixel[1], cs.lens)
     si = intersect(scene, ray.o, ray.d, cam.far_clip)
     zero3 = wp.vec3(0.0, 0.0, 0.0)
     if si.valid == 0:
@@ -113,9 +115,11 @@ def gbuffer_kernel(
     proj = camera_project(cam_prev, p_prev)
     mv = wp.vec2(0.0, 0.0)
     if proj.valid != 0:
-        mv = proj.pixel - wp.vec2(px, py)
+        mv = proj.pixel - cs.pixel
     g.motion[y, x] = mv
-    g.motion_int[y, x] = wp.vec2i(int(wp.floor(mv[0] + 0.5)), int(wp.floor(mv[1] + 0.5)))
+    # the previous frame's pixel that holds the point, relative to this one (round(mv) at the pixel centre)
+    q = cs.pixel + mv
+    g.motion_int[y, x] = wp.vec2i(int(wp.floor(q[0])) - x, int(wp.floor(q[1])) - y)
 
 
 def _alloc(width: int, height: int, device: wp.context.Device) -> GBufferData:
@@ -138,15 +142,22 @@ class GBuffer:
     def swap(self) -> None:
         self.current, self.previous = self.previous, self.current
 
-    def fill(self, built: BuiltScene, frame: float) -> GBufferData:
-        """Swap, then trace this frame's primary hits (the scene must already be at ``frame``)."""
+    def fill(self, built: BuiltScene, frame: float, seed: int = 0, jitter: bool = False) -> GBufferData:
+        """Swap, then trace this frame's primary hits (the scene must already be at ``frame``).
+
+        At the pixel centres, or with ``jitter`` at the camera samples of ``seed`` and ``frame``
+        (:func:`~grisx.scene.camera.camera_sample_key`): the points a jittered renderer shades.
+        """
         self.swap()
         cam = built.camera_data(frame, self.width, self.height)
         cam_prev = built.camera_data(frame - 1.0, self.width, self.height)
         wp.launch(
             gbuffer_kernel,
             dim=(self.height, self.width),
-            inputs=[built.data, cam, cam_prev, built.object_transforms, built.object_transforms_prev],
+            inputs=[
+                built.data, cam, cam_prev, built.object_transforms, built.object_transforms_prev,
+                int(seed), int(frame), int(bool(jitter)),
+            ],
             outputs=[self.current],
             device=self.device,
         )

@@ -38,7 +38,7 @@ import warp as wp
 
 from grisx.device import specialized_module
 from grisx.scene.bsdf import make_bsdf
-from grisx.scene.camera import CameraData, camera_ray
+from grisx.scene.camera import CameraData, camera_ray, sample_camera
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.lights import emitter_radiance, environment_eval, environment_pdf, light_pdf_emitter, sample_light
 from grisx.scene.scene import SceneData, finite_or_dropped, intersect, light_occluded, spawn_origin, surface_material
@@ -174,13 +174,10 @@ def make_path_tracer_kernel(kinds: frozenset[int]) -> Any:
         y, x = wp.tid()
         pixel = y * cam.width + x
         key = random_subkey(random_subkey(random_key(seed, frame), pixel), sample)
-        # dimensions 0–3 of the key's first counters are the camera's; paths start at counter 8
-        px = float(x) + 0.5
-        py = float(y) + 0.5
-        if jitter != 0:  # box filter over the pixel; jitter = 0: the pixel centre, as a G-buffer sees it
-            px = float(x) + random_uniform(key, 0)
-            py = float(y) + random_uniform(key, 1)
-        ray = camera_ray(cam, px, py, wp.vec2(random_uniform(key, 2), random_uniform(key, 3)))
+        # counters 0–3 of the key are the camera's (box filter over the pixel and the lens; jitter = 0: the
+        # pixel centre through the lens centre, as an unjittered G-buffer sees it); paths use subkey 1
+        cs = sample_camera(key, x, y, jitter)
+        ray = camera_ray(cam, cs.pixel[0], cs.pixel[1], cs.lens)
         L = trace_path(scene, ray.o, ray.d, random_subkey(key, 1), max_depth, rr_depth, strategy)
         L = finite_or_dropped(L, nonfinite)
         total[y, x] = total[y, x] + L

@@ -59,9 +59,10 @@ the emitter from its own side; lights are assumed not to move (a stored point
 on a moving light would be stale).
 
 **What the image shows.** Emission seen at the visible point plus direct
-light — what :mod:`grisx.scene.pt` shows with ``max_depth=2``. At the *pixel
-centre* (G-buffer primary rays are not jittered), so the matching reference is
-``PathTracer(..., jitter=False, max_depth=2)``. Visible points on delta BSDFs
+light — what :mod:`grisx.scene.pt` shows with ``max_depth=2``. The visible
+point is a fresh uniform point of its pixel each frame (``jitter=true``, the
+default: the box-filtered pixel ``pt`` estimates), or the pixel centre
+(``jitter=false``, reference ``PathTracer(..., jitter=False, max_depth=2)``). Visible points on delta BSDFs
 (mirror, glass) cannot be reached by light sampling; there the pixel gets one
 BSDF-sampled ray's emission (what the path tracer does) and no reservoir.
 
@@ -81,9 +82,9 @@ from typing import Any
 
 import warp as wp
 
-from grisx.scene.bsdf import make_bsdf
 from grisx.device import specialized_module
-from grisx.scene.camera import CameraData, camera_ray
+from grisx.scene.bsdf import make_bsdf
+from grisx.scene.camera import CameraData, camera_ray, camera_sample_key, sample_camera
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.gbuffer import GBuffer, GBufferData, gbuffer_kernel
 from grisx.scene.lights import (
@@ -244,10 +245,6 @@ def visible_normal(si: SurfaceInteraction, wo: wp.vec3) -> wp.vec3:
     return si.ns
 
 
-#: random stream of the visible points' sub-pixel jitter (apart from every pass's ``pixel_key`` streams)
-JITTER_STREAM = wp.constant(7919)
-
-
 @wp.kernel
 def visible_point_kernel(
     scene: SceneData,
@@ -258,16 +255,11 @@ def visible_point_kernel(
     si_out: wp.array2d(dtype=SurfaceInteraction),
     wo_out: wp.array2d(dtype=wp.vec3),
 ):
-    """The visible point of each pixel: a fresh uniform point of the pixel each frame (``jitter``, a box
-    filter — the quantity ``pt`` estimates), or the pixel centre the G-buffer sees."""
+    """The visible point of each pixel: the G-buffer's camera sample (a fresh uniform point of the pixel
+    each frame with ``jitter``, a box filter — the quantity ``pt`` estimates — else the pixel centre)."""
     y, x = wp.tid()
-    px = float(x) + 0.5
-    py = float(y) + 0.5
-    if jitter != 0:
-        key = random_subkey(random_subkey(random_key(seed, frame), y * cam.width + x), JITTER_STREAM)
-        px = float(x) + random_uniform(key, 0)
-        py = float(y) + random_uniform(key, 1)
-    ray = camera_ray(cam, px, py, wp.vec2(0.5, 0.5))
+    cs = sample_camera(camera_sample_key(seed, frame, y * cam.width + x), x, y, jitter)
+    ray = camera_ray(cam, cs.pixel[0], cs.pixel[1], cs.lens)
     si_out[y, x] = intersect(scene, ray.o, ray.d, cam.far_clip)
     wo_out[y, x] = -ray.d
 
@@ -747,7 +739,7 @@ class ReSTIRDI(ScreenSpaceRenderer):
     def prepare(self, frame: int) -> None:
         """G-buffer and visible points of ``frame`` (the scene must already be at ``frame``)."""
         with self._phase("gbuffer"):
-            self.gbuffer.fill(self.built, float(frame))
+            self.gbuffer.fill(self.built, float(frame), self.seed, self.jitter)
             self.vp.fill(self.built, frame, self.seed, self.jitter)
 
     def resample(self, frame: int) -> None:

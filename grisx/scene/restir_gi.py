@@ -87,13 +87,15 @@ the reservoir when the radiance moved by more than ``validation_tolerance``
 (relative) or x_s is no longer visible.
 
 **Direct light.** ``direct=nee``: the path tracer's two first segments at the
-pixel centre (emission + NEE and BSDF sampling with MIS); ``direct=restir-di``:
+visible point's camera ray (emission + NEE and BSDF sampling with MIS); ``direct=restir-di``:
 :class:`~grisx.scene.restir_di.ReSTIRDI` on the same G-buffer. Visible points
 with delta or rough-dielectric BSDFs (mirrors, glass: transmission leaves the
 sampled hemisphere) are path traced instead, with no reservoir.
 
-The image is at the pixel centre (G-buffer primary rays), so its reference is
-``PathTracer(..., jitter=False)`` at the same ``max_depth``.
+**Pixels.** Each frame's visible point is at a random position in its pixel
+(``jitter=true``, the default), so the image estimates the same box-filtered
+pixel as ``pt``; ``jitter=false`` puts it at the pixel centre, whose
+reference is ``PathTracer(..., jitter=False)`` at the same ``max_depth``.
 
 References: Y. Ouyang, S. Liu, M. Kettunen, M. Pharr, J. Pantaleoni, "ReSTIR GI:
 Path resampling for real-time path tracing", CGF 40(8), 2021 (seed 004:
@@ -109,9 +111,9 @@ from typing import Any
 
 import warp as wp
 
+from grisx.device import specialized_module
 from grisx.scene.bsdf import MATERIAL_ROUGH_DIELECTRIC, cosine_hemisphere_pdf, make_bsdf, sample_cosine_hemisphere
 from grisx.scene.camera import CameraData
-from grisx.device import specialized_module
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.gbuffer import GBuffer, GBufferData, gbuffer_kernel
 from grisx.scene.lights import emitter_radiance, environment_eval, luminance
@@ -853,7 +855,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
             self.di.prepare(frame)
         else:
             with self._phase("gbuffer"):
-                self.gbuffer.fill(self.built, float(frame))
+                self.gbuffer.fill(self.built, float(frame), self.seed, self.jitter)
                 self.vp.fill(self.built, frame, self.seed, self.jitter)
         cam = self.built.camera_data(float(frame), self.width, self.height)
         sf = screen_frame(self.gbuffer, self.vp, self.seed, frame)

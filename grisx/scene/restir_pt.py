@@ -7,7 +7,9 @@ camera, an integral over paths x₁ → … → x_n of f(x̄) (see
 ``# ---- primary vertices ----``
     a jittered camera ray per pixel gives x₁ (the pixel's *domain*, as the
     reference path tracer jitters its rays, so both estimate the same pixel
-    integral); emission seen directly is added outside the reservoir.
+    integral); emission seen directly is added outside the reservoir. The
+    G-buffer is traced through the same camera samples, so its similarity
+    tests and motion vectors are those of the x₁ being reused.
 ``# ---- initial candidates ----``
     ``candidates`` path-tracer samples from x₁ with next-event estimation at
     every vertex, no Russian roulette, at most ``max_bounces`` segments after
@@ -56,9 +58,9 @@ from typing import Any
 import numpy as np
 import warp as wp
 
-from grisx.errors import InvalidParameterError
-from grisx.scene.camera import CameraData, camera_ray
 from grisx.device import specialized_module
+from grisx.errors import InvalidParameterError
+from grisx.scene.camera import CameraData, camera_ray, camera_sample_key, sample_camera
 from grisx.scene.gbuffer import GBuffer, GBufferData
 from grisx.scene.lights import emitter_radiance, environment_eval
 from grisx.scene.path_shift import (
@@ -85,8 +87,7 @@ wp.set_module_options({"enable_backward": False})
 
 __all__ = ["PathReservoir", "path_reservoir", "RestirPT", "create_restir_pt", "make_restir_pt_kernels"]
 
-# random streams of a pixel (inside the (seed, frame) → pixel key)
-_STREAM_CAMERA = wp.constant(0)
+# random streams of a pixel (inside the (seed, frame) → pixel key; the camera sample has its own key)
 _STREAM_RESAMPLE = wp.constant(1)
 _STREAM_TEMPORAL = wp.constant(2)
 _STREAM_SPATIAL = wp.constant(3)  # + round
@@ -140,8 +141,9 @@ def make_restir_pt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     @wp.kernel(module=module)
     def primary_pass(scene: SceneData, cam: CameraData, seed: int, frame: int, domains: wp.array2d(dtype=Domain), direct: wp.array2d(dtype=wp.vec3)):
         y, x = wp.tid()
-        key = random_subkey(_pixel_key(seed, frame, y * cam.width + x), _STREAM_CAMERA)
-        ray = camera_ray(cam, float(x) + random_uniform(key, 0), float(y) + random_uniform(key, 1), wp.vec2(random_uniform(key, 2), random_uniform(key, 3)))
+        # the G-buffer's camera sample (filled with the same seed), so its similarity tests describe these vertices
+        cs = sample_camera(camera_sample_key(seed, frame, y * cam.width + x), x, y, 1)
+        ray = camera_ray(cam, cs.pixel[0], cs.pixel[1], cs.lens)
         si = intersect(scene, ray.o, ray.d, 1.0e30)
         if si.valid == 0:
             direct[y, x] = environment_eval(scene.lights, ray.d)
@@ -384,7 +386,7 @@ class RestirPT:
         dim = (self.height, self.width)
         k = self.k
         with self._pass("gbuffer"):
-            self.gbuffer.fill(b, float(frame))
+            self.gbuffer.fill(b, float(frame), self.seed, jitter=True)
         self.domains.reverse()  # the previous frame's domains become "previous"
         dom, dom_prev = self.domains
         cam = b.camera_data(float(frame), self.width, self.height)

@@ -174,7 +174,8 @@ def _project_numpy(cam: Camera, width: int, height: int, p: np.ndarray) -> np.nd
     return np.c_[sx * width, sy * height]
 
 
-def test_motion_vectors_match_analytic_reprojection_for_a_moving_camera():
+@pytest.mark.parametrize("jitter", [False, True])
+def test_motion_vectors_match_analytic_reprojection_for_a_moving_camera(jitter):
     path = CameraPath(keys=[((0, 0, 4), (0, 0, 0), (0, 1, 0)), ((1.0, 0.5, 3.5), (0.2, 0, 0), (0, 1, 0))], frames_per_key=8)
     built = _plane_scene(path).build("cpu")
     built.animate_camera = True
@@ -182,17 +183,41 @@ def test_motion_vectors_match_analytic_reprojection_for_a_moving_camera():
     g = GBuffer(w, h, built.device)
     for frame in range(4):
         built.set_frame(float(frame))
-        g.fill(built, float(frame))
+        g.fill(built, float(frame), seed=5, jitter=jitter)
     fields = g.numpy()
     hit = fields["hit"] == 1
     assert hit.mean() > 0.9
     ys, xs = np.nonzero(hit)
     p = fields["position"][ys, xs].astype(np.float64)
+    # where each stored point is on this frame's film: the pixel centre, or a point inside the pixel
+    here = _project_numpy(built.camera_at(3.0), w, h, p)
+    offset = here - np.c_[xs, ys]
+    assert np.all((offset > -1e-3) & (offset < 1 + 1e-3))
+    if jitter:
+        assert offset.std() > 0.2  # spread over the pixel, not at its centre
+    else:
+        np.testing.assert_allclose(offset, 0.5, atol=2e-3)
     prev = _project_numpy(built.camera_at(2.0), w, h, p)
-    expected = prev - np.c_[xs + 0.5, ys + 0.5]
+    expected = prev - here
     assert np.abs(expected).max() > 0.5  # the camera really moved by more than half a pixel
     np.testing.assert_allclose(fields["motion"][ys, xs], expected, atol=2e-3)
-    np.testing.assert_array_equal(fields["motion_int"][ys, xs], np.floor(expected + 0.5).astype(int))
+    # the previous frame's pixel holding the point (away from pixel borders, where float rounding may go either way)
+    inner = np.all(np.abs(prev - np.round(prev)) > 1e-2, axis=1)
+    np.testing.assert_array_equal(fields["motion_int"][ys, xs][inner], (np.floor(prev) - np.c_[xs, ys])[inner].astype(int))
+
+
+def test_jittered_gbuffer_sees_the_visible_points_of_the_same_seed_and_frame():
+    from grisx.scene.restir_di import VisiblePoints
+
+    built = build_builtin("cornell-box").build("cpu")
+    w, h = 24, 18
+    g, vp = GBuffer(w, h, built.device), VisiblePoints(w, h, built.device)
+    g.fill(built, 3.0, seed=11, jitter=True)
+    vp.fill(built, 3, seed=11, jitter=True)
+    pos, si = g.current.position.numpy(), vp.si.numpy()
+    np.testing.assert_array_equal(pos, si["p"])
+    g.fill(built, 4.0, seed=11, jitter=True)  # a new frame: new points
+    assert np.abs(g.current.position.numpy() - pos).max() > 1e-3
 
 
 def test_motion_vectors_follow_a_moving_object_and_refit_only_when_it_moves():
