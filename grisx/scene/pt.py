@@ -47,7 +47,7 @@ from grisx.theory.random import random_key, random_subkey, random_uniform
 
 wp.set_module_options({"enable_backward": False})
 
-__all__ = ["PathTracer", "make_path_tracer_kernel", "make_trace_path", "STRATEGIES", "create_path_tracer"]
+__all__ = ["PathTracer", "PathRadiance", "make_path_tracer_kernel", "make_trace_path", "STRATEGIES", "create_path_tracer"]
 
 #: sampling strategies: both techniques with MIS, or one alone
 STRATEGIES = {"mis": 0, "nee": 1, "bsdf": 2}
@@ -58,18 +58,34 @@ _KERNELS: dict[frozenset[int], Any] = {}
 _TRACE_PATHS: dict[frozenset[int], Any] = {}
 
 
+@wp.struct
+class PathRadiance:
+    """One traced path's estimate: all of it, and the part of its first ``prefix_depth`` segments."""
+
+    total: wp.vec3
+    prefix: wp.vec3  # = what the same path (same random numbers) gives with max_depth = prefix_depth
+
+
 def make_trace_path(kinds: frozenset[int]) -> Any:
-    """``trace_path(scene, o, d, key, max_depth, rr_depth, strategy) -> vec3`` for the material kinds
-    ``kinds`` (cached): the radiance arriving at o from direction d, emission at the first hit included.
-    Renderers that need the path tracer's estimate at a point (ReSTIR GI's outgoing radiance at a
-    sample point) call this very function."""
+    """``trace_path(scene, o, d, key, max_depth, rr_depth, strategy, prefix_depth) -> PathRadiance``
+    for the material kinds ``kinds`` (cached): the radiance arriving at o from direction d, emission at
+    the first hit included. Renderers that need the path tracer's estimate at a point (ReSTIR GI's
+    outgoing radiance at a sample point) call this very function.
+
+    ``prefix`` is the estimate truncated to ``prefix_depth`` segments (Mitsuba's max_depth), from the
+    same path: a renderer that needs both (direct light and the rest; one bounce and all of them)
+    traces once. ``prefix_depth`` < 0: ``prefix`` = ``total``."""
     kinds = frozenset(kinds)
     if kinds in _TRACE_PATHS:
         return _TRACE_PATHS[kinds]
     bsdf = make_bsdf(kinds)
 
     @wp.func
-    def trace_path(scene: SceneData, o: wp.vec3, d: wp.vec3, key: wp.uint32, max_depth: int, rr_depth: int, strategy: int) -> wp.vec3:
+    def trace_path(
+        scene: SceneData, o: wp.vec3, d: wp.vec3, key: wp.uint32, max_depth: int, rr_depth: int, strategy: int, prefix_depth: int
+    ) -> PathRadiance:
+        out = PathRadiance()
+        have_prefix = int(0)
         use_nee = strategy != 2
         use_bsdf_emission = strategy != 1
         L = wp.vec3(0.0, 0.0, 0.0)
@@ -103,6 +119,9 @@ def make_trace_path(kinds: frozenset[int]) -> Any:
                     elif use_nee:
                         w = power_heuristic(prev_pdf, light_pdf_emitter(scene.lights, si.tri, prev_p, si.p, si.ng))
                 L += wp.cw_mul(beta, le) * w
+            if depth + 1 == prefix_depth:
+                out.prefix = L  # a path of max_depth = prefix_depth would stop here
+                have_prefix = 1
             if max_depth >= 0 and depth + 1 >= max_depth:
                 break
             m = surface_material(scene, si)
@@ -142,7 +161,10 @@ def make_trace_path(kinds: frozenset[int]) -> Any:
                 if random_uniform(key, c + 6) >= q:
                     break
                 beta = beta / q
-        return L
+        out.total = L
+        if have_prefix == 0:
+            out.prefix = L  # the path ended before prefix_depth segments (or prefix_depth < 0)
+        return out
 
     _TRACE_PATHS[kinds] = trace_path
     return trace_path
@@ -178,7 +200,7 @@ def make_path_tracer_kernel(kinds: frozenset[int]) -> Any:
         # pixel centre through the lens centre, as an unjittered G-buffer sees it); paths use subkey 1
         cs = sample_camera(key, x, y, jitter)
         ray = camera_ray(cam, cs.pixel[0], cs.pixel[1], cs.lens)
-        L = trace_path(scene, ray.o, ray.d, random_subkey(key, 1), max_depth, rr_depth, strategy)
+        L = trace_path(scene, ray.o, ray.d, random_subkey(key, 1), max_depth, rr_depth, strategy, -1).total
         L = finite_or_dropped(L, nonfinite)
         total[y, x] = total[y, x] + L
         total_sq[y, x] = total_sq[y, x] + wp.cw_mul(L, L)

@@ -361,15 +361,17 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         multi-bounce paths keep one bounce (direct light at x_s, L_1); the others
         add (L_full − L_1)/q, which share their first segments' random numbers.
         """
-        if max_depth >= 0 and max_depth <= 2:
-            return wp.max(trace_path(scene, o, d, key, max_depth, rr_depth, _STRATEGY_MIS) - le, wp.vec3(0.0))
-        if multi != 0 and mb_fraction >= 1.0:
-            return wp.max(trace_path(scene, o, d, key, max_depth, rr_depth, _STRATEGY_MIS) - le, wp.vec3(0.0))
-        l1 = trace_path(scene, o, d, key, 2, rr_depth, _STRATEGY_MIS)
-        out = l1 - le
-        if multi != 0:
-            full = trace_path(scene, o, d, key, max_depth, rr_depth, _STRATEGY_MIS)
-            out = out + (full - l1) / mb_fraction  # tile-level Russian roulette, reweighted (seed 004, Sec. 5)
+        depth = max_depth
+        prefix_depth = int(-1)
+        if not (max_depth >= 0 and max_depth <= 2) and not (multi != 0 and mb_fraction >= 1.0):
+            if multi == 0:
+                depth = 2  # L_1: one bounce at x_s
+            else:
+                prefix_depth = 2  # L_1 and L_full from one path
+        r = trace_path(scene, o, d, key, depth, rr_depth, _STRATEGY_MIS, prefix_depth)
+        out = r.total - le
+        if prefix_depth > 0:
+            out = r.prefix - le + (r.total - r.prefix) / mb_fraction  # tile-level Russian roulette, reweighted (seed 004, Sec. 5)
         return wp.max(out, wp.vec3(0.0))
 
     @wp.func
@@ -458,26 +460,32 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         if max_depth < 0:
             depth_from_xv = -1
         if validate_now != 0:
-            if not validate(scene, s_t_prev[y, x], depth_from_xv, rr_depth, mb_fraction, tolerance):
-                res_t_prev[y, x] = reservoir_empty()
-                s_t_prev[y, x] = gi_sample_none()
-            if not validate(scene, s_s_prev[y, x], depth_from_xv, rr_depth, mb_fraction, tolerance):
-                res_s_prev[y, x] = reservoir_empty()
-                s_s_prev[y, x] = gi_sample_none()
-        direct_key = random_subkey(key, 1)
-        if path_traced_here(scene, si):
-            # ---- mirrors and glass: the path tracer's estimate, no reservoir ----
-            full = trace_path(scene, ray_o, ray_d, direct_key, max_depth, rr_depth, _STRATEGY_MIS)
-            if direct_mode != 0:
-                full = full - trace_path(scene, ray_o, ray_d, direct_key, 2, rr_depth, _STRATEGY_MIS)  # ReSTIR DI has the rest
-            base[y, x] = full
-            return
-        if direct_mode == 0:
-            # ---- direct light: the path tracer's first two segments (emission, NEE + BSDF sampling with MIS) ----
-            dmax = max_depth
-            if max_depth < 0 or max_depth > 2:
-                dmax = 2
-            base[y, x] = trace_path(scene, ray_o, ray_d, direct_key, dmax, rr_depth, _STRATEGY_MIS)
+            which = int(0)
+            while which < 2:  # the temporal, then the spatial sample (a loop: one copy of the path tracer in the kernel)
+                s_prev = s_t_prev[y, x]
+                if which == 1:
+                    s_prev = s_s_prev[y, x]
+                if not validate(scene, s_prev, depth_from_xv, rr_depth, mb_fraction, tolerance):
+                    if which == 0:
+                        res_t_prev[y, x] = reservoir_empty()
+                        s_t_prev[y, x] = gi_sample_none()
+                    else:
+                        res_s_prev[y, x] = reservoir_empty()
+                        s_s_prev[y, x] = gi_sample_none()
+                which += 1
+        traced_here = path_traced_here(scene, si)
+        if traced_here or direct_mode == 0:
+            # ---- the camera path: all of it on mirrors and glass (no reservoir there), else its first two
+            # segments = emission and direct light (NEE + BSDF sampling with MIS) ----
+            cam_depth = max_depth
+            if not traced_here and (max_depth < 0 or max_depth > 2):
+                cam_depth = 2
+            cam_path = trace_path(scene, ray_o, ray_d, random_subkey(key, 1), cam_depth, rr_depth, _STRATEGY_MIS, 2)
+            base[y, x] = cam_path.total
+            if traced_here:
+                if direct_mode != 0:
+                    base[y, x] = cam_path.total - cam_path.prefix  # ReSTIR DI has the first two segments
+                return
         r.confidence = 1.0  # one initial sample: M = 1 (Alg. 1 UPDATE), even if it carries no weight
         res_out[y, x] = r
         if max_depth >= 0 and max_depth <= 2:

@@ -10,15 +10,17 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import warp as wp
 
 from grisx.scene.builtin import BUILTIN_SCENES, build_builtin
-from grisx.scene.camera import Camera, lookat
+from grisx.scene.camera import Camera, CameraData, camera_ray, lookat
 from grisx.scene.lights import ConstantEnvironment
 from grisx.scene.material import Diffuse
-from grisx.scene.pt import PathTracer
-from grisx.scene.scene import Scene
+from grisx.scene.pt import STRATEGIES, PathTracer, make_trace_path
+from grisx.scene.scene import Scene, SceneData
 from grisx.scene.shapes import cube, rectangle
 from grisx.testing import BIASED_K, DEFAULT_K, z_test
+from grisx.theory.random import random_key, random_subkey
 
 
 def _estimate(scene: Scene, width: int, height: int, spp: int, seed: int = 1, mask: np.ndarray | None = None, **kw):
@@ -139,3 +141,31 @@ def test_no_nan_or_inf_on_any_builtin_scene(name):
     assert pt.nonfinite_samples == 0
     assert np.all(np.isfinite(img)) and np.all(img >= 0)
     assert img.max() > 0  # every built-in scene shows some light
+
+
+@pytest.mark.parametrize("prefix_depth", [1, 2, 3])
+def test_trace_path_prefix_is_the_same_path_truncated(prefix_depth):
+    # one traced path gives both sums: its first prefix_depth segments must be exactly what the path
+    # tracer gives with max_depth = prefix_depth and the same random numbers (ReSTIR GI relies on it)
+    built = build_builtin("cornell-box").build("cpu")
+    trace_path = make_trace_path(frozenset(built.features.material_kinds))
+    cam = built.camera_data(0.0, 16, 16)
+    mis = STRATEGIES["mis"]
+
+    @wp.kernel(module="unique")
+    def paths(scene: SceneData, cam: CameraData, prefix_depth: int, out: wp.array2d(dtype=wp.vec3)):
+        i = wp.tid()
+        ray = camera_ray(cam, float(i % 16) + 0.5, float(i // 16) + 0.5, wp.vec2(0.5, 0.5))
+        key = random_subkey(random_key(3, 0), i)
+        both = trace_path(scene, ray.o, ray.d, key, -1, 5, mis, prefix_depth)
+        out[i, 0] = both.total
+        out[i, 1] = both.prefix
+        out[i, 2] = trace_path(scene, ray.o, ray.d, key, prefix_depth, 5, mis, -1).total
+        out[i, 3] = trace_path(scene, ray.o, ray.d, key, -1, 5, mis, -1).total
+
+    out = wp.zeros((256, 4), dtype=wp.vec3, device="cpu")
+    wp.launch(paths, dim=256, inputs=[built.data, cam, prefix_depth], outputs=[out], device="cpu")
+    o = out.numpy()
+    np.testing.assert_array_equal(o[:, 1], o[:, 2])  # the prefix is the truncated path
+    np.testing.assert_array_equal(o[:, 0], o[:, 3])  # and asking for it changes nothing else
+    assert np.any(o[:, 0] != o[:, 1])  # the rest of the path is not empty
