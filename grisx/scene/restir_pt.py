@@ -76,6 +76,7 @@ from grisx.scene.path_shift import (
     target_to,
     vertex_from_hit,
 )
+from grisx.scene.restir_di import ScreenSpaceRenderer
 from grisx.scene.reuse import SIMILARITY_DEPTH, SIMILARITY_NORMAL_COS, NeighborPixel, pixels_similar, spatial_neighbor, temporal_neighbor
 from grisx.scene.scene import SceneData, finite_or_dropped, intersect
 from grisx.theory.gris import resampling_weight
@@ -85,7 +86,7 @@ from grisx.theory.reservoir import Reservoir, confidence_capped, reservoir_empty
 
 wp.set_module_options({"enable_backward": False})
 
-__all__ = ["PathReservoir", "path_reservoir", "RestirPT", "create_restir_pt", "make_restir_pt_kernels"]
+__all__ = ["PathReservoir", "path_reservoir", "ReSTIRPT", "create_restir_pt", "make_restir_pt_kernels"]
 
 # random streams of a pixel (inside the (seed, frame) → pixel key; the camera sample has its own key)
 _STREAM_RESAMPLE = wp.constant(1)
@@ -313,7 +314,7 @@ def make_restir_pt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     return kernels
 
 
-class RestirPT:
+class ReSTIRPT(ScreenSpaceRenderer):
     """ReSTIR PT over a built scene; ``render_frame(frame)`` runs one frame's passes (see the module docstring)."""
 
     def __init__(
@@ -367,17 +368,10 @@ class RestirPT:
         self.direct = wp.zeros(shape, dtype=wp.vec3, device=dev)
         self.image = wp.zeros(shape, dtype=wp.vec3, device=dev)
         self.nonfinite = wp.zeros(1, dtype=wp.int32, device=dev)
-        self.has_history = False
+        self.frames_rendered = 0
 
     def kernels(self) -> list[Any]:
         return list(self.k.values())
-
-    def _pass(self, name: str):
-        if self.timer is not None:
-            return self.timer(name)
-        import contextlib
-
-        return contextlib.nullcontext()
 
     def render_frame(self, frame: int) -> wp.array:
         """One frame: primary vertices, initial candidates, temporal and spatial reuse, shading."""
@@ -385,15 +379,15 @@ class RestirPT:
         dev = b.device
         dim = (self.height, self.width)
         k = self.k
-        with self._pass("gbuffer"):
+        with self._phase("gbuffer"):
             self.gbuffer.fill(b, float(frame), self.seed, jitter=True)
         self.domains.reverse()  # the previous frame's domains become "previous"
         dom, dom_prev = self.domains
         cam = b.camera_data(float(frame), self.width, self.height)
-        with self._pass("primary"):
+        with self._phase("primary"):
             wp.launch(k["primary"], dim=dim, inputs=[b.data, cam, self.seed, int(frame)], outputs=[dom, self.direct], device=dev)
         history, cur, other = self.buffers
-        with self._pass("initial"):
+        with self._phase("initial"):
             wp.launch(
                 k["initial"],
                 dim=dim,
@@ -401,8 +395,8 @@ class RestirPT:
                 outputs=[cur],
                 device=dev,
             )
-        if self.temporal and self.has_history:
-            with self._pass("temporal"):
+        if self.temporal and self.frames_rendered > 0:
+            with self._phase("temporal"):
                 wp.launch(
                     k["temporal"],
                     dim=dim,
@@ -412,7 +406,7 @@ class RestirPT:
                 )
             cur, other = other, cur
         for rnd in range(self.spatial_rounds):
-            with self._pass("spatial"):
+            with self._phase("spatial"):
                 wp.launch(
                     k["spatial"],
                     dim=dim,
@@ -421,16 +415,11 @@ class RestirPT:
                     device=dev,
                 )
             cur, other = other, cur
-        with self._pass("shade"):
+        with self._phase("shade"):
             wp.launch(k["shade"], dim=dim, inputs=[self.direct, cur], outputs=[self.image, self.nonfinite], device=dev)
         self.buffers = [cur, history, other]  # this frame's reservoirs are the next frame's history
-        self.has_history = True
+        self.frames_rendered += 1
         return self.image
-
-    @property
-    def nonfinite_samples(self) -> int:
-        """Pixels dropped because they were NaN or Inf (over the renderer's lifetime; 0 expected)."""
-        return int(self.nonfinite.numpy()[0])
 
     def reservoirs_array(self) -> wp.array:
         """The last frame's path reservoirs on the device (H×W ``PathReservoir``)."""
@@ -441,7 +430,7 @@ class RestirPT:
         return self.buffers[0].numpy()
 
 
-def create_restir_pt(ctx: Any) -> RestirPT:
-    # every registered param is a keyword of RestirPT; spp does not apply (one path sample per candidate)
+def create_restir_pt(ctx: Any) -> ReSTIRPT:
+    # every registered param is a keyword of ReSTIRPT; spp does not apply (one path sample per candidate)
     params = {k: v for k, v in ctx.params.items() if k != "spp"}
-    return RestirPT(ctx.built, ctx.width, ctx.height, seed=ctx.seed, timer=ctx.timer, **params)
+    return ReSTIRPT(ctx.built, ctx.width, ctx.height, seed=ctx.seed, timer=ctx.timer, **params)

@@ -30,7 +30,7 @@ from grisx.scene.camera import Camera, lookat
 from grisx.scene.lights import sample_light
 from grisx.scene.material import Diffuse
 from grisx.scene.path_shift import DIM_NEE, Domain, ShiftParams, make_path_shift, path_dim, path_target, shift_params
-from grisx.scene.restir_pt import PathReservoir, RestirPT
+from grisx.scene.restir_pt import PathReservoir, ReSTIRPT
 from grisx.scene.scene import Scene, SceneData
 from grisx.scene.shapes import rectangle
 from grisx.theory.random import random_uniform
@@ -128,7 +128,7 @@ def _scene(name: str):
 
 def _roundtrips(scene: str, shift: str, seed: int, n: int = 600, reach: int = 6, **kw) -> tuple[np.ndarray, np.ndarray]:
     built = _scene(scene)
-    r = RestirPT(built, RES, RES, shift=shift, temporal=False, spatial_rounds=0, seed=seed, **kw)
+    r = ReSTIRPT(built, RES, RES, shift=shift, temporal=False, spatial_rounds=0, seed=seed, **kw)
     r.render_frame(0)
     rng = np.random.default_rng(seed)
     src = rng.integers(0, RES, size=(n, 2))

@@ -19,7 +19,7 @@ from grisx.errors import InvalidParameterError, UnknownNameError
 from grisx.scene.builtin import BUILTIN_SCENES, build_builtin
 from grisx.scene.pt import PathTracer
 from grisx.scene.render import render
-from grisx.scene.restir_pt import RestirPT
+from grisx.scene.restir_pt import ReSTIRPT
 from grisx.testing import BIASED_K, DEFAULT_K, z_test
 
 RES = 16
@@ -48,7 +48,7 @@ def _runs(name: str, runs: int, frames: int, **kw) -> tuple[np.ndarray, np.ndarr
     built = _built(name)
     means = np.empty((runs, 3))
     for s in range(runs):
-        r = RestirPT(built, RES, RES, seed=1000 + s, max_bounces=MAX_BOUNCES, **kw)
+        r = ReSTIRPT(built, RES, RES, seed=1000 + s, max_bounces=MAX_BOUNCES, **kw)
         acc = np.zeros((RES, RES, 3))
         for f in range(frames):
             acc += r.render_frame(f).numpy()
