@@ -5,7 +5,11 @@ For ``cornell-box``, ``door-ajar`` and ``glossy-room`` (static camera, the
 scene's ``max_depth``) this script
 
 1. renders a **reference**: the path tracer at the pixel centres
-   (``jitter=False``, what the G-buffer sees) with ``--ref-spp`` samples;
+   (``jitter=False``) with ``--ref-spp`` samples. Every image of the study is
+   at the pixel centres (ReSTIR GI too): a frame's error is then light
+   transport alone, not the pixel filter's variance (on the Cornell box the
+   light's jittered edges alone give a per-frame MSE 20× the path tracer's
+   1-spp transport noise, and hide what resampling changes);
 2. runs **ReSTIR GI** (unbiased, and ``unbiased=false``) for ``--frames``
    frames and records the time of each pass (device synchronized around every
    pass; kernels compiled and warmed before the clock starts), the frame time,
@@ -98,7 +102,7 @@ def pt_image(built: Any, w: int, h: int, max_depth: int, spp: int, seed: int) ->
 
 def run_restir(built: Any, w: int, h: int, max_depth: int, frames: int, device: Any, seed: int, ref: np.ndarray, **params: Any) -> dict:
     timer = PassTimer(device)
-    gi = ReSTIRGI(built, w, h, seed=seed, max_depth=max_depth, timer=timer, **params)
+    gi = ReSTIRGI(built, w, h, seed=seed, max_depth=max_depth, jitter=False, timer=timer, **params)
     for k in gi.kernels():
         wp.load_module(k.module, device=device)
     gi.render_frame(0)  # warm-up (also allocates), then start afresh

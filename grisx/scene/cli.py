@@ -241,6 +241,7 @@ def _render(args: argparse.Namespace) -> int:
             "device": result.device,
             "seed": args.seed,
             "params": s["params"],
+            "nonfinite_samples": s.get("nonfinite_samples", 0),
             "output": written,
         }, default=_plain))
     else:
