@@ -80,8 +80,13 @@ def _z(built, device, runs: int, frames: int, k: float, max_depth: int = 16, jit
         {"mb_fraction": 1.0, "adaptive_radius": False, "radius": 4.0, "low_m": 0.0},
         {"mb_fraction": 1.0, "direct": "restir-di"},
         {"mb_fraction": 1.0, "jitter": True},  # box-filtered pixels (the renderer's default) against the jittered path tracer
+        {"mb_fraction": 1.0, "max_jacobian": 0.0},  # the paper: no reconnection rejected
+        {"mb_fraction": 1.0, "max_jacobian": 2.0, "jitter": True},  # many rejected: Z must count the same domains
     ],
-    ids=["default", "tiles-25%", "target-eq10", "cosine", "bsdf", "spatial-only", "temporal-only", "fixed-radius", "restir-di", "jittered"],
+    ids=[
+        "default", "tiles-25%", "target-eq10", "cosine", "bsdf", "spatial-only", "temporal-only", "fixed-radius", "restir-di", "jittered",
+        "no-rejection", "rejection-2-jittered",
+    ],
 )
 def test_unbiased_restir_gi_converges_to_path_tracer(cornell, device, params):
     result = _z(cornell, device, 400, 4, DEFAULT_K, **params)
@@ -95,7 +100,8 @@ def test_one_bounce_converges(cornell, device):
 
 
 def test_dropping_the_jacobian_is_caught(cornell, device):
-    result = _z(cornell, device, 1200, 4, BIASED_K, mb_fraction=1.0, jacobian=False)
+    # Fig. 7's bias: all reconnections kept (rejecting |J| > 10 keeps only near-unit Jacobians, and little bias)
+    result = _z(cornell, device, 1200, 4, BIASED_K, mb_fraction=1.0, jacobian=False, max_jacobian=0.0)
     assert not result.passed, result
 
 
