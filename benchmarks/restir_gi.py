@@ -100,6 +100,19 @@ def pt_image(built: Any, w: int, h: int, max_depth: int, spp: int, seed: int) ->
     return pt.mean()
 
 
+def pt_curve(built: Any, w: int, h: int, max_depth: int, spp_max: int, seed: int, ref: np.ndarray, spp_s: float) -> list[dict]:
+    """The path tracer's accumulated MSE after 1, 2, 4, … spp (up to ``spp_max``), at the time they take (spp × ``spp_s``)."""
+    pt = PathTracer(built, w, h, max_depth=max_depth, seed=seed, jitter=False)
+    curve = []
+    n = 1
+    while True:
+        pt.add_samples(0, n - pt.samples)
+        curve.append({"spp": n, "seconds": n * spp_s, "mse_accumulated": mse(pt.mean(), ref)})
+        if n >= spp_max:
+            return curve
+        n = min(2 * n, spp_max)
+
+
 def run_restir(built: Any, w: int, h: int, max_depth: int, frames: int, device: Any, seed: int, ref: np.ndarray, **params: Any) -> dict:
     timer = PassTimer(device)
     gi = ReSTIRGI(built, w, h, seed=seed, max_depth=max_depth, jitter=False, timer=timer, **params)
@@ -216,6 +229,8 @@ def main(argv: list[str] | None = None) -> int:
                 f" {r['pt_equal_time_total']['mse']:.3e} (x{r['mse_ratio_total']:.1f});  ref noise {ref_noise:.1e}",
                 flush=True,
             )
+        spp_max = max(v["pt_equal_time_total"]["spp"] for v in entry["variants"].values())
+        entry["pt_curve"] = pt_curve(built, w, h, max_depth, spp_max, args.seed + 41, ref, spp_s)
         report["scenes"][name] = entry
     (out / "restir_gi.json").write_text(json.dumps(report, indent=2))
     _plot(report, images, out / "restir_gi.png")
@@ -228,6 +243,7 @@ def _plot(report: dict, images: dict, path: Path) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import matplotlib.ticker
 
     from grisx.imageio import srgb_encode
 
@@ -251,7 +267,10 @@ def _plot(report: dict, images: dict, path: Path) -> None:
         for label, _ in VARIANTS:
             c = report["scenes"][name]["variants"][label]["curve"]
             ax.loglog([p["seconds"] for p in c], [p["mse_accumulated"] for p in c], label=f"ReSTIR GI {label} (accumulated)")
+        c = report["scenes"][name]["pt_curve"]
+        ax.loglog([p["seconds"] for p in c], [p["mse_accumulated"] for p in c], "k--", label="path tracer (accumulated spp)")
         ax.axhline(report["scenes"][name]["ref_noise"], color="gray", ls=":", label="reference noise")
+        ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
         ax.set_xlabel("seconds")
         ax.set_ylabel("MSE")
         ax.legend(fontsize=6)

@@ -2,7 +2,8 @@
 # Reproduce the CUDA tables of the closing notes: every benchmark with --device cuda.
 #   bash benchmarks/run_cuda.sh OUT_DIR [GROUP ...]
 # GROUP: theory (toys, conditional, gradient, control_variates, manifold), poisson,
-#        scene (scene.py, pt.py), restir (restir_gi.py, restir_pt.py), study (grisx bench render).
+#        scene (scene.py, pt.py), restir (restir_every_scene.py, restir_gi.py, restir_pt.py),
+#        study (grisx bench render).
 # Default: all groups. Each script writes its JSON and PNG into OUT_DIR.
 set -euo pipefail
 out=${1:-benchmarks/results/cuda}
@@ -24,6 +25,7 @@ for g in $groups; do
       $py benchmarks/scene.py --device cuda --out "$out"
       $py benchmarks/pt.py --device cuda --out "$out" ;;
     restir)
+      $py benchmarks/restir_every_scene.py --device cuda --jobs 9 --out "$out"
       $py benchmarks/restir_gi.py --device cuda --out "$out"
       $py benchmarks/restir_pt.py --device cuda --out "$out" ;;
     study)
