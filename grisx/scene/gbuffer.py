@@ -1,7 +1,10 @@
 """The G-buffer: what every ReSTIR pass reads about each pixel's primary hit.
 
-One pixel-center ray per pixel fills structure-of-arrays buffers with the
-primary hit's position, geometric and shading normals, albedo (the BSDF's
+One camera ray per pixel — through the pixel centre, or through the frame's
+jittered camera sample (:func:`~grisx.scene.camera.sample_camera`) — fills
+structure-of-arrays buffers with the primary hit's full surface interaction
+and direction to the camera (the *visible point* the screen-space ReSTIR
+renderers shade and reuse), its position, geometric and shading normals, albedo (the BSDF's
 average reflectance, which ReSTCV's α heuristic needs — seed 002, Eq. 9),
 roughness (which the hybrid shift tests against 0.2), material id, linear
 (camera-space) depth, triangle and barycentrics, emitted radiance, and the
@@ -24,13 +27,13 @@ import warp as wp
 from grisx.scene.bsdf import bsdf_albedo, bsdf_roughness
 from grisx.scene.camera import CameraData, camera_project, camera_ray, camera_sample_key, sample_camera
 from grisx.scene.lights import emitter_radiance, environment_eval
-from grisx.scene.scene import BuiltScene, SceneData, intersect, surface_material
+from grisx.scene.scene import BuiltScene, SceneData, SurfaceInteraction, intersect, surface_material
 
 wp.set_module_options({"enable_backward": False})
 
 __all__ = ["GBufferData", "GBuffer", "GBUFFER_FIELDS"]
 
-#: field name → (Warp dtype, channels in an image dump)
+#: field name → (Warp dtype, channels in an image dump); ``si`` and ``wo`` (the visible point) are not images
 GBUFFER_FIELDS = {
     "position": (wp.vec3, 3),
     "normal_geo": (wp.vec3, 3),
@@ -63,6 +66,8 @@ class GBufferData:
     motion_int: wp.array2d(dtype=wp.vec2i)  # the same, rounded to whole pixels
     emission: wp.array2d(dtype=wp.vec3)  # radiance emitted toward the camera (environment where nothing was hit)
     hit: wp.array2d(dtype=wp.int32)
+    si: wp.array2d(dtype=SurfaceInteraction)  # the visible point (valid = 0 where nothing was hit)
+    wo: wp.array2d(dtype=wp.vec3)  # unit direction from it to the camera (−ray direction)
 
 
 @wp.kernel
@@ -81,6 +86,8 @@ def gbuffer_kernel(
     cs = sample_camera(camera_sample_key(seed, frame, y * cam.width + x), x, y, jitter)
     ray = camera_ray(cam, cs.pixel[0], cs.pixel[1], cs.lens)
     si = intersect(scene, ray.o, ray.d, cam.far_clip)
+    g.si[y, x] = si
+    g.wo[y, x] = -ray.d
     zero3 = wp.vec3(0.0, 0.0, 0.0)
     if si.valid == 0:
         g.position[y, x] = zero3
@@ -126,6 +133,8 @@ def _alloc(width: int, height: int, device: wp.context.Device) -> GBufferData:
     g = GBufferData()
     for name, (dtype, _) in GBUFFER_FIELDS.items():
         setattr(g, name, wp.zeros((height, width), dtype=dtype, device=device))
+    g.si = wp.zeros((height, width), dtype=SurfaceInteraction, device=device)
+    g.wo = wp.zeros((height, width), dtype=wp.vec3, device=device)
     return g
 
 

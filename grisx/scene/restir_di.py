@@ -84,7 +84,6 @@ import warp as wp
 
 from grisx.device import specialized_module
 from grisx.scene.bsdf import make_bsdf
-from grisx.scene.camera import CameraData, camera_ray, camera_sample_key, sample_camera
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.gbuffer import GBuffer, GBufferData, gbuffer_kernel
 from grisx.scene.lights import (
@@ -125,14 +124,12 @@ __all__ = [
     "LIGHT_TRIANGLE",
     "LIGHT_POINT",
     "LIGHT_ENV",
-    "VisiblePoints",
     "ScreenSpaceRenderer",
     "ScreenFrame",
     "screen_frame",
     "pixel_key",
     "frame_key",
     "write_pixel",
-    "visible_point_kernel",
     "make_restir_di_kernels",
     "ReSTIRDI",
     "create_restir_di",
@@ -172,7 +169,8 @@ class LightEval:
 
 @wp.struct
 class ScreenFrame:
-    """What every pass of a frame reads: the G-buffers and visible points of this and the last frame, seed, frame."""
+    """What every pass of a frame reads: the G-buffers of this and the last frame (``si``/``wo``: their visible
+    points, for short), seed, frame."""
 
     g: GBufferData
     g_prev: GBufferData
@@ -245,70 +243,11 @@ def visible_normal(si: SurfaceInteraction, wo: wp.vec3) -> wp.vec3:
     return si.ns
 
 
-@wp.kernel
-def visible_point_kernel(
-    scene: SceneData,
-    cam: CameraData,
-    seed: int,
-    frame: int,
-    jitter: int,
-    si_out: wp.array2d(dtype=SurfaceInteraction),
-    wo_out: wp.array2d(dtype=wp.vec3),
-):
-    """The visible point of each pixel: the G-buffer's camera sample (a fresh uniform point of the pixel
-    each frame with ``jitter``, a box filter — the quantity ``pt`` estimates — else the pixel centre)."""
-    y, x = wp.tid()
-    cs = sample_camera(camera_sample_key(seed, frame, y * cam.width + x), x, y, jitter)
-    ray = camera_ray(cam, cs.pixel[0], cs.pixel[1], cs.lens)
-    si_out[y, x] = intersect(scene, ray.o, ray.d, cam.far_clip)
-    wo_out[y, x] = -ray.d
-
-
-class VisiblePoints:
-    """Per-pixel visible points (surface interaction and direction to the camera), this and the previous frame."""
-
-    def __init__(self, width: int, height: int, device: Any) -> None:
-        self.width, self.height, self.device = int(width), int(height), device
-        make = lambda: (  # noqa: E731
-            wp.zeros((self.height, self.width), dtype=SurfaceInteraction, device=device),
-            wp.zeros((self.height, self.width), dtype=wp.vec3, device=device),
-        )
-        self.buffers = DoubleBuffer(make)
-
-    @property
-    def si(self) -> wp.array:
-        return self.buffers.current[0]
-
-    @property
-    def wo(self) -> wp.array:
-        return self.buffers.current[1]
-
-    @property
-    def si_prev(self) -> wp.array:
-        return self.buffers.previous[0]
-
-    @property
-    def wo_prev(self) -> wp.array:
-        return self.buffers.previous[1]
-
-    def fill(self, built: Any, frame: int, seed: int = 0, jitter: bool = False) -> None:
-        """Swap, then trace this frame's visible points (the scene must be at ``frame``)."""
-        self.buffers.swap()
-        cam = built.camera_data(float(frame), self.width, self.height)
-        wp.launch(
-            visible_point_kernel,
-            dim=(self.height, self.width),
-            inputs=[built.data, cam, int(seed), int(frame), int(bool(jitter))],
-            outputs=[self.si, self.wo],
-            device=self.device,
-        )
-
-
-def screen_frame(gbuffer: GBuffer, vp: VisiblePoints, seed: int, frame: int) -> ScreenFrame:
-    """The :class:`ScreenFrame` of the buffers as they are now (after ``fill`` for ``frame``)."""
+def screen_frame(gbuffer: GBuffer, seed: int, frame: int) -> ScreenFrame:
+    """The :class:`ScreenFrame` of the G-buffers as they are now (after ``fill`` for ``frame``)."""
     sf = ScreenFrame()
     sf.g, sf.g_prev = gbuffer.current, gbuffer.previous
-    sf.si, sf.wo, sf.si_prev, sf.wo_prev = vp.si, vp.wo, vp.si_prev, vp.wo_prev
+    sf.si, sf.wo, sf.si_prev, sf.wo_prev = gbuffer.current.si, gbuffer.current.wo, gbuffer.previous.si, gbuffer.previous.wo
     sf.seed, sf.frame = int(seed), int(frame)
     return sf
 
@@ -723,7 +662,6 @@ class ReSTIRDI(ScreenSpaceRenderer):
         dev = self.device = built.device
         shape = (self.height, self.width)
         self.gbuffer = GBuffer(self.width, self.height, dev)
-        self.vp = VisiblePoints(self.width, self.height, dev)
         pair = lambda: (wp.zeros(shape, dtype=Reservoir, device=dev), wp.zeros(shape, dtype=LightPoint, device=dev))  # noqa: E731
         self.initial = pair()
         self.temporal_out = pair()
@@ -734,13 +672,12 @@ class ReSTIRDI(ScreenSpaceRenderer):
         self.frames_rendered = 0
 
     def kernels(self) -> list[Any]:
-        return [visible_point_kernel, gbuffer_kernel, self.k.initial_pass, self.k.temporal_pass, self.k.spatial_pass, self.k.shade_pass]
+        return [gbuffer_kernel, self.k.initial_pass, self.k.temporal_pass, self.k.spatial_pass, self.k.shade_pass]
 
     def prepare(self, frame: int) -> None:
-        """G-buffer and visible points of ``frame`` (the scene must already be at ``frame``)."""
+        """The G-buffer (with the visible points) of ``frame`` (the scene must already be at ``frame``)."""
         with self._phase("gbuffer"):
             self.gbuffer.fill(self.built, float(frame), self.seed, self.jitter)
-            self.vp.fill(self.built, frame, self.seed, self.jitter)
 
     def resample(self, frame: int) -> None:
         """Initial candidates, temporal and spatial reuse into ``self.final.current``."""
@@ -748,7 +685,7 @@ class ReSTIRDI(ScreenSpaceRenderer):
         data = self.built.data
         dev = self.device
         self.final.swap()
-        sf = screen_frame(self.gbuffer, self.vp, self.seed, frame)
+        sf = screen_frame(self.gbuffer, self.seed, frame)
         with self._phase("di_initial"):
             wp.launch(
                 self.k.initial_pass,
@@ -793,7 +730,7 @@ class ReSTIRDI(ScreenSpaceRenderer):
             wp.launch(
                 self.k.shade_pass,
                 dim=(self.height, self.width),
-                inputs=[self.built.data, screen_frame(self.gbuffer, self.vp, self.seed, 0), self.base, self.final.current[0], self.final.current[1]],
+                inputs=[self.built.data, screen_frame(self.gbuffer, self.seed, 0), self.base, self.final.current[0], self.final.current[1]],
                 outputs=[self.image, self.nonfinite],
                 device=self.device,
             )

@@ -118,7 +118,6 @@ import warp as wp
 
 from grisx.device import specialized_module
 from grisx.scene.bsdf import MATERIAL_ROUGH_DIELECTRIC, cosine_hemisphere_pdf, make_bsdf, sample_cosine_hemisphere
-from grisx.scene.camera import CameraData
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.gbuffer import GBuffer, GBufferData, gbuffer_kernel
 from grisx.scene.lights import emitter_radiance, environment_eval, luminance
@@ -127,12 +126,10 @@ from grisx.scene.restir_di import (
     ReSTIRDI,
     ScreenFrame,
     ScreenSpaceRenderer,
-    VisiblePoints,
     frame_key,
     pixel_key,
     screen_frame,
     visible_normal,
-    visible_point_kernel,
     write_pixel,
 )
 from grisx.scene.reuse import (
@@ -425,7 +422,6 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
     @wp.kernel(module=module)
     def initial_pass(
         scene: SceneData,
-        cam: CameraData,
         sf: ScreenFrame,
         source: int,
         target_mode: int,
@@ -453,9 +449,9 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         res_out[y, x] = r
         s_out[y, x] = s
         base[y, x] = wp.vec3(0.0)
-        # the visible point's camera ray (through the lens centre, as visible_point_kernel traces it)
-        ray_o = wp.transform_point(cam.to_world, wp.vec3(0.0, 0.0, 0.0))
+        # the visible point's camera ray (its origin on the lens is t back along wo from the hit)
         ray_d = -wo
+        ray_o = si.p + wo * si.t
         if si.valid == 0:
             if direct_mode == 0:
                 base[y, x] = environment_eval(scene.lights, ray_d)
@@ -836,10 +832,9 @@ class ReSTIRGI(ScreenSpaceRenderer):
         self.di = None
         if self.direct == DIRECT["restir-di"]:
             self.di = ReSTIRDI(built, width, height, seed=seed + 7919, jitter=jitter, timer=timer)
-            self.gbuffer, self.vp = self.di.gbuffer, self.di.vp
+            self.gbuffer = self.di.gbuffer
         else:
             self.gbuffer = GBuffer(self.width, self.height, dev)
-            self.vp = VisiblePoints(self.width, self.height, dev)
         pair = lambda: (wp.zeros(shape, dtype=Reservoir, device=dev), wp.zeros(shape, dtype=GISample, device=dev))  # noqa: E731
         self.initial = pair()  # the initial sample buffer (as one-sample reservoirs)
         self.temporal_buf = DoubleBuffer(pair)  # temporal reservoir buffer
@@ -856,7 +851,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
             self.di.reset(None if seed is None else int(seed) + 7919)
 
     def kernels(self) -> list[Any]:
-        ks = [visible_point_kernel, gbuffer_kernel, self.k.initial_pass, self.k.temporal_pass, self.k.spatial_pass, self.k.shade_pass]
+        ks = [gbuffer_kernel, self.k.initial_pass, self.k.temporal_pass, self.k.spatial_pass, self.k.shade_pass]
         return ks + (self.di.kernels() if self.di is not None else [])
 
     def render_frame(self, frame: int) -> wp.array:
@@ -869,9 +864,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
         else:
             with self._phase("gbuffer"):
                 self.gbuffer.fill(self.built, float(frame), self.seed, self.jitter)
-                self.vp.fill(self.built, frame, self.seed, self.jitter)
-        cam = self.built.camera_data(float(frame), self.width, self.height)
-        sf = screen_frame(self.gbuffer, self.vp, self.seed, frame)
+        sf = screen_frame(self.gbuffer, self.seed, frame)
         self.temporal_buf.swap()
         self.spatial_buf.swap()
         validate_now = int(history and self.validation_interval > 0 and frame % self.validation_interval == 0)
@@ -880,7 +873,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
                 self.k.initial_pass,
                 dim=dim,
                 inputs=[
-                    data, cam, sf, self.source, self.target, self.max_depth, self.rr_depth,
+                    data, sf, self.source, self.target, self.max_depth, self.rr_depth,
                     self.mb_fraction, self.direct, validate_now, self.validation_tolerance,
                 ],
                 outputs=[

@@ -5,11 +5,11 @@ camera, an integral over paths x₁ → … → x_n of f(x̄) (see
 :mod:`grisx.scene.path_shift` for the measure and the shifts). Per frame:
 
 ``# ---- primary vertices ----``
-    a jittered camera ray per pixel gives x₁ (the pixel's *domain*, as the
-    reference path tracer jitters its rays, so both estimate the same pixel
-    integral); emission seen directly is added outside the reservoir. The
-    G-buffer is traced through the same camera samples, so its similarity
-    tests and motion vectors are those of the x₁ being reused.
+    the G-buffer's visible point — a jittered camera ray per pixel — is x₁
+    (the pixel's *domain*; the reference path tracer jitters its rays too, so
+    both estimate the same pixel integral), and the G-buffer's similarity
+    tests and motion vectors are those of the x₁ being reused; emission seen
+    directly is added outside the reservoir.
 ``# ---- initial candidates ----``
     ``candidates`` path-tracer samples from x₁ with next-event estimation at
     every vertex, no Russian roulette, at most ``max_bounces`` segments after
@@ -60,9 +60,7 @@ import warp as wp
 
 from grisx.device import specialized_module
 from grisx.errors import InvalidParameterError
-from grisx.scene.camera import CameraData, camera_ray, camera_sample_key, sample_camera
 from grisx.scene.gbuffer import GBuffer, GBufferData
-from grisx.scene.lights import emitter_radiance, environment_eval
 from grisx.scene.path_shift import (
     Domain,
     PathReservoir,
@@ -78,7 +76,7 @@ from grisx.scene.path_shift import (
 )
 from grisx.scene.restir_di import ScreenSpaceRenderer
 from grisx.scene.reuse import SIMILARITY_DEPTH, SIMILARITY_NORMAL_COS, NeighborPixel, pixels_similar, spatial_neighbor, temporal_neighbor
-from grisx.scene.scene import SceneData, finite_or_dropped, intersect
+from grisx.scene.scene import SceneData, finite_or_dropped
 from grisx.theory.gris import resampling_weight
 from grisx.theory.mis import balance_mis, balance_term, pairwise_mis_canonical_term, pairwise_mis_neighbor
 from grisx.theory.random import random_key, random_subkey, random_uniform
@@ -140,17 +138,11 @@ def make_restir_pt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     module = specialized_module(__name__, kinds)
 
     @wp.kernel(module=module)
-    def primary_pass(scene: SceneData, cam: CameraData, seed: int, frame: int, domains: wp.array2d(dtype=Domain), direct: wp.array2d(dtype=wp.vec3)):
+    def primary_pass(g: GBufferData, domains: wp.array2d(dtype=Domain), direct: wp.array2d(dtype=wp.vec3)):
         y, x = wp.tid()
-        # the G-buffer's camera sample (filled with the same seed), so its similarity tests describe these vertices
-        cs = sample_camera(camera_sample_key(seed, frame, y * cam.width + x), x, y, 1)
-        ray = camera_ray(cam, cs.pixel[0], cs.pixel[1], cs.lens)
-        si = intersect(scene, ray.o, ray.d, 1.0e30)
-        if si.valid == 0:
-            direct[y, x] = environment_eval(scene.lights, ray.d)
-        else:
-            direct[y, x] = emitter_radiance(scene.lights, si.tri, si.ng, -ray.d)
-        domains[y, x] = vertex_from_hit(si, -ray.d)  # valid = 0 where the ray missed
+        # x₁ is the G-buffer's visible point (its jittered camera sample), so the similarity tests describe it
+        domains[y, x] = vertex_from_hit(g.si[y, x], g.wo[y, x])  # valid = 0 where the ray missed
+        direct[y, x] = g.emission[y, x]  # emission seen directly (the environment where nothing was hit)
 
     # ---- initial candidates ----
     @wp.kernel(module=module)
@@ -383,9 +375,8 @@ class ReSTIRPT(ScreenSpaceRenderer):
             self.gbuffer.fill(b, float(frame), self.seed, jitter=True)
         self.domains.reverse()  # the previous frame's domains become "previous"
         dom, dom_prev = self.domains
-        cam = b.camera_data(float(frame), self.width, self.height)
         with self._phase("primary"):
-            wp.launch(k["primary"], dim=dim, inputs=[b.data, cam, self.seed, int(frame)], outputs=[dom, self.direct], device=dev)
+            wp.launch(k["primary"], dim=dim, inputs=[self.gbuffer.current], outputs=[dom, self.direct], device=dev)
         history, cur, other = self.buffers
         with self._phase("initial"):
             wp.launch(

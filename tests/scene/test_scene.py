@@ -206,18 +206,21 @@ def test_motion_vectors_match_analytic_reprojection_for_a_moving_camera(jitter):
     np.testing.assert_array_equal(fields["motion_int"][ys, xs][inner], (np.floor(prev) - np.c_[xs, ys])[inner].astype(int))
 
 
-def test_jittered_gbuffer_sees_the_visible_points_of_the_same_seed_and_frame():
-    from grisx.scene.restir_di import VisiblePoints
-
+def test_jittered_gbuffer_holds_its_visible_points_and_draws_them_afresh_each_frame():
     built = build_builtin("cornell-box").build("cpu")
     w, h = 24, 18
-    g, vp = GBuffer(w, h, built.device), VisiblePoints(w, h, built.device)
+    g = GBuffer(w, h, built.device)
     g.fill(built, 3.0, seed=11, jitter=True)
-    vp.fill(built, 3, seed=11, jitter=True)
-    pos, si = g.current.position.numpy(), vp.si.numpy()
-    np.testing.assert_array_equal(pos, si["p"])
-    g.fill(built, 4.0, seed=11, jitter=True)  # a new frame: new points
+    si, wo, pos = g.current.si.numpy(), g.current.wo.numpy(), g.current.position.numpy()
+    hit = g.current.hit.numpy() == 1
+    np.testing.assert_array_equal(si["p"][hit], pos[hit])  # the fields describe the visible point
+    np.testing.assert_array_equal(si["valid"], g.current.hit.numpy())
+    np.testing.assert_allclose(np.linalg.norm(wo, axis=-1), 1.0, rtol=1e-5)
+    g.fill(built, 4.0, seed=11, jitter=True)  # a new frame: new points; the last one's are kept as previous
     assert np.abs(g.current.position.numpy() - pos).max() > 1e-3
+    np.testing.assert_array_equal(g.previous.si.numpy()["p"], si["p"])
+    g.fill(built, 3.0, seed=11, jitter=True)  # same seed and frame: the same points
+    np.testing.assert_array_equal(g.current.si.numpy()["p"], si["p"])
 
 
 def test_motion_vectors_follow_a_moving_object_and_refit_only_when_it_moves():
