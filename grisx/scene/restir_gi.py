@@ -46,9 +46,21 @@ is seed 000's Eq. 9 with the Jacobian |J_{q→r}| of seed 004, Eq. 11
 the paper *divides* p̂ by its J; the GRIS weight of seed 000, Eq. 9 multiplies
 by |∂T/∂x| = Eq. 11's J_{q→r}, which is what is done here.) L_r at x_2 is
 reused unchanged: the paper's Lambertian assumption (Sec. 5), exact for
-diffuse sample points, biased for glossy ones. (Re-evaluating the sample
-point's BSDF toward the new visible point — an ``exact_bsdf`` option — would
-need the path's first bounce at x_s stored with the sample; not implemented.)
+diffuse sample points, biased for glossy ones.
+
+**exact_bsdf=true** re-evaluates x_s's BSDF toward each visible point that
+reuses the sample. The path at x_s keeps its two techniques apart
+(:class:`~grisx.scene.pt.PathRadiance` records: the NEE direction and its
+radiance × MIS weight / pdf, the continuation's direction and all it gathers
+over its pdf), so L_r(x_s → x_v') = f(x_v' ← x_s ← ω_nee) L_nee +
+f(x_v' ← x_s ← ω_bs) L_bs. For this to be one function of the sample whatever
+visible point traced it, nothing at x_s may depend on the direction it was
+seen from: the continuation there is cosine-weighted (not BSDF-sampled) and
+both MIS weights use that density. Sample points on delta or transmitting
+BSDFs cannot be reconnected at all; with the option they are used only by
+the visible point that found them (target 0 elsewhere, and Z counts so). On
+diffuse sample points the option changes nothing (a test checks it); it
+costs 56 more bytes per stored sample.
 
 **Unbiased reuse** (Alg. 4 l. 16–19). Candidates are streamed with weights
 c_i p̂(y_i) W_i |J| and the kept sample y gets W = w_sum / (Z(y) p̂(y))
@@ -204,6 +216,15 @@ class GISample:
     key: wp.uint32  # random key of the path at x_s
     multi: int  # 1: the tile followed multi-bounce paths
     valid: int
+    # ---- exact_bsdf: x_s's BSDF and the two techniques of its path, to re-evaluate L_o toward any x_v ----
+    exact: int  # 0: lo reused as if Lambertian; 1: re-evaluated from the records below; 2: its own direction only
+    mat_s: int  # material and texture coordinates at x_s
+    uv_s: wp.vec2
+    ns_s: wp.vec3  # shading normal at x_s (the path tracer's frame there)
+    nee_wi: wp.vec3
+    nee_li: wp.vec3
+    bs_wi: wp.vec3
+    bs_li: wp.vec3
 
 
 @wp.struct
@@ -239,7 +260,21 @@ def gi_sample_none() -> GISample:
     s.key = wp.uint32(0)
     s.multi = 0
     s.valid = 0
+    s.exact = 0
+    s.mat_s = 0
     return s
+
+
+@wp.struct
+class SampleRadiance:
+    """L_r at a sample point toward the visible point that found it, and the path's technique records."""
+
+    lo: wp.vec3
+    nee_wi: wp.vec3
+    nee_li: wp.vec3
+    bs_wi: wp.vec3
+    bs_li: wp.vec3
+    recorded: int
 
 
 _KERNELS: dict[frozenset[int], Any] = {}
@@ -276,6 +311,26 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         return spawn_origin(scene, si.p, si.ng, visible_normal(si, wo))
 
     @wp.func
+    def reflected_radiance(scene: SceneData, s: GISample, toward: wp.vec3) -> wp.vec3:
+        """L_r leaving x_s in direction ``toward``: the stored L_o (the paper's Lambertian reuse), or with
+        ``exact_bsdf`` x_s's BSDF re-evaluated for both techniques of its path (PathRadiance's records)."""
+        if s.exact == 0:
+            return s.lo
+        if s.exact == 2:  # a delta or transmitting BSDF at x_s: no other visible point can reconnect to it
+            if wp.dot(toward, -s.ray_d) >= 1.0 - 1.0e-6:
+                return s.lo
+            return wp.vec3(0.0)
+        at = SurfaceInteraction()
+        at.material = s.mat_s
+        at.uv = s.uv_s
+        m = surface_material(scene, at)
+        frame = frame_from_normal(s.ns_s)
+        wo_s = to_local(frame, toward)
+        f_nee = bsdf.eval(m, wo_s, to_local(frame, s.nee_wi))
+        f_bs = bsdf.eval(m, wo_s, to_local(frame, s.bs_wi))
+        return wp.max(wp.cw_mul(f_nee, s.nee_li) + wp.cw_mul(f_bs, s.bs_li), wp.vec3(0.0))
+
+    @wp.func
     def gi_eval(scene: SceneData, si: SurfaceInteraction, wo: wp.vec3, s: GISample, target_mode: int) -> GIEval:
         """Sample ``s`` reconnected to visible point ``si``: f ⟨cos⟩ L_o and p̂ (Eq. 9 or 10); 0 outside the domain."""
         e = GIEval()
@@ -299,10 +354,11 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         m = surface_material(scene, si)
         frame = frame_from_normal(si.ns)
         f = bsdf.eval(m, to_local(frame, wo), to_local(frame, wi))
-        e.rgb = wp.cw_mul(f, s.lo)
+        lo = reflected_radiance(scene, s, -wi)
+        e.rgb = wp.cw_mul(f, lo)
         t = luminance(e.rgb)  # seed 004, Eq. 9
         if target_mode != _TARGET_FULL:
-            t = luminance(s.lo)  # seed 004, Eq. 10
+            t = luminance(lo)  # seed 004, Eq. 10
         if t > 0.0:  # false for NaN
             e.target = t
         else:
@@ -359,8 +415,12 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         return 0
 
     @wp.func
-    def outgoing_radiance(scene: SceneData, o: wp.vec3, d: wp.vec3, le: wp.vec3, key: wp.uint32, max_depth: int, rr_depth: int, multi: int, mb_fraction: float) -> wp.vec3:
-        """L_r at the first hit of the ray (o, d): the path tracer's estimate minus the hit's emission ``le``.
+    def outgoing_radiance(
+        scene: SceneData, o: wp.vec3, d: wp.vec3, le: wp.vec3, key: wp.uint32, max_depth: int, rr_depth: int, multi: int, mb_fraction: float,
+        exact_bsdf: int,
+    ) -> SampleRadiance:
+        """L_r at the first hit of the ray (o, d): the path tracer's estimate minus the hit's emission ``le``,
+        with the path's records at that hit (for ``exact_bsdf``).
 
         ``max_depth`` counts segments from x_v (−1: unbounded). Tiles without
         multi-bounce paths keep one bounce (direct light at x_s, L_1); the others
@@ -373,11 +433,20 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
                 depth = 2  # L_1: one bounce at x_s
             else:
                 prefix_depth = 2  # L_1 and L_full from one path
-        r = trace_path(scene, o, d, key, depth, rr_depth, _STRATEGY_MIS, prefix_depth)
-        out = r.total - le
+        r = trace_path(scene, o, d, key, depth, rr_depth, _STRATEGY_MIS, prefix_depth, exact_bsdf)
+        out = SampleRadiance()
+        out.lo = r.total - le
+        out.bs_li = r.bs_li
         if prefix_depth > 0:
-            out = r.prefix - le + (r.total - r.prefix) / mb_fraction  # tile-level Russian roulette, reweighted (seed 004, Sec. 5)
-        return wp.max(out, wp.vec3(0.0))
+            # tile-level Russian roulette, reweighted (seed 004, Sec. 5); NEE at x_s lies within L_1
+            out.lo = r.prefix - le + (r.total - r.prefix) / mb_fraction
+            out.bs_li = r.bs_li_prefix + (r.bs_li - r.bs_li_prefix) / mb_fraction
+        out.lo = wp.max(out.lo, wp.vec3(0.0))
+        out.nee_wi = r.nee_wi
+        out.nee_li = r.nee_li
+        out.bs_wi = r.bs_wi
+        out.recorded = r.recorded
+        return out
 
     @wp.func
     def validate(
@@ -390,7 +459,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         if hit.valid == 0 or wp.length(hit.p - s.xs) > 1.0e-3 * wp.max(1.0, wp.length(s.xs - s.xv)):
             return False
         le = emitter_radiance(scene.lights, hit.tri, hit.ng, -s.ray_d)
-        lo = outgoing_radiance(scene, s.ray_o, s.ray_d, le, s.key, max_depth, rr_depth, s.multi, mb_fraction)
+        lo = outgoing_radiance(scene, s.ray_o, s.ray_d, le, s.key, max_depth, rr_depth, s.multi, mb_fraction, int(s.exact != 0)).lo
         a = luminance(lo)
         b = luminance(s.lo)
         return wp.abs(a - b) <= tolerance * wp.max(wp.max(a, b), 1.0e-6)
@@ -432,6 +501,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         rr_depth: int,
         mb_fraction: float,
         direct_mode: int,
+        exact_bsdf: int,
         validate_now: int,
         tolerance: float,
         res_out: wp.array2d(dtype=Reservoir),
@@ -484,7 +554,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
             cam_depth = max_depth
             if not traced_here and (max_depth < 0 or max_depth > 2):
                 cam_depth = 2
-            cam_path = trace_path(scene, ray_o, ray_d, random_subkey(key, 1), cam_depth, rr_depth, _STRATEGY_MIS, 2)
+            cam_path = trace_path(scene, ray_o, ray_d, random_subkey(key, 1), cam_depth, rr_depth, _STRATEGY_MIS, 2, 0)
             base[y, x] = cam_path.total
             if traced_here:
                 if direct_mode != 0:
@@ -542,7 +612,17 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         s.ns = ns
         s.ray_o = o
         s.ray_d = wi
-        s.lo = outgoing_radiance(scene, o, wi, le, s.key, depth_from_xv, rr_depth, s.multi, mb_fraction)
+        sr = outgoing_radiance(scene, o, wi, le, s.key, depth_from_xv, rr_depth, s.multi, mb_fraction, exact_bsdf)
+        s.lo = sr.lo
+        if exact_bsdf != 0:
+            s.exact = 2 - sr.recorded
+            s.mat_s = hit.material
+            s.uv_s = hit.uv
+            s.ns_s = hit.ns
+            s.nee_wi = sr.nee_wi
+            s.nee_li = sr.nee_li
+            s.bs_wi = sr.bs_wi
+            s.bs_li = sr.bs_li
         s.valid = 1
         e = gi_eval(scene, si, wo, s, target_mode)
         if e.target > 0.0 and not sample_visible(scene, si, wo, e, s):
@@ -799,6 +879,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
         validation_interval: int = 6,
         validation_tolerance: float = 0.2,
         direct: str = "nee",
+        exact_bsdf: bool = False,
         max_jacobian: float = 10.0,
         jitter: bool = True,
         timer: Any = None,
@@ -826,6 +907,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
         self.validation_interval = int(validation_interval)
         self.validation_tolerance = float(validation_tolerance)
         self.direct = DIRECT[direct]
+        self.exact_bsdf = int(bool(exact_bsdf))
         self.max_jacobian = float(max_jacobian)
         self.jitter = bool(jitter)
         self.timer = timer
@@ -882,7 +964,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
                 dim=dim,
                 inputs=[
                     data, sf, self.source, self.target, self.max_depth, self.rr_depth,
-                    self.mb_fraction, self.direct, validate_now, self.validation_tolerance,
+                    self.mb_fraction, self.direct, self.exact_bsdf, validate_now, self.validation_tolerance,
                 ],
                 outputs=[
                     self.initial[0], self.initial[1], self.base, self.temporal_buf.previous[0], self.temporal_buf.previous[1],
@@ -954,5 +1036,5 @@ def create_restir_gi(ctx: Any) -> ReSTIRGI:
 _FACTORY_PARAMS = (
     "source", "target", "jacobian", "unbiased", "temporal", "spatial", "temporal_cap", "spatial_cap", "iterations_low",
     "iterations_high", "adaptive_radius", "radius", "min_radius", "low_m", "max_depth", "rr_depth", "mb_fraction",
-    "validation_interval", "validation_tolerance", "direct", "max_jacobian", "jitter",
+    "validation_interval", "validation_tolerance", "direct", "exact_bsdf", "max_jacobian", "jitter",
 )
