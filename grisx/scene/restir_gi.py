@@ -60,7 +60,7 @@ both MIS weights use that density. Sample points on delta or transmitting
 BSDFs cannot be reconnected at all; with the option they are used only by
 the visible point that found them (target 0 elsewhere, and Z counts so). On
 diffuse sample points the option changes nothing (a test checks it); it
-costs 56 more bytes per stored sample.
+costs 76 more bytes per stored sample (in every mode).
 
 **Unbiased reuse** (Alg. 4 l. 16–19). Candidates are streamed with weights
 c_i p̂(y_i) W_i |J| and the kept sample y gets W = w_sum / (Z(y) p̂(y))
