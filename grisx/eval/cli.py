@@ -159,7 +159,7 @@ def add_parser(subparsers: Any) -> None:
     _study_arguments(r, "seconds per method: render frames until spent (default 1)",
                      "--frames", "frame counts to keep, e.g. 1,4,16,64 (runs to the largest)",
                      "seed of the test renders (default 0)")
-    r.add_argument("--spp", type=_pos_int, default=1, help="samples per pixel per frame (default 1)")
+    r.add_argument("--spp", type=_pos_int, default=1, help="samples per pixel per frame of pt (default 1; the ReSTIR renderers take one a frame)")
     r.add_argument("--res", type=_res, default=None, help="resolution WxH (default: the scene's)")
     r.add_argument("--reference-spp", type=_pos_int, default=4096, help="samples per pixel of the reference (default 4096)")
     r.add_argument("--metrics", default="relmse,mse,mape", help="per-frame metrics; the first is plotted (default relmse,mse,mape)")

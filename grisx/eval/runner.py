@@ -394,14 +394,25 @@ def _safe_name(text: str) -> str:
     return "".join(c if c.isalnum() or c in "-_.=" else "_" for c in text)
 
 
-def _reference_max_depth(method: str) -> int | None:
-    """The path-tracer depth a method's images estimate (None: the scene's full depth)."""
+def _method_spec(method: str) -> Any:
+    """The registered :class:`~grisx.scene.render.RenderMethod` (None for unknown or fake renderers)."""
     try:
         from grisx.scene.render import METHODS
     except ImportError:  # no scene layer: fake renderers in tests
         return None
-    spec = METHODS.get(method)
+    return METHODS.get(method)
+
+
+def _reference_max_depth(method: str) -> int | None:
+    """The path-tracer depth a method's images estimate (None: the scene's full depth)."""
+    spec = _method_spec(method)
     return None if spec is None else spec.reference_max_depth
+
+
+def _frame_spp(method: str, spp: int) -> int | None:
+    """The study's samples per pixel per frame for ``method``; None for methods that take one sample a frame."""
+    spec = _method_spec(method)
+    return None if spec is not None and not spec.uses_spp else spp
 
 
 def render_study(
@@ -498,7 +509,7 @@ def render_study(
             method_refs[spec.label] = spec_ref
             # accumulate=True: the renderer averages the frames (and keeps a static camera, which is what
             # convergence against one reference needs); per-frame images are recovered from the averages
-            kw = dict(spp=spp, accumulate=True, res=res, device=device, params=dict(spec.params))
+            kw = dict(spp=_frame_spp(spec.method, spp), accumulate=True, res=res, device=device, params=dict(spec.params))
             if warmup:  # compiles kernels; another seed so that nothing it draws is reused
                 render(scene, spec.method, frames=1, seed=seed + 1 if seed + 1 != reference_seed else seed + 2, **kw)
             records: list[dict[str, Any]] = []

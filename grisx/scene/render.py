@@ -100,6 +100,8 @@ class RenderMethod:
     kind: str = "radiance"  # "radiance" (linear RGB) or "debug" (a G-buffer view)
     #: the path tracer's max_depth whose image this method estimates (None: the scene's own)
     reference_max_depth: int | None = None
+    #: whether ``spp`` (samples per pixel per frame) means anything to it; the others take one sample a frame
+    uses_spp: bool = False
 
     def create(self, ctx: RenderContext) -> Any:
         return getattr(importlib.import_module(self.module), self.factory)(ctx)
@@ -134,6 +136,7 @@ register(
             Param("rr_depth", 5, "depth from which Russian roulette may end paths", kind="int", minimum=1),
             Param("strategy", "mis", "mis: NEE and BSDF sampling with the power heuristic; nee or bsdf: one technique alone", kind="choice", choices=("mis", "nee", "bsdf")),
         ),
+        uses_spp=True,
     )
 )
 
@@ -320,9 +323,13 @@ def render(
     if "max_depth" in resolved:
         if resolved["max_depth"] == 0:
             raise InvalidParameterError("param 'max_depth' must be -1 (unbounded) or >= 1, got 0")
-    spp = int(sc.defaults.get("spp", 16)) if spp is None else spp
-    if isinstance(spp, bool) or not isinstance(spp, (int, np.integer)) or spp < 1:
+    if isinstance(spp, bool) or (spp is not None and (not isinstance(spp, (int, np.integer)) or spp < 1)):
         raise InvalidParameterError(f"spp must be a positive integer, got {spp!r}")
+    if not spec.uses_spp:
+        if spp is not None and spp != 1:
+            raise InvalidParameterError(f"method '{method}' takes one sample per pixel per frame: spp does not apply (use --frames)")
+        spp = 1
+    spp = int(sc.defaults.get("spp", 16)) if spp is None else spp
     width, height = res if res is not None else (sc.film.width, sc.film.height)
     dev = resolve_device(device)
     if camera not in ("auto", "static", "path"):

@@ -230,7 +230,10 @@ def test_cli_params_and_pass_timings():
         render("cornell-box", "restir-gi", res=(4, 4), params={"source": "sphere"})
     with pytest.raises(InvalidParameterError):
         render("cornell-box", "restir-gi", res=(4, 4), params={"mb_fraction": 0.0})
+    with pytest.raises(InvalidParameterError, match="spp does not apply"):
+        render("cornell-box", "restir-gi", res=(4, 4), spp=4)  # one sample a frame: a silent spp would mislead
     r = render("cornell-box", "restir-gi", res=(8, 6), frames=2, accumulate=True, params={"jacobian": "false"})
+    assert r.spp == 1  # reported as what it is, not the scene's default spp
     assert {"gi_initial", "gi_temporal", "gi_spatial", "gi_shade", "gbuffer"} <= set(r.pass_seconds)
     r = render("cornell-box", "restir-gi", res=(8, 6), frames=2, accumulate=True, params={"direct": "restir-di"})
     assert {"di_initial", "di_temporal", "di_spatial", "di_shade", "gi_spatial"} <= set(r.pass_seconds)
