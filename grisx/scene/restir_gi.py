@@ -237,6 +237,14 @@ class GIEval:
     dist: float
 
 
+@wp.struct
+class GIShift:
+    """A sample reconnected at another visible point: its target there and its weight's Jacobian."""
+
+    target: float
+    jacobian: float
+
+
 @wp.func
 def sample_uniform_hemisphere(u: wp.vec2) -> wp.vec3:
     """Uniform direction on the hemisphere z > 0 (local frame)."""
@@ -380,29 +388,50 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         return e.target
 
     @wp.func
-    def shift_jacobian(
-        scene: SceneData, si_src: SurfaceInteraction, wo_src: wp.vec3, si_dst: SurfaceInteraction, wo_dst: wp.vec3, s: GISample, use_jacobian: int
+    def reconnection_jacobian(
+        scene: SceneData, si_src: SurfaceInteraction, wo_src: wp.vec3, si_dst: SurfaceInteraction, wo_dst: wp.vec3, s: GISample
     ) -> float:
-        """|J_{q→r}| of seed 004, Eq. 11 (1 when ``jacobian=false``, or for the same visible point)."""
+        """|J_{q→r}| of seed 004, Eq. 11 for sample ``s`` moved from visible point src to dst (1 for the same point)."""
         x1_src = domain_point(scene, si_src, wo_src)
         x1_dst = domain_point(scene, si_dst, wo_dst)
-        if use_jacobian == 0 or wp.length_sq(x1_src - x1_dst) == 0.0:
+        if wp.length_sq(x1_src - x1_dst) == 0.0:
             return 1.0
         return reconnection_jacobian_3d(x1_src, x1_dst, s.xs, s.ns)
 
     @wp.func
-    def shift_accepted(
-        scene: SceneData, si_src: SurfaceInteraction, wo_src: wp.vec3, si_dst: SurfaceInteraction, wo_dst: wp.vec3, s: GISample, max_jacobian: float
-    ) -> bool:
-        """Whether the reconnection src → dst is used at all: |J| ≤ ``max_jacobian`` (0: always).
+    def shift_accepted(jacobian: float, max_jacobian: float) -> bool:
+        """Whether a reconnection is used at all: |J| ≤ ``max_jacobian`` (0: always).
 
         A shift that would magnify a sample's weight by more than the bound is treated as undefined —
         a partial bijection. Z counting applies the same test to every domain (Alg. 4 l. 17), so the
         estimator stays unbiased; it only loses the rare reuse that makes fireflies.
         """
-        if max_jacobian <= 0.0:
-            return True
-        return shift_jacobian(scene, si_src, wo_src, si_dst, wo_dst, s, 1) <= max_jacobian
+        return max_jacobian <= 0.0 or jacobian <= max_jacobian
+
+    @wp.func
+    def reconnect(
+        scene: SceneData,
+        si_src: SurfaceInteraction,
+        wo_src: wp.vec3,
+        si_dst: SurfaceInteraction,
+        wo_dst: wp.vec3,
+        s: GISample,
+        target_mode: int,
+        test_visibility: int,
+        use_jacobian: int,
+        max_jacobian: float,
+    ) -> GIShift:
+        """Sample ``s`` of visible point src reused at dst: p̂ there (Alg. 4 l. 11–12; 0 when the shift is
+        rejected) and the |J| its resampling weight takes (Eq. 11; 1 with ``jacobian=false``)."""
+        out = GIShift()
+        j = reconnection_jacobian(scene, si_src, wo_src, si_dst, wo_dst, s)
+        out.jacobian = 1.0
+        if use_jacobian != 0:
+            out.jacobian = j
+        out.target = 0.0
+        if shift_accepted(j, max_jacobian):
+            out.target = target_shifted(scene, si_dst, wo_dst, s, target_mode, test_visibility)
+        return out
 
     @wp.func
     def domain_supports(scene: SceneData, si: SurfaceInteraction, wo: wp.vec3, s: GISample, target_mode: int, unbiased: int) -> int:
@@ -413,6 +442,26 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         if e.target > 0.0 and sample_visible(scene, si, wo, e, s):
             return 1
         return 0
+
+    @wp.func
+    def domain_counts(
+        scene: SceneData,
+        si_src: SurfaceInteraction,
+        wo_src: wp.vec3,
+        si_dst: SurfaceInteraction,
+        wo_dst: wp.vec3,
+        s: GISample,
+        target_mode: int,
+        test_support: int,
+        unbiased: int,
+        max_jacobian: float,
+    ) -> bool:
+        """Whether src's domain counts in Z for the sample ``s`` kept at dst (Alg. 4 l. 17): it can produce
+        ``s`` (tested when ``test_support``, else assumed) and, when unbiased, its own shift to dst is
+        accepted — the very test its candidates passed."""
+        if domain_supports(scene, si_src, wo_src, s, target_mode, test_support) == 0:
+            return False
+        return unbiased == 0 or shift_accepted(reconnection_jacobian(scene, si_src, wo_src, si_dst, wo_dst, s), max_jacobian)
 
     @wp.func
     def outgoing_radiance(
@@ -669,14 +718,11 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         s_p = s_prev[tn.y, tn.x]
         r_p.confidence = confidence_capped(r_p.confidence, cap)
         moved = int(wp.length_sq(si_p.p - si.p) > 0.0)
-        accept_p = shift_accepted(scene, si_p, wo_p, si, wo, s_p, max_jacobian)
         # ---- Alg. 3: the history reservoir (reconnected if the visible point moved), then the new sample ----
         out = reservoir_empty()
         sel = gi_sample_none()
-        t_p = target_shifted(scene, si, wo, s_p, target_mode, moved)
-        if not accept_p:
-            t_p = 0.0
-        out = reservoir_merge(out, r_p, r_p.confidence, t_p, shift_jacobian(scene, si_p, wo_p, si, wo, s_p, use_jacobian), random_uniform(key, 0))
+        sh = reconnect(scene, si_p, wo_p, si, wo, s_p, target_mode, moved, use_jacobian, max_jacobian)
+        out = reservoir_merge(out, r_p, r_p.confidence, sh.target, sh.jacobian, random_uniform(key, 0))
         if out.selected:
             sel = s_p
         out = reservoir_merge(out, r_new, r_new.confidence, r_new.target, 1.0, random_uniform(key, 1))
@@ -684,9 +730,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
             sel = s_new
         # ---- W = w / (Z p̂): Z counts the domains that can produce the kept sample (Alg. 3 l. 6 with Alg. 4's Z) ----
         z = support_count_term(r_new.confidence, out.target)
-        if sel.valid != 0 and domain_supports(scene, si_p, wo_p, sel, target_mode, unbiased * moved) != 0 and (
-            unbiased == 0 or shift_accepted(scene, si_p, wo_p, si, wo, sel, max_jacobian)
-        ):
+        if sel.valid != 0 and domain_counts(scene, si_p, wo_p, si, wo, sel, target_mode, unbiased * moved, unbiased, max_jacobian):
             z += r_p.confidence
         out = reservoir_finalize_mis(out, support_mis(1.0, out.target, z))
         res_out[y, x] = out
@@ -743,10 +787,8 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
                 r_h.confidence = confidence_capped(r_h.confidence, spatial_cap)
                 c_s = r_h.confidence
                 moved = int(wp.length_sq(si_h.p - si.p) > 0.0)
-                t_h = target_shifted(scene, si, wo, s_h, target_mode, moved)
-                if not shift_accepted(scene, si_h, wo_h, si, wo, s_h, max_jacobian):
-                    t_h = 0.0
-                out = reservoir_merge(out, r_h, c_s, t_h, shift_jacobian(scene, si_h, wo_h, si, wo, s_h, use_jacobian), random_uniform(key, 0))
+                sh = reconnect(scene, si_h, wo_h, si, wo, s_h, target_mode, moved, use_jacobian, max_jacobian)
+                out = reservoir_merge(out, r_h, c_s, sh.target, sh.jacobian, random_uniform(key, 0))
                 if out.selected:
                     sel = s_h
         # ---- this pixel's temporal reservoir ----
@@ -780,10 +822,8 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
                 wo_n = sf.wo_prev[nb.y, nb.x]
                 c_n = confidence_capped(r_n.confidence, spatial_cap)
             r_n.confidence = c_n
-            t_n = target_shifted(scene, si, wo, s_n, target_mode, 1)  # Alg. 4 l. 11–12
-            if not shift_accepted(scene, si_n, wo_n, si, wo, s_n, max_jacobian):
-                t_n = 0.0
-            out = reservoir_merge(out, r_n, c_n, t_n, shift_jacobian(scene, si_n, wo_n, si, wo, s_n, use_jacobian), random_uniform(key, 4 * it + 10))
+            sh = reconnect(scene, si_n, wo_n, si, wo, s_n, target_mode, 1, use_jacobian, max_jacobian)  # Alg. 4 l. 11–12
+            out = reservoir_merge(out, r_n, c_n, sh.target, sh.jacobian, random_uniform(key, 4 * it + 10))
             if out.selected:
                 sel = s_n
         # ---- Alg. 4 l. 15–19: Z = confidence of the domains that can produce the kept sample ----
@@ -791,9 +831,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         if sel.valid != 0:
             if c_s > 0.0:
                 moved = int(wp.length_sq(si_h.p - si.p) > 0.0)
-                if domain_supports(scene, si_h, wo_h, sel, target_mode, unbiased * moved) != 0 and (
-                    unbiased == 0 or shift_accepted(scene, si_h, wo_h, si, wo, sel, max_jacobian)
-                ):
+                if domain_counts(scene, si_h, wo_h, si, wo, sel, target_mode, unbiased * moved, unbiased, max_jacobian):
                     z += c_s
             rejections = int(0)
             for it in range(iterations):
@@ -812,9 +850,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
                 else:
                     r_n = res_t[nb.y, nb.x]
                     c_n = confidence_capped(r_n.confidence, temporal_cap)
-                if c_n > 0.0 and domain_supports(scene, si_n, wo_n, sel, target_mode, unbiased) != 0 and (
-                    unbiased == 0 or shift_accepted(scene, si_n, wo_n, si, wo, sel, max_jacobian)
-                ):
+                if c_n > 0.0 and domain_counts(scene, si_n, wo_n, si, wo, sel, target_mode, unbiased, unbiased, max_jacobian):
                     z += c_n
         out = reservoir_finalize_mis(out, support_mis(1.0, out.target, z))
         res_out[y, x] = out
