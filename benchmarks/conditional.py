@@ -40,7 +40,6 @@ Writes ``conditional.json`` and ``conditional.png`` to ``--out`` (default
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import os
@@ -54,12 +53,10 @@ import numpy as np
 import warp as wp
 
 import grisx
-from grisx.device import resolve_device
-from grisx.errors import GrisxError
 from grisx.theory.toys import run_toy
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from toys import cpu_model, ladder  # noqa: E402  (benchmarks/toys.py: the shared trial ladder and CPU-model probe)
+from toys import cpu_model, ladder, ladder_parser, ladder_setup  # noqa: E402  (benchmarks/toys.py: the shared trial ladder, its options and the CPU-model probe)
 
 #: (label, problem, method, params) of every benchmarked variant; the first is the baseline
 VARIANTS: tuple[tuple[str, str, str, dict[str, Any]], ...] = (
@@ -189,25 +186,8 @@ def plot(rows: list[dict[str, Any]], summary: list[dict[str, Any]], path: Path, 
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--out", default=str(Path(__file__).resolve().parent / "results"), help="output directory (default benchmarks/results/)")
-    parser.add_argument("--device", default="cpu", help="cpu, cuda or cuda:N (default cpu)")
-    parser.add_argument("--max-trials", type=float, default=None, help="largest trial count (default 3e5; 3e4 with --quick)")
-    parser.add_argument("--quick", action="store_true", help="small ladder for a smoke test")
-    parser.add_argument("--repeats", type=int, default=3, help="runs per point; the fastest is kept (default 3)")
-    parser.add_argument("--seed", type=int, default=0)
-    args = parser.parse_args(argv)
-    max_trials = int(args.max_trials) if args.max_trials else (30_000 if args.quick else 300_000)
-    if max_trials < 1 or args.repeats < 1:
-        print("conditional.py: error: --max-trials and --repeats must be positive", file=sys.stderr)
-        return 2
-    try:
-        device = resolve_device(args.device)
-    except GrisxError as exc:
-        print(f"conditional.py: error: {exc}", file=sys.stderr)
-        return 2
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    parser = ladder_parser(__doc__.split("\n\n")[0], default_trials=300_000, quick_trials=30_000)
+    args, device, out, max_trials = ladder_setup(parser, argv, min_trials=1)
     counts = ladder(max_trials, LADDER)
     print(f"device {device} ({cpu_model() if device.is_cpu else device.name}), warp {wp.config.version}, numpy {np.__version__}, seed {args.seed}")
     print(f"trial ladder {counts}, best of {args.repeats}")

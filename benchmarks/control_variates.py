@@ -38,7 +38,6 @@ Writes ``control_variates.json`` and ``control_variates.png`` to ``--out``
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import platform
@@ -51,12 +50,11 @@ import numpy as np
 import warp as wp
 
 import grisx
-from grisx.device import resolve_device
 from grisx.errors import GrisxError
 from grisx.theory.toys import run_toy
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from toys import cpu_model, ladder  # noqa: E402  (benchmarks/toys.py: the shared trial ladder and CPU-model probe)
+from toys import cpu_model, ladder, ladder_parser, ladder_setup  # noqa: E402  (benchmarks/toys.py: the shared trial ladder, its options and the CPU-model probe)
 
 PROBLEM = "chromatic-cv"
 #: (label, method, params) of every benchmarked estimator
@@ -184,28 +182,11 @@ def plot(rows: list[dict[str, Any]], summary: list[dict[str, Any]], path: Path, 
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--out", default=str(Path(__file__).resolve().parent / "results"), help="output directory (default benchmarks/results/)")
-    parser.add_argument("--device", default="cpu", help="cpu, cuda or cuda:N (default cpu)")
-    parser.add_argument("--max-trials", type=float, default=None, help="largest trial count (default 3000; 300 with --quick)")
-    parser.add_argument("--quick", action="store_true", help="small ladder (100, 300 trials) for a smoke test")
-    parser.add_argument("--repeats", type=int, default=3, help="runs per point; the fastest is kept (default 3)")
-    parser.add_argument("--seed", type=int, default=0)
+    parser = ladder_parser(__doc__.split("\n\n")[0], default_trials=3000, quick_trials=300, quick_help="small ladder (100, 300 trials) for a smoke test")
     parser.add_argument("--size", type=int, default=16, help="image width = height (default 16)")
     parser.add_argument("--frames", type=int, default=8, help="static frames per trial (default 8)")
-    args = parser.parse_args(argv)
-    max_trials = int(args.max_trials) if args.max_trials is not None else (300 if args.quick else 3000)
-    if max_trials < 100 or args.repeats < 1:
-        print("control_variates.py: error: --max-trials must be >= 100 and --repeats >= 1", file=sys.stderr)
-        return 2
-    try:
-        device = resolve_device(args.device)
-    except GrisxError as exc:
-        print(f"control_variates.py: error: {exc}", file=sys.stderr)
-        return 2
+    args, device, out, max_trials = ladder_setup(parser, argv, min_trials=100)
     scene = {"size": args.size, "frames": args.frames}
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
     counts = ladder(max_trials, LADDER)
     print(f"device {device} ({cpu_model() if device.is_cpu else device.name}), warp {wp.config.version}, numpy {np.__version__}, seed {args.seed}")
     print(f"{PROBLEM} {scene}, trial ladder {counts}, best of {args.repeats}")

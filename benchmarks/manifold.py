@@ -39,7 +39,6 @@ Writes ``manifold.json`` and ``manifold.png`` to ``--out`` (default
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import os
@@ -53,12 +52,10 @@ import numpy as np
 import warp as wp
 
 import grisx
-from grisx.device import resolve_device
-from grisx.errors import GrisxError
 from grisx.theory.toys import run_toy
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from toys import cpu_model, ladder  # noqa: E402  (benchmarks/toys.py: the shared trial ladder and CPU-model probe)
+from toys import cpu_model, ladder, ladder_parser, ladder_setup  # noqa: E402  (benchmarks/toys.py: the shared trial ladder, its options and the CPU-model probe)
 
 PROBLEM = "sms-toy"
 BASELINE = "SMS"
@@ -192,25 +189,8 @@ def plot(rows: list[dict[str, Any]], summary: list[dict[str, Any]], path: Path, 
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--out", default=str(Path(__file__).resolve().parent / "results"), help="output directory (default benchmarks/results/)")
-    parser.add_argument("--device", default="cpu", help="cpu, cuda or cuda:N (default cpu)")
-    parser.add_argument("--max-trials", type=float, default=None, help="largest trial count of the ladder (default 1e5; 1e4 with --quick)")
-    parser.add_argument("--quick", action="store_true", help="small ladder (up to 1e4 trials) for a smoke test")
-    parser.add_argument("--repeats", type=int, default=1, help="runs per point; the fastest is kept (default 1)")
-    parser.add_argument("--seed", type=int, default=0)
-    args = parser.parse_args(argv)
-    max_trials = int(args.max_trials) if args.max_trials is not None else (10_000 if args.quick else 100_000)
-    if max_trials < 1000 or args.repeats < 1:
-        print("manifold.py: error: --max-trials must be >= 1000 and --repeats >= 1", file=sys.stderr)
-        return 2
-    try:
-        device = resolve_device(args.device)
-    except GrisxError as exc:
-        print(f"manifold.py: error: {exc}", file=sys.stderr)
-        return 2
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    parser = ladder_parser(__doc__.split("\n\n")[0], default_trials=100_000, quick_trials=10_000, repeats=1)
+    args, device, out, max_trials = ladder_setup(parser, argv, min_trials=1000)
     counts = ladder(max_trials, LADDER)
     device_name = cpu_model() if device.is_cpu else device.name
     print(f"device {device} ({device_name}), warp {wp.config.version}, numpy {np.__version__}, seed {args.seed}")

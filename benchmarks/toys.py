@@ -198,6 +198,37 @@ def ladder(max_trials: int, steps: tuple[int, ...] = LADDER) -> list[int]:
     return counts
 
 
+def ladder_parser(description: str, *, default_trials: int, quick_trials: int, repeats: int = 3, quick_help: str = "small ladder for a smoke test") -> argparse.ArgumentParser:
+    """The options every trial-ladder benchmark shares: --out, --device, --max-trials, --quick, --repeats, --seed."""
+    parser = argparse.ArgumentParser(description=description)
+    parser.add_argument("--out", default=str(Path(__file__).resolve().parent / "results"), help="output directory (default benchmarks/results/)")
+    parser.add_argument("--device", default="cpu", help="cpu, cuda or cuda:N (default cpu)")
+    parser.add_argument(
+        "--max-trials", type=float, default=None, help=f"largest trial count of the ladder (default {default_trials:g}; {quick_trials:g} with --quick)"
+    )
+    parser.add_argument("--quick", action="store_true", help=quick_help)
+    parser.add_argument("--repeats", type=int, default=repeats, help=f"runs per point; the fastest is kept (default {repeats})")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.set_defaults(trials=(default_trials, quick_trials))
+    return parser
+
+
+def ladder_setup(parser: argparse.ArgumentParser, argv: list[str] | None, *, min_trials: int) -> tuple[argparse.Namespace, Any, Path, int]:
+    """Parse ``argv``; check the ladder's size, resolve the device, create --out. Bad input: one line, exit 2."""
+    args = parser.parse_args(argv)
+    default_trials, quick_trials = args.trials
+    max_trials = int(args.max_trials) if args.max_trials is not None else (quick_trials if args.quick else default_trials)
+    if max_trials < min_trials or args.repeats < 1:
+        parser.exit(2, f"{parser.prog}: error: --max-trials must be >= {min_trials} and --repeats >= 1\n")
+    try:
+        device = resolve_device(args.device)
+    except GrisxError as exc:
+        parser.exit(2, f"{parser.prog}: error: {exc}\n")
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    return args, device, out, max_trials
+
+
 def run_method(problem: str, label: str, method: str, params: dict[str, Any], trials: int, seed: int, device: str, repeats: int) -> dict[str, Any]:
     runs = [run_toy(problem, method, trials=trials, seed=seed, params=params, device=device) for _ in range(repeats)]
     e = runs[0]
@@ -337,25 +368,8 @@ def plot(rows: list[dict[str, Any]], summary: list[dict[str, Any]], anchor_resul
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--out", default=str(Path(__file__).resolve().parent / "results"), help="output directory (default benchmarks/results/)")
-    parser.add_argument("--device", default="cpu", help="cpu, cuda or cuda:N (default cpu)")
-    parser.add_argument("--max-trials", type=float, default=None, help="largest trial count of the ladder (default 1e6; 1e5 with --quick)")
-    parser.add_argument("--quick", action="store_true", help="small ladder (up to 1e5 trials) for a smoke test")
-    parser.add_argument("--repeats", type=int, default=3, help="runs per point; the fastest is kept (default 3)")
-    parser.add_argument("--seed", type=int, default=0)
-    args = parser.parse_args(argv)
-    max_trials = int(args.max_trials) if args.max_trials is not None else (100_000 if args.quick else 1_000_000)
-    if max_trials < 1000 or args.repeats < 1:
-        print("toys.py: error: --max-trials must be >= 1000 and --repeats >= 1", file=sys.stderr)
-        return 2
-    try:
-        device = resolve_device(args.device)
-    except GrisxError as exc:
-        print(f"toys.py: error: {exc}", file=sys.stderr)
-        return 2
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    parser = ladder_parser(__doc__.split("\n\n")[0], default_trials=1_000_000, quick_trials=100_000)
+    args, device, out, max_trials = ladder_setup(parser, argv, min_trials=1000)
     counts = ladder(max_trials)
     print(f"device {device} ({cpu_model() if device.is_cpu else device.name}), warp {wp.config.version}, numpy {np.__version__}, seed {args.seed}")
     print(f"trial ladder {counts}, best of {args.repeats}")
