@@ -124,30 +124,28 @@ def make_trace_path(kinds: frozenset[int]) -> Any:
             si = intersect(scene, o, d, 1.0e30)
             c = 8 * depth
             # ---- emission reached by the previous BSDF sample (or the camera ray) ----
+            le = wp.vec3(0.0, 0.0, 0.0)
             if si.valid == 0:
                 le = environment_eval(scene.lights, d)
-                if wp.length_sq(le) > 0.0:
-                    w = float(1.0)
-                    if prev_delta == 0:
-                        if not use_bsdf_emission:
-                            w = 0.0
-                        elif use_nee:
-                            w = power_heuristic(prev_pdf, environment_pdf(scene.lights, d))
-                    L += wp.cw_mul(beta, le) * w
-                    if record != 0:
-                        out.bs_li += wp.cw_mul(gamma, le) * w
-                break
-            le = emitter_radiance(scene.lights, si.tri, si.ng, -d)
+            else:
+                le = emitter_radiance(scene.lights, si.tri, si.ng, -d)
             if wp.length_sq(le) > 0.0:
                 w = float(1.0)
                 if prev_delta == 0:
                     if not use_bsdf_emission:
                         w = 0.0
                     elif use_nee:
-                        w = power_heuristic(prev_pdf, light_pdf_emitter(scene.lights, si.tri, prev_p, si.p, si.ng))
+                        light_pdf = float(0.0)  # the density NEE would have picked this emitter point with
+                        if si.valid == 0:
+                            light_pdf = environment_pdf(scene.lights, d)
+                        else:
+                            light_pdf = light_pdf_emitter(scene.lights, si.tri, prev_p, si.p, si.ng)
+                        w = power_heuristic(prev_pdf, light_pdf)
                 L += wp.cw_mul(beta, le) * w
                 if record != 0:
                     out.bs_li += wp.cw_mul(gamma, le) * w
+            if si.valid == 0:
+                break
             if depth + 1 == prefix_depth:
                 out.prefix = L  # a path of max_depth = prefix_depth would stop here
                 out.bs_li_prefix = out.bs_li
