@@ -238,6 +238,16 @@ class GIEval:
 
 
 @wp.struct
+class NeighborDomain:
+    """A neighbour's reservoir (confidence capped), its sample and its visible point."""
+
+    res: Reservoir
+    sample: GISample
+    si: SurfaceInteraction
+    wo: wp.vec3
+
+
+@wp.struct
 class GIShift:
     """A sample reconnected at another visible point: its target there and its weight's Jacobian."""
 
@@ -512,6 +522,35 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         a = luminance(lo)
         b = luminance(s.lo)
         return wp.abs(a - b) <= tolerance * wp.max(wp.max(a, b), 1.0e-6)
+
+    @wp.func
+    def neighbor_domain(
+        sf: ScreenFrame,
+        nb: NeighborPixel,
+        from_spatial: int,
+        temporal_cap: float,
+        spatial_cap: float,
+        res_t: wp.array2d(dtype=Reservoir),
+        s_t: wp.array2d(dtype=GISample),
+        res_s_prev: wp.array2d(dtype=Reservoir),
+        s_s_prev: wp.array2d(dtype=GISample),
+    ) -> NeighborDomain:
+        """Neighbour ``nb``'s reservoir (confidence capped), sample and visible point: this frame's temporal
+        reservoir, or last frame's spatial one for a pixel still low on confidence (Fig. 10)."""
+        n = NeighborDomain()
+        if from_spatial != 0:
+            n.res = res_s_prev[nb.y, nb.x]
+            n.sample = s_s_prev[nb.y, nb.x]
+            n.si = sf.si_prev[nb.y, nb.x]
+            n.wo = sf.wo_prev[nb.y, nb.x]
+            n.res.confidence = confidence_capped(n.res.confidence, spatial_cap)
+        else:
+            n.res = res_t[nb.y, nb.x]
+            n.sample = s_t[nb.y, nb.x]
+            n.si = sf.si[nb.y, nb.x]
+            n.wo = sf.wo[nb.y, nb.x]
+            n.res.confidence = confidence_capped(n.res.confidence, temporal_cap)
+        return n
 
     @wp.func
     def pick_neighbor(
@@ -810,22 +849,11 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
             if nb.valid == 0:
                 rejections += 1
                 continue
-            r_n = res_t[nb.y, nb.x]
-            s_n = s_t[nb.y, nb.x]
-            si_n = sf.si[nb.y, nb.x]
-            wo_n = sf.wo[nb.y, nb.x]
-            c_n = confidence_capped(r_n.confidence, temporal_cap)
-            if from_spatial != 0:
-                r_n = res_s_prev[nb.y, nb.x]
-                s_n = s_s_prev[nb.y, nb.x]
-                si_n = sf.si_prev[nb.y, nb.x]
-                wo_n = sf.wo_prev[nb.y, nb.x]
-                c_n = confidence_capped(r_n.confidence, spatial_cap)
-            r_n.confidence = c_n
-            sh = reconnect(scene, si_n, wo_n, si, wo, s_n, target_mode, 1, use_jacobian, max_jacobian)  # Alg. 4 l. 11–12
-            out = reservoir_merge(out, r_n, c_n, sh.target, sh.jacobian, random_uniform(key, 4 * it + 10))
+            n = neighbor_domain(sf, nb, from_spatial, temporal_cap, spatial_cap, res_t, s_t, res_s_prev, s_s_prev)
+            sh = reconnect(scene, n.si, n.wo, si, wo, n.sample, target_mode, 1, use_jacobian, max_jacobian)  # Alg. 4 l. 11–12
+            out = reservoir_merge(out, n.res, n.res.confidence, sh.target, sh.jacobian, random_uniform(key, 4 * it + 10))
             if out.selected:
-                sel = s_n
+                sel = n.sample
         # ---- Alg. 4 l. 15–19: Z = confidence of the domains that can produce the kept sample ----
         z = support_count_term(r_t.confidence, out.target)
         if sel.valid != 0:
@@ -839,19 +867,9 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
                 if nb.valid == 0:
                     rejections += 1
                     continue
-                c_n = float(0.0)
-                si_n = sf.si[nb.y, nb.x]
-                wo_n = sf.wo[nb.y, nb.x]
-                if from_spatial != 0:
-                    r_n = res_s_prev[nb.y, nb.x]
-                    c_n = confidence_capped(r_n.confidence, spatial_cap)
-                    si_n = sf.si_prev[nb.y, nb.x]
-                    wo_n = sf.wo_prev[nb.y, nb.x]
-                else:
-                    r_n = res_t[nb.y, nb.x]
-                    c_n = confidence_capped(r_n.confidence, temporal_cap)
-                if c_n > 0.0 and domain_counts(scene, si_n, wo_n, si, wo, sel, target_mode, unbiased, unbiased, max_jacobian):
-                    z += c_n
+                n = neighbor_domain(sf, nb, from_spatial, temporal_cap, spatial_cap, res_t, s_t, res_s_prev, s_s_prev)
+                if n.res.confidence > 0.0 and domain_counts(scene, n.si, n.wo, si, wo, sel, target_mode, unbiased, unbiased, max_jacobian):
+                    z += n.res.confidence
         out = reservoir_finalize_mis(out, support_mis(1.0, out.target, z))
         res_out[y, x] = out
         s_out[y, x] = sel
