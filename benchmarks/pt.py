@@ -37,7 +37,7 @@ from grisx.device import resolve_device, synchronize
 from grisx.errors import GrisxError
 from grisx.scene.builtin import build_builtin
 from grisx.scene.material import MATERIAL_KINDS
-from grisx.scene.pt import PathTracer
+from grisx.render.pt import PathTracer
 
 SCENES = ("cornell-box", "door-ajar")
 

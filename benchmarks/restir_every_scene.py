@@ -47,7 +47,7 @@ METHODS = (
 
 def render_scene(scene: str, device: str, res: tuple[int, int], frames: int, out: Path) -> dict[str, Any]:
     """Render ``scene`` with every method; save each last frame as .npy for the contact sheet."""
-    from grisx.scene.render import render
+    from grisx.render.driver import render
 
     rows = {}
     for label, method, params in METHODS:
@@ -107,7 +107,7 @@ def main(argv: list[str] | None = None) -> int:
     from grisx.device import resolve_device
     from grisx.errors import GrisxError
     from grisx.scene.builtin import BUILTIN_SCENES
-    from grisx.scene.render import parse_res
+    from grisx.render.driver import parse_res
 
     try:
         dev = resolve_device(args.device)

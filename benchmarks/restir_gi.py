@@ -55,9 +55,9 @@ import grisx
 from grisx.device import resolve_device, synchronize
 from grisx.errors import GrisxError
 from grisx.scene.builtin import build_builtin
-from grisx.scene.pt import PathTracer
-from grisx.scene.render import PassTimer
-from grisx.scene.restir_gi import ReSTIRGI
+from grisx.render.pt import PathTracer
+from grisx.render.driver import PassTimer
+from grisx.render.restir_gi import ReSTIRGI
 
 SCENES = ("cornell-box", "door-ajar", "glossy-room")
 #: the unbiased (reconnections with |J| > 10 rejected, the default) and biased variants, and the paper's unbiased one (no rejection)

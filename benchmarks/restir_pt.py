@@ -15,7 +15,7 @@ so that the reference (``max_depth`` 10 too) is the limit of every method:
 * ``restir-pt`` with ``shift=hybrid``, ``reconnection`` and ``replay``
   (1 initial candidate, temporal reuse, one spatial round of 3 neighbours in
   20 px: the real-time setting);
-* ``restir-gi`` (issue 10), when ``grisx.scene.restir_gi`` is present.
+* ``restir-gi`` (issue 10), when ``grisx.render.restir_gi`` is present.
 
 Because ReSTIR is built for frames that are good *on their own* (its frames
 are correlated, so averaging them converges more slowly than averaging
@@ -26,7 +26,7 @@ its ratio to pt's, and the **per-frame efficiency ratio**
 
 A second pass measures **frame time**: ``--timed-frames`` frames of each
 method at the study resolution (CPU) or 1920×1080 (CUDA; ``--frame-res``),
-per-pass seconds from the renderer's :class:`~grisx.scene.render.PassTimer`
+per-pass seconds from the renderer's :class:`~grisx.render.driver.PassTimer`
 (device synchronized around every pass), the first frame (compilation,
 empty history) excluded.
 
@@ -78,14 +78,14 @@ def methods(with_gi: bool) -> list[tuple[str, str, dict[str, Any]]]:
 def has_restir_gi() -> bool:
     import importlib.util
 
-    from grisx.scene.render import METHODS
+    from grisx.render.driver import METHODS
 
-    return "restir-gi" in METHODS and importlib.util.find_spec("grisx.scene.restir_gi") is not None
+    return "restir-gi" in METHODS and importlib.util.find_spec("grisx.render.restir_gi") is not None
 
 
 def frame_times(scene: str, specs: list[tuple[str, str, dict[str, Any]]], res: tuple[int, int], device: str, frames: int, seed: int) -> list[dict[str, Any]]:
     """Seconds per frame and per pass (the first frame excluded) of each method."""
-    from grisx.scene.render import render
+    from grisx.render.driver import render
 
     out = []
     for label, method, params in specs:
@@ -180,8 +180,8 @@ def main(argv: list[str] | None = None) -> int:
     cuda = dev.is_cuda
     from grisx.eval.runner import MethodSpec, render_study
     from grisx.scene.builtin import BUILTIN_SCENES
-    from grisx.scene.reference import reference
-    from grisx.scene.render import parse_res, render
+    from grisx.render.reference import reference
+    from grisx.render.driver import parse_res, render
 
     scenes = args.scenes.split(",") if args.scenes else (list(QUICK_SCENES) if args.quick else list(BUILTIN_SCENES))
     res = parse_res(args.res or ("640x360" if cuda else ("48x48" if args.quick else "96x96")))

@@ -107,7 +107,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     from grisx.eval.cli import add_parser as add_eval_parser
     from grisx.poisson.cli import add_parser as add_poisson_parser
-    from grisx.scene.cli import add_parsers as add_scene_parsers
+    from grisx.render.cli import add_parsers as add_scene_parsers
 
     add_poisson_parser(sub)
     add_scene_parsers(sub, _key_value, _count, _seed)

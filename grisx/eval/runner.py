@@ -19,15 +19,15 @@ each method reaches in the baseline's time.
 Render study
 ------------
 :func:`render_study` renders each scene with each method through the renderer
-interface of :mod:`grisx.scene.render` (injectable, for tests and other
+interface of :mod:`grisx.render.driver` (injectable, for tests and other
 renderers)::
 
     render(scene, method, *, spp, frames, accumulate, res, device, seed, params, on_frame) -> RenderResult
     reference(scene, *, res, spp, device, seed) -> (H, W, 3) float32, or a record with
         .image and .variance (the variance of the reference's mean, per pixel)
 
-By default these are :func:`grisx.scene.render.render` and
-:func:`grisx.scene.reference.reference` (the cached high-spp path tracer).
+By default these are :func:`grisx.render.driver.render` and
+:func:`grisx.render.reference.reference` (the cached high-spp path tracer).
 With a variance, the study records ``reference_noise``: the MSE and relMSE
 that the reference's own noise adds, in expectation, to every measured error
 (an error curve flattening near it has reached the reference's accuracy).
@@ -362,14 +362,14 @@ class _BudgetSpent(Exception):
 def _default_render() -> tuple[Callable[..., Any], Callable[..., Any]]:
     """grisx's renderer and its cached path-traced reference (with per-pixel variance where available)."""
     try:
-        from grisx.scene.render import render
+        from grisx.render.driver import render
     except ImportError as exc:
-        raise GrisxError(f"no renderer available (grisx.scene.render: {exc})") from None
+        raise GrisxError(f"no renderer available (grisx.render.driver: {exc})") from None
     try:
-        from grisx.scene.reference import reference  # returns the image and the variance of its mean
+        from grisx.render.reference import reference  # returns the image and the variance of its mean
     except ImportError:
         try:
-            from grisx.scene.render import reference_image as reference
+            from grisx.render.driver import reference_image as reference
         except ImportError as exc:
             raise GrisxError(f"no reference renderer available: {exc}") from None
     return render, reference
@@ -395,9 +395,9 @@ def _safe_name(text: str) -> str:
 
 
 def _method_spec(method: str) -> Any:
-    """The registered :class:`~grisx.scene.render.RenderMethod` (None for unknown or fake renderers)."""
+    """The registered :class:`~grisx.render.driver.RenderMethod` (None for unknown or fake renderers)."""
     try:
-        from grisx.scene.render import METHODS
+        from grisx.render.driver import METHODS
     except ImportError:  # no scene layer: fake renderers in tests
         return None
     return METHODS.get(method)

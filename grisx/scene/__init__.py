@@ -1,1 +1,1 @@
-"""Scene layer: Warp scenes, loaders and renderers that call the estimator core in grisx.theory (see DESIGN.md)."""
+"""Scene layer: what a scene *is* — builder and BVH, shapes, Mitsuba XML loader, built-in scenes, camera, BSDFs, lights, textures, G-buffer. Renderers live in :mod:`grisx.render` (see DESIGN.md)."""

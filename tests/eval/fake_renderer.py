@@ -1,4 +1,4 @@
-"""A fake renderer implementing grisx.scene.render's interface: noisy copies of a known image.
+"""A fake renderer implementing grisx.render.driver's interface: noisy copies of a known image.
 
 Frame f of method ``noisy`` is ``ref · (1 + σ·n_f / √spp)`` with n_f standard normal per pixel and
 channel, so each frame is unbiased and the error of the running average is known in closed form;
@@ -56,7 +56,7 @@ class FakeRenderer:
         self.reference_variance = reference_variance
 
     def reference(self, scene: str, *, res=None, spp: int = 1, device: str = "cpu", seed: int = 0):
-        """The known image, or with ``reference_variance`` a record (image, variance) as grisx.scene.reference gives."""
+        """The known image, or with ``reference_variance`` a record (image, variance) as grisx.render.reference gives."""
         self.calls.append({"reference": scene, "seed": seed, "spp": spp})
         if self.reference_variance is None:
             return known_image(res)

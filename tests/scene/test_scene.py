@@ -367,7 +367,7 @@ def test_fov_is_positive():
 def test_mitsuba_xml_cornell_box_matches_the_builtin_one():
     from pathlib import Path
 
-    from grisx.scene.render import render
+    from grisx.render.driver import render
 
     xml = Path(__file__).parent / "data" / "cornell_box.xml"
     views = [render(str(s), "gbuffer", res=(32, 32)).extra for s in (xml, "cornell-box")]

@@ -14,7 +14,7 @@ Sec. 4–5); each frame runs the phases of its Figure 4:
 1. **Initial sampling** (Alg. 2). A direction from the source pdf p_q —
    ``source=uniform`` (default, the paper's choice), ``cosine`` or ``bsdf`` —
    a ray to x_s, and L_r at x_s by **path tracing with NEE and MIS**: the
-   reference path tracer's own ``trace_path`` (:func:`grisx.scene.pt.make_trace_path`)
+   reference path tracer's own ``trace_path`` (:func:`grisx.render.pt.make_trace_path`)
    started at x_v toward x_s, minus the emission at x_s. The **Sample** record
    of Fig. 3 keeps the visible point and normal, the sample point and its
    normal, the outgoing radiance and the path's random key.
@@ -50,7 +50,7 @@ diffuse sample points, biased for glossy ones.
 
 **exact_bsdf=true** re-evaluates x_s's BSDF toward each visible point that
 reuses the sample. The path at x_s keeps its two techniques apart
-(:class:`~grisx.scene.pt.PathRadiance` records: the NEE direction and its
+(:class:`~grisx.render.pt.PathRadiance` records: the NEE direction and its
 radiance × MIS weight / pdf, the continuation's direction and all it gathers
 over its pdf), so L_r(x_s → x_v') = f(x_v' ← x_s ← ω_nee) L_nee +
 f(x_v' ← x_s ← ω_bs) L_bs. For this to be one function of the sample whatever
@@ -108,7 +108,7 @@ every sixth frame 3–4× as slow as the others.
 
 **Direct light.** ``direct=nee``: the path tracer's two first segments at the
 visible point's camera ray (emission + NEE and BSDF sampling with MIS); ``direct=restir-di``:
-:class:`~grisx.scene.restir_di.ReSTIRDI` on the same G-buffer. Visible points
+:class:`~grisx.render.restir_di.ReSTIRDI` on the same G-buffer. Visible points
 with delta or rough-dielectric BSDFs (mirrors, glass: transmission leaves the
 sampled hemisphere) are path traced instead, with no reservoir.
 
@@ -136,8 +136,8 @@ from grisx.scene.bsdf import MATERIAL_ROUGH_DIELECTRIC, cosine_hemisphere_pdf, m
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.gbuffer import GBuffer, GBufferData, gbuffer_kernel
 from grisx.scene.lights import emitter_radiance, environment_eval, luminance
-from grisx.scene.pt import STRATEGIES, make_trace_path
-from grisx.scene.restir_di import (
+from grisx.render.pt import STRATEGIES, make_trace_path
+from grisx.render.restir_di import (
     ReSTIRDI,
     ScreenFrame,
     ScreenSpaceRenderer,
@@ -147,7 +147,7 @@ from grisx.scene.restir_di import (
     visible_normal,
     write_pixel,
 )
-from grisx.scene.reuse import (
+from grisx.render.reuse import (
     SIMILARITY_DEPTH,
     SIMILARITY_NORMAL_COS,
     DoubleBuffer,

@@ -20,9 +20,9 @@ import pytest
 
 from grisx.errors import InvalidParameterError
 from grisx.scene.builtin import BUILTIN_SCENES, build_builtin
-from grisx.scene.pt import PathTracer
-from grisx.scene.render import render
-from grisx.scene.restir_gi import ReSTIRGI
+from grisx.render.pt import PathTracer
+from grisx.render.driver import render
+from grisx.render.restir_gi import ReSTIRGI
 from grisx.testing import BIASED_K, DEFAULT_K, independent_runs, z_test
 
 W, H = 12, 9
@@ -138,7 +138,7 @@ def _shade(r: ReSTIRGI) -> np.ndarray:
     """Re-run only the shading of the last frame with the renderer's (possibly edited) initial samples."""
     import warp as wp
 
-    from grisx.scene.restir_di import screen_frame
+    from grisx.render.restir_di import screen_frame
 
     sf = screen_frame(r.gbuffer, r.seed, r.frames_rendered - 1)
     wp.launch(

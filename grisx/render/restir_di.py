@@ -23,7 +23,7 @@ an integral over points y on the lights. ReSTIR DI estimates it with a
    reservoir's target is p̂·V.
 3. **Temporal reuse.** The previous frame's final reservoir at the
    reprojected pixel (integer motion vector, G-buffer similarity test of
-   :mod:`grisx.scene.reuse`) is merged with the new one; its confidence is
+   :mod:`grisx.render.reuse`) is merged with the new one; its confidence is
    capped at 20 (the history cap).
 4. **Spatial reuse.** 5 neighbours uniformly within 30 px that pass the
    similarity test are merged into the temporal result.
@@ -59,7 +59,7 @@ the emitter from its own side; lights are assumed not to move (a stored point
 on a moving light would be stale).
 
 **What the image shows.** Emission seen at the visible point plus direct
-light — what :mod:`grisx.scene.pt` shows with ``max_depth=2``. The visible
+light — what :mod:`grisx.render.pt` shows with ``max_depth=2``. The visible
 point is a fresh uniform point of its pixel each frame (``jitter=true``, the
 default: the box-filtered pixel ``pt`` estimates), or the pixel centre
 (``jitter=false``, reference ``PathTracer(..., jitter=False, max_depth=2)``). Visible points on delta BSDFs
@@ -95,7 +95,7 @@ from grisx.scene.lights import (
     luminance,
     sample_light,
 )
-from grisx.scene.reuse import (
+from grisx.render.reuse import (
     SIMILARITY_DEPTH,
     SIMILARITY_NORMAL_COS,
     DoubleBuffer,

@@ -30,7 +30,7 @@ __all__ = ["add_parsers", "write_outputs"]
 
 def add_parsers(sub: Any, key_value: Any, count: Any, seed: Any) -> None:
     """Register ``scenes`` and ``render`` on the top-level subparsers."""
-    from grisx.scene.render import METHODS
+    from grisx.render.driver import METHODS
 
     scenes = sub.add_parser("scenes", help="list the built-in scenes")
     scenes.add_argument("--json", action="store_true", help="print one JSON object")
@@ -111,8 +111,8 @@ def write_outputs(result: Any, out: Path, method: str) -> list[str]:
     from grisx import __version__
     from grisx.errors import GrisxError
     from grisx.imageio import write_exr, write_png
-    from grisx.scene.render import METHODS
-    from grisx.scene.views import display_image
+    from grisx.render.driver import METHODS
+    from grisx.render.views import display_image
 
     if out.suffix.lower() != ".exr":
         raise GrisxError(f"--out must name an .exr file, got '{out}'")
@@ -161,8 +161,8 @@ def _reference(args: argparse.Namespace) -> int:
 
     from grisx.errors import InvalidParameterError
     from grisx.imageio import write_png
-    from grisx.scene.reference import reference
-    from grisx.scene.render import parse_res
+    from grisx.render.reference import reference
+    from grisx.render.driver import parse_res
 
     out = Path(args.out) if args.out else None
     if out is not None and (out.suffix.lower() != ".exr" or not out.parent.is_dir()):
@@ -201,7 +201,7 @@ def _plain(v: Any) -> Any:
 
 def _render(args: argparse.Namespace) -> int:
     from grisx.errors import InvalidParameterError
-    from grisx.scene.render import parse_res, render
+    from grisx.render.driver import parse_res, render
 
     params: dict[str, Any] = {}
     for key, value in args.param:

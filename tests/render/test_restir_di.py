@@ -18,9 +18,9 @@ import pytest
 
 from grisx.errors import InvalidParameterError, UnknownNameError
 from grisx.scene.builtin import BUILTIN_SCENES, build_builtin
-from grisx.scene.pt import PathTracer
-from grisx.scene.render import render
-from grisx.scene.restir_di import ReSTIRDI
+from grisx.render.pt import PathTracer
+from grisx.render.driver import render
+from grisx.render.restir_di import ReSTIRDI
 from grisx.testing import BIASED_K, DEFAULT_K, independent_runs, z_test
 
 # a non-square film: the Cornell box's concave edges do not run through pixel centres

@@ -1,7 +1,7 @@
 """Reference images: high-sample path-traced images with per-pixel variance, cached on disk.
 
 Every convergence test and benchmark compares a renderer with a
-:func:`reference`: the path tracer (:mod:`grisx.scene.pt`) at many samples per
+:func:`reference`: the path tracer (:mod:`grisx.render.pt`) at many samples per
 pixel, together with the per-pixel variance of its mean (so a comparison can
 tell the reference's own noise from a renderer's error). References are
 cached under ``$GRISX_CACHE_DIR/references`` (default
@@ -73,8 +73,8 @@ def reference(
     from grisx import __version__
     from grisx.device import resolve_device
     from grisx.imageio import read_exr, write_exr
-    from grisx.scene.pt import PathTracer
-    from grisx.scene.render import load_scene
+    from grisx.render.pt import PathTracer
+    from grisx.render.driver import load_scene
 
     if isinstance(spp, bool) or not isinstance(spp, (int, np.integer)) or spp < 1:
         raise InvalidParameterError(f"spp must be a positive integer, got {spp!r}")

@@ -122,14 +122,14 @@ for _view, _doc in (
     ("depth", "camera-space depth of the primary hit"),
     ("motion", "motion vector into the previous frame, in pixels (EXR: dx, dy, 0)"),
 ):
-    register(RenderMethod(_view, _doc, "grisx.scene.views", "create_view", kind="debug"))
+    register(RenderMethod(_view, _doc, "grisx.render.views", "create_view", kind="debug"))
 
 
 register(
     RenderMethod(
         "pt",
         "reference path tracer: BSDF sampling + next-event estimation, power-heuristic MIS, Russian roulette",
-        "grisx.scene.pt",
+        "grisx.render.pt",
         "create_path_tracer",
         params=(
             Param("max_depth", 16, "longest path in segments, Mitsuba's meaning (1: emitters only, 2: + direct light, -1: unbounded); default: the scene's", kind="int", minimum=-1),
@@ -141,13 +141,13 @@ register(
 )
 
 
-# ---- restir-di / restir-gi (issue 10): registered here by grisx.scene.restir_di / restir_gi ----
+# ---- restir-di / restir-gi (issue 10): registered here by grisx.render.restir_di / restir_gi ----
 
 register(
     RenderMethod(
         "restir-di",
         "ReSTIR DI (Bitterli et al. 2020): 32 light + 1 BSDF candidates, visibility before reuse, temporal and spatial reuse with pairwise MIS; emitted + direct light (pt's max_depth=2)",
-        "grisx.scene.restir_di",
+        "grisx.render.restir_di",
         "create_restir_di",
         reference_max_depth=2,
         params=(
@@ -168,7 +168,7 @@ register(
     RenderMethod(
         "restir-gi",
         "ReSTIR GI (seed 004): sample points resampled in temporal and spatial reservoir buffers with the reconnection Jacobian (Eq. 11); full global illumination",
-        "grisx.scene.restir_gi",
+        "grisx.render.restir_gi",
         "create_restir_gi",
         params=(
             Param("source", "uniform", "initial direction pdf (Alg. 2)", kind="choice", choices=("uniform", "cosine", "bsdf")),
@@ -198,13 +198,13 @@ register(
     )
 )
 
-# ---- restir-pt (issue 11): registered here by grisx.scene.restir_pt ----
+# ---- restir-pt (issue 11): registered here by grisx.render.restir_pt ----
 
 register(
     RenderMethod(
         "restir-pt",
         "ReSTIR PT (Lin et al. 2022): path reservoirs with temporal and spatial GRIS reuse through replay, reconnection or hybrid shifts",
-        "grisx.scene.restir_pt",
+        "grisx.render.restir_pt",
         "create_restir_pt",
         params=(
             Param("shift", "hybrid", "path shift: hybrid (replay until two rough vertices, then reconnect), reconnection (at x2) or replay", kind="choice", choices=("hybrid", "reconnection", "replay")),

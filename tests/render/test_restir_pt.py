@@ -17,9 +17,9 @@ from test_path_shift import lit_wall  # the scene whose Jacobians are far from 1
 
 from grisx.errors import InvalidParameterError, UnknownNameError
 from grisx.scene.builtin import BUILTIN_SCENES, build_builtin
-from grisx.scene.pt import PathTracer
-from grisx.scene.render import render
-from grisx.scene.restir_pt import ReSTIRPT
+from grisx.render.pt import PathTracer
+from grisx.render.driver import render
+from grisx.render.restir_pt import ReSTIRPT
 from grisx.testing import BIASED_K, DEFAULT_K, z_test
 
 RES = 16

@@ -2,7 +2,7 @@
 
 Each pixel's integral is the radiance leaving its primary vertex x₁ toward the
 camera, an integral over paths x₁ → … → x_n of f(x̄) (see
-:mod:`grisx.scene.path_shift` for the measure and the shifts). Per frame:
+:mod:`grisx.render.path_shift` for the measure and the shifts). Per frame:
 
 ``# ---- primary vertices ----``
     the G-buffer's visible point — a jittered camera ray per pixel — is x₁
@@ -13,7 +13,7 @@ camera, an integral over paths x₁ → … → x_n of f(x̄) (see
 ``# ---- initial candidates ----``
     ``candidates`` path-tracer samples from x₁ with next-event estimation at
     every vertex, no Russian roulette, at most ``max_bounces`` segments after
-    x₁ (``stream_candidates`` of :func:`~grisx.scene.path_shift.make_path_shift`).
+    x₁ (``stream_candidates`` of :func:`~grisx.render.path_shift.make_path_shift`).
     Every light connection and every emitter hit is one candidate path x̄_l
     labelled with its technique t, target p̂ = luminance(m_t f) (m_t the power
     heuristic between the two techniques, see ``path_shift``) and RIS weight
@@ -40,7 +40,7 @@ All estimator math (``reservoir_update``/``merge``/``finalize``,
 ``confidence_capped``, ``target_from``, ``power_heuristic``, the Jacobians
 ``reconnection_jacobian`` and ``replay_jacobian``) is grisx.theory's; the
 shifts and the candidate sampler are
-:func:`grisx.scene.path_shift.make_path_shift`'s. The wrong-Jacobian ablation
+:func:`grisx.render.path_shift.make_path_shift`'s. The wrong-Jacobian ablation
 (``jacobian=false``: |J| = 1 in every weight) is biased and the tests show it.
 
 Temporal reuse evaluates the previous frame's domains with the current
@@ -61,7 +61,7 @@ import warp as wp
 from grisx.device import specialized_module
 from grisx.errors import InvalidParameterError
 from grisx.scene.gbuffer import GBuffer, GBufferData
-from grisx.scene.path_shift import (
+from grisx.render.path_shift import (
     Domain,
     PathReservoir,
     PathSample,
@@ -74,8 +74,8 @@ from grisx.scene.path_shift import (
     target_to,
     vertex_from_hit,
 )
-from grisx.scene.restir_di import ScreenSpaceRenderer
-from grisx.scene.reuse import SIMILARITY_DEPTH, SIMILARITY_NORMAL_COS, NeighborPixel, pixels_similar, spatial_neighbor, temporal_neighbor
+from grisx.render.restir_di import ScreenSpaceRenderer
+from grisx.render.reuse import SIMILARITY_DEPTH, SIMILARITY_NORMAL_COS, NeighborPixel, pixels_similar, spatial_neighbor, temporal_neighbor
 from grisx.scene.scene import SceneData, finite_or_dropped
 from grisx.theory.gris import resampling_weight
 from grisx.theory.mis import balance_mis, balance_term, pairwise_mis_canonical_term, pairwise_mis_neighbor
