@@ -8,7 +8,7 @@ under the static camera) and reads every method's MSE against the cached
 path-traced reference at the same time (log-log interpolation): the
 **equal-time MSE ratio** = MSE(pt) / MSE(method) (> 1: better than the path
 tracer at equal time). Methods, all with paths of at most 10 segments from the
-camera (``max_depth`` 10 = ReSTIR PT's 9 bounces after the primary vertex),
+camera (``max_depth`` 10 for every method),
 so that the reference (``max_depth`` 10 too) is the limit of every method:
 
 * ``pt`` — 1 sample per pixel per frame (the baseline);
@@ -58,7 +58,7 @@ import grisx
 from grisx.device import resolve_device
 from grisx.errors import GrisxError
 
-MAX_DEPTH = 10  # segments from the camera: ReSTIR PT's default 9 bounces after the primary vertex
+MAX_DEPTH = 10  # segments from the camera, every method (Mitsuba's meaning)
 QUICK_SCENES = ("cornell-box", "glossy-room")
 
 
@@ -66,9 +66,9 @@ def methods(with_gi: bool) -> list[tuple[str, str, dict[str, Any]]]:
     """(label, method, params) of every compared renderer; the first is the baseline."""
     rows = [
         ("pt", "pt", {"max_depth": MAX_DEPTH}),
-        ("restir-pt hybrid", "restir-pt", {"shift": "hybrid"}),
-        ("restir-pt reconnection", "restir-pt", {"shift": "reconnection"}),
-        ("restir-pt replay", "restir-pt", {"shift": "replay"}),
+        ("restir-pt hybrid", "restir-pt", {"shift": "hybrid", "max_depth": MAX_DEPTH}),
+        ("restir-pt reconnection", "restir-pt", {"shift": "reconnection", "max_depth": MAX_DEPTH}),
+        ("restir-pt replay", "restir-pt", {"shift": "replay", "max_depth": MAX_DEPTH}),
     ]
     if with_gi:
         rows.append(("restir-gi", "restir-gi", {"max_depth": MAX_DEPTH}))

@@ -209,7 +209,8 @@ register(
         params=(
             Param("shift", "hybrid", "path shift: hybrid (replay until two rough vertices, then reconnect), reconnection (at x2) or replay", kind="choice", choices=("hybrid", "reconnection", "replay")),
             Param("candidates", 1, "initial path-tracer candidates per pixel and frame (1 real-time, 32 offline)", kind="int", minimum=1),
-            Param("max_bounces", 9, "longest path in segments after the primary vertex (the pt reference with max_depth = max_bounces + 1)", kind="int", minimum=1, maximum=64),
+            Param("max_depth", 16, "longest path in segments from the camera, Mitsuba's meaning (as pt; -1: unbounded); default: the scene's", kind="int", minimum=-1),
+            Param("rr_depth", 5, "depth from which Russian roulette may end paths (as pt)", kind="int", minimum=1),
             Param("temporal", True, "temporal reuse (generalized balance MIS)", kind="bool"),
             Param("spatial_rounds", 1, "rounds of spatial reuse (pairwise MIS)", kind="int", minimum=0, maximum=8),
             Param("neighbors", 3, "spatial neighbours per round", kind="int", minimum=0, maximum=16),

@@ -44,6 +44,7 @@ from grisx.scene.lights import emitter_radiance, environment_eval, environment_p
 from grisx.scene.material import MATERIAL_ROUGH_DIELECTRIC
 from grisx.scene.scene import SceneData, finite_or_dropped, intersect, light_occluded, spawn_origin, surface_material
 from grisx.theory.mis import power_heuristic
+from grisx.theory.roulette import roulette_survival
 from grisx.theory.random import random_key, random_subkey, random_uniform
 
 wp.set_module_options({"enable_backward": False})
@@ -217,7 +218,7 @@ def make_trace_path(kinds: frozenset[int]) -> Any:
             depth += 1
             # ---- Russian roulette ----
             if depth >= rr_depth:
-                q = wp.min(wp.max(beta) * eta * eta, 0.95)
+                q = roulette_survival(beta, eta)
                 if random_uniform(key, c + 6) >= q:
                     break
                 beta = beta / q

@@ -12,8 +12,11 @@ camera, an integral over paths x₁ → … → x_n of f(x̄) (see
     directly is added outside the reservoir.
 ``# ---- initial candidates ----``
     ``candidates`` path-tracer samples from x₁ with next-event estimation at
-    every vertex, no Russian roulette, at most ``max_bounces`` segments after
-    x₁ (``stream_candidates`` of :func:`~grisx.render.path_shift.make_path_shift`).
+    every vertex and Russian roulette from ``rr_depth`` on, paths of at most
+    ``max_depth`` segments counted from the camera (Mitsuba's meaning, as
+    ``pt``: −1 unbounded, 2 direct light only; both default to the scene
+    file's ``<integrator>``), so that ``restir-pt`` and ``pt`` estimate the same
+    image (``stream_candidates`` of :func:`~grisx.render.path_shift.make_path_shift`).
     Every light connection and every emitter hit is one candidate path x̄_l
     labelled with its technique t, target p̂ = luminance(m_t f) (m_t the power
     heuristic between the two techniques, see ``path_shift``) and RIS weight
@@ -168,7 +171,7 @@ def make_restir_pt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         if dom.valid != 0:
             for cand in range(candidates):
                 key = random_subkey(pk, _STREAM_PATHS + cand)  # the path's seed: shifts replay it
-                pr = sample_paths(scene, dom, key, max_bounces, inv_n, sp, pr, ukey, cand * 2 * max_bounces)
+                pr = sample_paths(scene, dom, key, max_bounces, inv_n, sp, pr, random_subkey(ukey, cand))
             pr.res.confidence = 1.0  # one frame's canonical sample: the unit of the history cap
         out[y, x] = settle(scene, dom, pr, sp)
 
@@ -317,7 +320,8 @@ class ReSTIRPT(ScreenSpaceRenderer):
         *,
         shift: str = "hybrid",
         candidates: int = 1,
-        max_bounces: int = 9,
+        max_depth: int = 16,
+        rr_depth: int = 5,
         temporal: bool = True,
         spatial_rounds: int = 1,
         neighbors: int = 3,
@@ -330,12 +334,17 @@ class ReSTIRPT(ScreenSpaceRenderer):
         seed: int = 0,
         timer: Any = None,
     ) -> None:
-        if candidates < 1 or max_bounces < 1 or spatial_rounds < 0 or neighbors < 0 or radius <= 0.0:
-            raise InvalidParameterError("restir-pt needs candidates >= 1, max_bounces >= 1, spatial_rounds >= 0, neighbors >= 0, radius > 0")
+        if candidates < 1 or max_depth == 0 or max_depth < -1 or rr_depth < 1 or spatial_rounds < 0 or neighbors < 0 or radius <= 0.0:
+            raise InvalidParameterError(
+                "restir-pt needs candidates >= 1, max_depth -1 or >= 1, rr_depth >= 1, spatial_rounds >= 0, neighbors >= 0, radius > 0"
+            )
         self.built = built
         self.width, self.height = int(width), int(height)
         self.candidates = int(candidates)
-        self.max_bounces = int(max_bounces)
+        self.max_depth = int(max_depth)
+        self.rr_depth = int(rr_depth)
+        # segments after x₁: the camera segment is the first of max_depth (−1: unbounded; 0: emitters seen directly only)
+        self.max_bounces = -1 if self.max_depth < 0 else self.max_depth - 1
         self.temporal = bool(temporal)
         self.spatial_rounds = int(spatial_rounds)
         self.neighbors = int(neighbors)
@@ -350,6 +359,7 @@ class ReSTIRPT(ScreenSpaceRenderer):
             near_distance=float(near_field) * float(built.data.scene_radius),
             jacobian_max=jacobian_max,
             jacobian=jacobian,
+            rr_depth=rr_depth,
         )
         self.k = make_restir_pt_kernels(frozenset(built.features.material_kinds))
         dev = built.device

@@ -14,6 +14,7 @@ path's first key). ``grisx scenes`` lists them:
 ``pool``               a wavy water surface over a tiled floor under a sky with a small, bright sun (seed 003)
 ``glossy-room``        a room with a glossy floor (seed 004, Fig. 9)
 ``many-lights``        hundreds of small coloured emitters over a floor
+``closed-room``        a closed room of bright walls (albedo 0.85) and one small light: long paths matter
 =====================  ==========================================================================
 
 All use Mitsuba's conventions (y up, radiance units, one-sided emitters).
@@ -286,6 +287,28 @@ def many_lights() -> Scene:
     return s
 
 
+def closed_room() -> Scene:
+    """Depth matters here: every wall reflects 85%, nothing escapes, the light is small.
+
+    Paths of more than 10 segments carry about a fifth of the image (``tests`` measure it), so a
+    renderer that truncates, underflows or mis-weights long paths is visibly wrong here.
+    """
+    s = Scene("closed-room")
+    s.description = "a closed room of bright walls (albedo 0.85) and one small light: long paths matter"
+    wall = s.add_material(Diffuse((0.85, 0.85, 0.85)), "wall")
+    warm = s.add_material(Diffuse((0.9, 0.8, 0.7)), "warm")
+    blue = s.add_material(Diffuse((0.6, 0.7, 0.9)), "blue")
+    _room(s, (-2, 0, -2), (2, 2.5, 2), {"default": wall, "left": warm, "right": blue})
+    _add(s, cube(), wall, compose(translate((-0.7, 0.45, -0.6)), rotate((0, 1, 0), 25), scale(0.45)), name="box")
+    _add(s, sphere(), warm, compose(translate((0.8, 0.4, 0.2)), scale(0.4)), name="ball")
+    # a small light facing down; its back is the room's (black) side of the panel, so it reflects like the ceiling
+    _panel(s, (0.0, 2.49, 0.0), (0.2, 0.2), rotate((1, 0, 0), 90), wall, emission=(60.0, 55.0, 48.0), name="light")
+    _camera(s, 70, [((-1.2, 1.4, 1.9), (0.3, 0.9, -1.5), (0, 1, 0)), ((1.2, 1.3, 1.9), (-0.3, 0.9, -1.5), (0, 1, 0))])
+    s.film = Film(320, 240)
+    s.defaults = {"spp": 256, "max_depth": -1}
+    return s
+
+
 BUILTIN_SCENES: dict[str, Callable[[], Scene]] = {
     "cornell-box": cornell_box,
     "door-ajar": door_ajar,
@@ -296,6 +319,7 @@ BUILTIN_SCENES: dict[str, Callable[[], Scene]] = {
     "pool": pool,
     "glossy-room": glossy_room,
     "many-lights": many_lights,
+    "closed-room": closed_room,
 }
 
 

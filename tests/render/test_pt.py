@@ -169,3 +169,15 @@ def test_trace_path_prefix_is_the_same_path_truncated(prefix_depth):
     np.testing.assert_array_equal(o[:, 1], o[:, 2])  # the prefix is the truncated path
     np.testing.assert_array_equal(o[:, 0], o[:, 3])  # and asking for it changes nothing else
     assert np.any(o[:, 0] != o[:, 1])  # the rest of the path is not empty
+
+
+# ---- the closed room: the built-in scene where long paths matter ----
+
+
+def test_closed_room_long_paths_carry_more_than_five_percent():
+    # what makes closed-room a depth test: paths of more than 10 segments carry >= 5% of the image
+    scene = build_builtin("closed-room")
+    full, full_se = _estimate(scene, 16, 12, 256, max_depth=-1)
+    short, short_se = _estimate(scene, 16, 12, 256, max_depth=10)
+    share = 1.0 - short / full
+    assert np.all(share - 4 * np.hypot(full_se / full, short_se / short) > 0.05), share

@@ -3,10 +3,15 @@
 Reuse correlates pixels, so unbiasedness is tested over *independent runs*:
 each run (its own seed) renders a few accumulated frames of a static camera
 and contributes one image mean per channel; the runs' mean is compared with
-the path tracer's image mean (``max_depth = max_bounces + 1``) by a z-test
+the path tracer's image mean at the same ``max_depth`` by a z-test
 whose standard error combines the runs' spread and the reference's own
 standard error (k = 4, Šidák over channels). The sibling checks show the
 wrong-Jacobian ablation (``jacobian=false``) fails the same check beyond 6σ.
+
+Depth is tested where it matters: ``closed-room`` (walls of albedo 0.85, paths of
+more than 10 segments carry ~17% of its image) at ``max_depth`` −1 (Russian
+roulette) and 64, for every shift; truncating the paths at 10 segments fails
+the same check.
 """
 
 from __future__ import annotations
@@ -23,32 +28,38 @@ from grisx.render.restir_pt import ReSTIRPT
 from grisx.testing import BIASED_K, DEFAULT_K, z_test
 
 RES = 16
-MAX_BOUNCES = 9
+MAX_DEPTH = 10
 SHIFTS = ("hybrid", "reconnection", "replay")
 _BUILT: dict = {}
 
 
-def _built(name: str):
-    if name not in _BUILT:
-        _BUILT[name] = (lit_wall() if name == "lit-wall" else build_builtin(name)).build("cpu")
-    return _BUILT[name]
+def _built(name: str, device: str = "cpu"):
+    if (name, device) not in _BUILT:
+        _BUILT[name, device] = (lit_wall() if name == "lit-wall" else build_builtin(name)).build(device)
+    return _BUILT[name, device]
 
 
-def _reference(name: str, spp: int = 1024) -> tuple[np.ndarray, np.ndarray]:
-    """The path tracer's image mean and its standard error (independent pixels)."""
-    pt = PathTracer(_built(name), RES, RES, spp=spp, max_depth=MAX_BOUNCES + 1, seed=4321)
+_REFERENCES: dict = {}
+
+
+def _reference(name: str, spp: int = 1024, max_depth: int = MAX_DEPTH) -> tuple[np.ndarray, np.ndarray]:
+    """The path tracer's image mean and its standard error (independent pixels; CPU: the device is not part of it)."""
+    if (name, spp, max_depth) in _REFERENCES:
+        return _REFERENCES[name, spp, max_depth]
+    pt = PathTracer(_built(name), RES, RES, spp=spp, max_depth=max_depth, seed=4321)
     pt.add_samples(0, spp)
     mean = pt.mean().reshape(-1, 3).astype(np.float64)
     var = pt.variance_of_mean().reshape(-1, 3).astype(np.float64)
-    return mean.mean(axis=0), np.sqrt(var.sum(axis=0)) / len(mean)
+    _REFERENCES[name, spp, max_depth] = mean.mean(axis=0), np.sqrt(var.sum(axis=0)) / len(mean)
+    return _REFERENCES[name, spp, max_depth]
 
 
-def _runs(name: str, runs: int, frames: int, **kw) -> tuple[np.ndarray, np.ndarray]:
+def _runs(name: str, runs: int, frames: int, device: str = "cpu", **kw) -> tuple[np.ndarray, np.ndarray]:
     """Mean and standard error over independent runs of the image mean of ``frames`` accumulated frames."""
-    built = _built(name)
+    built = _built(name, device)
     means = np.empty((runs, 3))
     for s in range(runs):
-        r = ReSTIRPT(built, RES, RES, seed=1000 + s, max_bounces=MAX_BOUNCES, **kw)
+        r = ReSTIRPT(built, RES, RES, seed=1000 + s, **{"max_depth": MAX_DEPTH, **kw})
         acc = np.zeros((RES, RES, 3))
         for f in range(frames):
             acc += r.render_frame(f).numpy()
@@ -57,8 +68,8 @@ def _runs(name: str, runs: int, frames: int, **kw) -> tuple[np.ndarray, np.ndarr
     return means.mean(axis=0), means.std(axis=0, ddof=1) / np.sqrt(runs)
 
 
-def _check(name: str, runs: int, frames: int, k: float, **kw):
-    ref, ref_se = _reference(name)
+def _check(name: str, runs: int, frames: int, k: float, reference_depth: int = MAX_DEPTH, **kw):
+    ref, ref_se = _reference(name, max_depth=reference_depth)
     est, se = _runs(name, runs, frames, **kw)
     return z_test(est - ref, np.sqrt(se**2 + ref_se**2), np.zeros(3), k=k)
 
@@ -92,6 +103,37 @@ def test_converges_on_a_glossy_scene(shift):
     # glossy-room: rough conductors, so the hybrid shift replays past glossy vertices before it reconnects
     result = _check("glossy-room", 120, 6, DEFAULT_K, shift=shift, radius=4.0)
     assert result.passed, result
+
+
+# ---- at the depth users render at -------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("max_depth", [-1, 64], ids=["unbounded", "depth64"])
+@pytest.mark.parametrize("shift", SHIFTS)
+def test_converges_in_a_closed_room_at_realistic_depth(shift, max_depth, device):
+    # Russian roulette from depth 5 (replayed with each domain's own survival probability); at depth 64
+    # without roulette the path densities span dozens of orders of magnitude (the π-scaled measure keeps
+    # them in float32)
+    rr_depth = 5 if max_depth < 0 else 1000
+    result = _check("closed-room", 24, 6, DEFAULT_K, reference_depth=max_depth, device=device, shift=shift, radius=6.0, max_depth=max_depth, rr_depth=rr_depth)
+    assert result.passed, result
+
+
+@pytest.mark.parametrize("shift", SHIFTS)
+def test_truncated_paths_are_caught_in_the_closed_room(shift):
+    # the sibling: paths cut at 10 segments lose the closed room's long-path light (~17%)
+    result = _check("closed-room", 48, 6, BIASED_K, reference_depth=-1, shift=shift, radius=6.0, max_depth=10)
+    assert not result.passed, result
+
+
+def test_depth_follows_the_scene_and_is_reported():
+    # closed-room's integrator: max_depth -1; an explicit param wins
+    r = render("closed-room", "restir-pt", res=(8, 8), seed=1)
+    assert r.settings["params"]["max_depth"] == -1 and r.settings["params"]["rr_depth"] == 5
+    r = render("closed-room", "restir-pt", res=(8, 8), seed=1, params={"max_depth": 7})
+    assert r.settings["params"]["max_depth"] == 7
+    with pytest.raises(InvalidParameterError, match="max_depth"):
+        render("closed-room", "restir-pt", res=(8, 8), params={"max_depth": 0})
 
 
 @pytest.mark.parametrize("shift", SHIFTS)

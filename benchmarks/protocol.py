@@ -1,0 +1,301 @@
+#!/usr/bin/env python
+"""The one benchmark protocol every renderer reports on (see benchmarks/README.md, "The protocol").
+
+What users of a real-time renderer see is a **single frame**, jittered (a
+new camera sample per pixel and frame), under a static or a moving camera.
+So the protocol measures, per scene, camera and method:
+
+* **frame time**: the median seconds per frame after the first frame
+  (compilation is off the clock; the first frame has no history);
+* **per-frame relMSE** (ε = 1e-2, :func:`grisx.eval.metrics.relmse`) of the
+  frames in the second half of the run (history warmed up), each against a
+  path-traced reference *at that frame's camera* with the method's own
+  ``max_depth`` (``restir-di`` estimates pt's ``max_depth`` 2), the
+  reference's own expected contribution (its variance of the mean, averaged
+  as relMSE does) subtracted;
+* **the equal-time relMSE gain over pt**: (relMSE · seconds)_pt /
+  (relMSE · seconds)_method, pt at 1 spp per frame and the method's depth.
+  A path tracer's single-frame relMSE falls as 1/spp, so this is the ratio
+  of relMSEs when pt is given the method's frame time;
+* **FLIP at equal time**: HDR-FLIP of the method's last evaluated frame and
+  of a pt frame rendered with spp = round(t_method / t_pt) at the same camera,
+  both against the reference.
+
+Scenes: ``cornell-box``, ``door-ajar``, ``glossy-room``, ``closed-room``,
+``many-lights`` (``--scenes``); cameras: the static camera and the scene's
+camera path; methods: ``pt``, ``restir-di``, ``restir-gi`` and ``restir-pt``
+(``--methods``, ``label=method:k=v:k=v`` to add a configuration; every
+renderer added later joins with one entry). Depth: each scene's own
+``max_depth`` (the built-in scenes: 16; ``closed-room``: −1).
+
+Each scene runs in its own process (``--jobs``), so kernels of different
+scenes compile in parallel; all processes share one device.
+
+Usage::
+
+    python benchmarks/protocol.py --device cuda --out benchmarks/results/protocol      # the protocol: 1920x1080
+    python benchmarks/protocol.py --quick                                              # CPU smoke run (64x36, 2 scenes)
+
+Writes ``protocol.json`` (settings, device, versions, references' spp, every
+record) and ``protocol.png`` (gain per scene and method, static and moving),
+and prints the table.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+SCENES = ("cornell-box", "door-ajar", "glossy-room", "closed-room", "many-lights")
+METHODS = ("pt", "restir-di", "restir-gi", "restir-pt")
+CAMERAS = ("static", "moving")
+
+
+def parse_methods(text: str) -> list[tuple[str, str, dict[str, str]]]:
+    """``label=method:k=v:...`` or ``method`` entries, comma-separated → (label, method, params)."""
+    out = []
+    for item in filter(None, (s.strip() for s in text.split(","))):
+        label, _, spec = item.partition("=") if "=" in item.split(":")[0] else (item.split(":")[0], "", item)
+        method, *kvs = spec.split(":")
+        out.append((label, method, dict(kv.split("=", 1) for kv in kvs)))
+    return out
+
+
+def reference_at(built: Any, width: int, height: int, frame: int, max_depth: int, spp: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """The path tracer's image at ``frame``'s camera (and object positions) and its variance of the mean."""
+    from grisx.render.pt import PathTracer
+
+    built.set_frame(float(frame))
+    pt = PathTracer(built, width, height, spp=spp, max_depth=max_depth, seed=seed)
+    pt.add_samples(frame, spp)
+    return pt.mean().astype(np.float64), pt.variance_of_mean().astype(np.float64)
+
+
+def reference_relmse(ref: np.ndarray, var: np.ndarray, eps: float) -> float:
+    """What the reference's own noise adds, in expectation, to a relMSE against it."""
+    return float(np.mean(var / (ref**2 + eps)))
+
+
+def render_frames(scene: str, method: str, params: dict[str, Any], spp: int | None, camera: str, args: argparse.Namespace,
+                  eval_frames: list[int]) -> tuple[dict[int, np.ndarray], float, Any]:
+    """Render ``args.frames`` frames; keep the ``eval_frames`` images; the median seconds per frame after the first."""
+    from grisx.render.driver import render
+
+    kept: dict[int, np.ndarray] = {}
+    stamps: list[float] = []
+
+    def on_frame(i: int, image: np.ndarray, seconds: float) -> None:
+        stamps.append(seconds)
+        if i in eval_frames:
+            kept[i] = image.copy()
+
+    r = render(scene, method, spp=spp, frames=args.frames, res=args.res, device=args.device, seed=args.seed, params=params,
+               camera="path" if camera == "moving" else "static", on_frame=on_frame)
+    return kept, float(np.median(np.diff(stamps))) if len(stamps) > 1 else float(stamps[0]), r
+
+
+def frame_relmse(kept: dict[int, np.ndarray], ref_for: Any, depth: int) -> float:
+    """Mean relMSE of the kept frames against their references, less what the references' noise adds."""
+    from grisx.eval.metrics import RELMSE_EPSILON, relmse
+
+    return float(np.mean([relmse(img, ref_for(f, depth)[0]) - reference_relmse(*ref_for(f, depth), RELMSE_EPSILON) for f, img in kept.items()]))
+
+
+def run_scene(scene: str, args: argparse.Namespace) -> list[dict[str, Any]]:
+    from grisx.eval.metrics import flip
+    from grisx.render.driver import METHODS as REGISTRY
+    from grisx.render.driver import load_scene
+
+    width, height = args.res
+    sc = load_scene(scene)
+    scene_depth = int(sc.defaults.get("max_depth", 16))
+    frames = args.frames
+    eval_frames = sorted(set(range(frames // 2, frames, max(1, frames // 8))) | {frames - 1})
+    records: list[dict[str, Any]] = []
+    for camera in CAMERAS:
+        built = sc.build(args.device)
+        built.animate_camera = camera == "moving"
+        ref_frames = eval_frames if camera == "moving" else [eval_frames[0]]
+        refs: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
+
+        def ref_for(frame: int, depth: int) -> tuple[np.ndarray, np.ndarray]:
+            f = frame if camera == "moving" else ref_frames[0]
+            if (f, depth) not in refs:
+                refs[f, depth] = reference_at(built, width, height, f, depth, args.reference_spp, args.seed + 7919)
+            return refs[f, depth]
+
+        baseline: dict[int, dict[str, float]] = {}  # depth → pt's per-frame relMSE and seconds
+        for label, method, params in args.methods:
+            spec = REGISTRY[method]
+            depth = spec.reference_max_depth or int(params.get("max_depth", scene_depth))
+            p = dict(params)
+            if "max_depth" in {q.name for q in spec.params} and "max_depth" not in p:
+                p["max_depth"] = depth
+            kept, seconds, r = render_frames(scene, method, p, 1 if spec.uses_spp else None, camera, args, eval_frames)
+            rec = {"scene": scene, "camera": camera, "method": label, "renderer": method, "params": {k: str(v) for k, v in p.items()},
+                   "max_depth": depth, "width": width, "height": height, "frames": frames, "eval_frames": sorted(kept),
+                   "frame_seconds": seconds, "frame_relmse": frame_relmse(kept, ref_for, depth), "nonfinite_samples": r.settings.get("nonfinite_samples", 0)}
+            if method == "pt" and depth not in baseline:
+                baseline[depth] = rec
+            last = eval_frames[-1]
+            ref, _ = ref_for(last, depth)
+            rec["frame_flip"] = float(flip(kept[last], ref))
+            records.append(rec)
+            # pt at this depth if the protocol's pt row ran at another one (restir-di: depth 2)
+            if depth not in baseline:
+                b = _pt_row(scene, camera, depth, args, eval_frames, ref_for)
+                baseline[depth] = b
+                records.append(b)
+            base = baseline[depth]
+            rec["pt_frame_relmse"] = base["frame_relmse"]
+            rec["pt_frame_seconds"] = base["frame_seconds"]
+            rec["gain"] = base["frame_relmse"] * base["frame_seconds"] / (rec["frame_relmse"] * seconds) if rec["frame_relmse"] > 0 else None
+            rec["pt_equal_time_spp"] = max(1, int(round(seconds / base["frame_seconds"])))
+            if method != "pt":
+                pt_eq = _pt_frame(scene, camera, depth, rec["pt_equal_time_spp"], last, args)
+                rec["pt_equal_time_flip"] = float(flip(pt_eq, ref))
+            print(f"[{scene}] {camera:6s} {label:24s} {1e3 * seconds:8.2f} ms  relMSE {rec['frame_relmse']:.4g}  gain {rec['gain'] or 0:.2f}", file=sys.stderr, flush=True)
+    return records
+
+
+def _pt_frame(scene: str, camera: str, depth: int, spp: int, frame: int, args: argparse.Namespace) -> np.ndarray:
+    """pt's image of ``frame`` alone with ``spp`` samples (equal time)."""
+    from grisx.render.driver import load_scene
+    from grisx.render.pt import PathTracer
+
+    built = load_scene(scene).build(args.device)
+    built.animate_camera = camera == "moving"
+    built.set_frame(float(frame))
+    pt = PathTracer(built, args.res[0], args.res[1], spp=spp, max_depth=depth, seed=args.seed + 104729)
+    pt.add_samples(frame, spp)
+    return pt.mean()
+
+
+def _pt_row(scene: str, camera: str, depth: int, args: argparse.Namespace, eval_frames: list[int], ref_for: Any) -> dict[str, Any]:
+    """The baseline at another depth than the protocol's pt row (restir-di: pt at max_depth 2)."""
+    kept, sec, _ = render_frames(scene, "pt", {"max_depth": depth}, 1, camera, args, eval_frames)
+    return {"scene": scene, "camera": camera, "method": f"pt (max_depth {depth})", "renderer": "pt", "params": {"max_depth": str(depth)},
+            "max_depth": depth, "width": args.res[0], "height": args.res[1], "frames": args.frames, "eval_frames": sorted(kept),
+            "frame_seconds": sec, "frame_relmse": frame_relmse(kept, ref_for, depth), "gain": 1.0}
+
+
+def plot(records: list[dict[str, Any]], path: Path, title: str) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    scenes = list(dict.fromkeys(r["scene"] for r in records))
+    labels = [m for m in dict.fromkeys(r["method"] for r in records) if not m.startswith("pt")]
+    fig, axes = plt.subplots(1, 2, figsize=(max(10.0, 2.2 * len(scenes)), 4.5), sharey=True)
+    width = 0.8 / max(1, len(labels))
+    x = np.arange(len(scenes))
+    for ax, camera in zip(axes, CAMERAS):
+        for j, lab in enumerate(labels):
+            vals = [next((r.get("gain") or 0.0 for r in records if r["scene"] == s and r["method"] == lab and r["camera"] == camera), 0.0) for s in scenes]
+            ax.bar(x + (j - (len(labels) - 1) / 2) * width, vals, width, label=lab)
+        ax.axhline(1.0, color="k", lw=0.8)
+        ax.set_yscale("log")
+        ax.set_title(f"{camera} camera")
+        ax.set_xticks(x, scenes, rotation=25, ha="right")
+        ax.grid(True, axis="y", which="both", alpha=0.3)
+    axes[0].set_ylabel("per-frame relMSE gain over pt at equal time")
+    axes[0].legend(fontsize=8)
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--device", default="cpu")
+    ap.add_argument("--scenes", default=None, help=f"comma-separated scenes (default: {','.join(SCENES)})")
+    ap.add_argument("--methods", default=",".join(METHODS), help="comma-separated label=method:k=v entries (pt first: the baseline)")
+    ap.add_argument("--res", default=None, help="WxH (default 1920x1080 on CUDA, 64x36 on CPU)")
+    ap.add_argument("--frames", type=int, default=16, help="frames per run (the second half is evaluated)")
+    ap.add_argument("--reference-spp", type=int, default=None, help="spp of each reference (default 1024 on CUDA, 256 on CPU)")
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--jobs", type=int, default=1, help="scenes rendered at once, one process each")
+    ap.add_argument("--quick", action="store_true", help="2 scenes, 8 frames, 64x36")
+    ap.add_argument("--out", type=Path, default=Path(__file__).resolve().parent / "results" / "protocol")
+    ap.add_argument("--scene-worker", default=None, help=argparse.SUPPRESS)
+    args = ap.parse_args(argv)
+    from grisx.device import resolve_device
+    from grisx.render.driver import parse_res
+
+    dev = resolve_device(args.device)
+    cuda = dev.is_cuda
+    args.res = parse_res(args.res or ("1920x1080" if cuda else "64x36"))
+    args.reference_spp = args.reference_spp or (1024 if cuda else 256)
+    if args.quick:
+        args.frames = min(args.frames, 8)
+    methods_text = args.methods
+    args.methods = parse_methods(args.methods)
+    if args.scene_worker:  # one scene in this process; records as JSON on stdout
+        print(json.dumps(run_scene(args.scene_worker, args)))
+        return 0
+    scenes = args.scenes.split(",") if args.scenes else (["cornell-box", "closed-room"] if args.quick else list(SCENES))
+    start = time.perf_counter()
+    records: list[dict[str, Any]] = []
+    worker_args = ["--device", args.device, "--res", f"{args.res[0]}x{args.res[1]}", "--frames", str(args.frames),
+                   "--reference-spp", str(args.reference_spp), "--seed", str(args.seed), "--methods", methods_text]
+    procs = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for i, scene in enumerate(scenes):
+            out = open(Path(tmp) / f"{i}.json", "w")
+            cmd = [sys.executable, __file__, *worker_args, "--scene-worker", scene]
+            procs.append((scene, subprocess.Popen(cmd, stdout=out, env=os.environ), out))
+            while sum(p.poll() is None for _, p, _ in procs) >= args.jobs:
+                time.sleep(0.5)
+        failed = []
+        for i, (scene, p, out) in enumerate(procs):
+            p.wait()
+            out.close()
+            if p.returncode != 0:
+                failed.append(scene)
+                continue
+            records += json.loads((Path(tmp) / f"{i}.json").read_text())
+    import warp as wp
+
+    import grisx
+
+    result = {
+        "benchmark": "protocol",
+        "device": str(dev),
+        "device_name": dev.name if cuda else platform.processor() or platform.machine(),
+        "versions": {"grisx": grisx.__version__, "warp": wp.config.version, "numpy": np.__version__, "python": platform.python_version()},
+        "settings": {"scenes": scenes, "res": list(args.res), "frames": args.frames, "reference": f"pt, {args.reference_spp} spp at each evaluated frame's camera, the method's max_depth",
+                     "reference_spp": args.reference_spp, "relmse_epsilon": 1e-2, "jitter": True, "seed": args.seed,
+                     "methods": [{"label": lab, "method": m, "params": p} for lab, m, p in args.methods]},
+        "failed_scenes": failed,
+        "records": records,
+        "seconds_total": time.perf_counter() - start,
+    }
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "protocol.json").write_text(json.dumps(result, indent=2))
+    plot(records, args.out / "protocol.png", f"protocol: {args.res[0]}x{args.res[1]}, {result['device_name']}")
+    print(f"{'scene':12s} {'camera':7s} {'method':24s} {'ms/frame':>9s} {'relMSE':>9s} {'gain':>7s} {'FLIP':>6s} {'pt FLIP@t':>9s}")
+    for r in records:
+        g = f"{r['gain']:7.2f}" if r.get("gain") else "      -"
+        fl = f"{r['frame_flip']:6.3f}" if "frame_flip" in r else "     -"
+        pf = f"{r['pt_equal_time_flip']:9.3f}" if "pt_equal_time_flip" in r else "        -"
+        print(f"{r['scene']:12s} {r['camera']:7s} {r['method']:24s} {1e3 * r['frame_seconds']:9.2f} {r['frame_relmse']:9.4g} {g} {fl} {pf}")
+    if failed:
+        print(f"protocol.py: scenes failed: {', '.join(failed)}", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
