@@ -23,13 +23,16 @@ So the protocol measures, per scene, camera and method:
 
 Scenes: ``cornell-box``, ``door-ajar``, ``glossy-room``, ``closed-room``,
 ``many-lights`` (``--scenes``); cameras: the static camera and the scene's
-camera path; methods: ``pt``, ``restir-di``, ``restir-gi`` and ``restir-pt``
+camera path; methods: ``pt``, ``restir-di``, ``restir-gi`` (with ``direct=nee`` and
+``direct=restir-di``) and ``restir-pt``
 (``--methods``, ``label=method:k=v:k=v`` to add a configuration; every
 renderer added later joins with one entry). Depth: each scene's own
 ``max_depth`` (the built-in scenes: 16; ``closed-room``: −1).
 
-Each scene runs in its own process (``--jobs``), so kernels of different
-scenes compile in parallel; all processes share one device.
+Kernels compile first, every scene in its own process at once (``--jobs``:
+one tiny render of every method and camera fills Warp's kernel cache); the
+measurements then run one scene at a time, so that no two renderers share the
+device while they are timed.
 
 Usage::
 
@@ -57,7 +60,7 @@ from typing import Any
 import numpy as np
 
 SCENES = ("cornell-box", "door-ajar", "glossy-room", "closed-room", "many-lights")
-METHODS = ("pt", "restir-di", "restir-gi", "restir-pt")
+METHODS = ("pt", "restir-di", "restir-gi", "restir-gi-di=restir-gi:direct=restir-di", "restir-pt")
 CAMERAS = ("static", "moving")
 
 
@@ -120,7 +123,7 @@ def run_scene(scene: str, args: argparse.Namespace) -> list[dict[str, Any]]:
     sc = load_scene(scene)
     scene_depth = int(sc.defaults.get("max_depth", 16))
     frames = args.frames
-    eval_frames = sorted(set(range(frames // 2, frames, max(1, frames // 8))) | {frames - 1})
+    eval_frames = sorted(set(range(frames // 2, frames, max(1, frames // 4))) | {frames - 1})
     records: list[dict[str, Any]] = []
     for camera in CAMERAS:
         built = sc.build(args.device)
@@ -230,6 +233,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--quick", action="store_true", help="2 scenes, 8 frames, 64x36")
     ap.add_argument("--out", type=Path, default=Path(__file__).resolve().parent / "results" / "protocol")
     ap.add_argument("--scene-worker", default=None, help=argparse.SUPPRESS)
+    ap.add_argument("--warmup-worker", default=None, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     from grisx.device import resolve_device
     from grisx.render.driver import parse_res
@@ -245,19 +249,32 @@ def main(argv: list[str] | None = None) -> int:
     if args.scene_worker:  # one scene in this process; records as JSON on stdout
         print(json.dumps(run_scene(args.scene_worker, args)))
         return 0
+    if args.warmup_worker:  # compile every kernel the scene's measurement will use (Warp caches them on disk)
+        args.res, args.frames, args.reference_spp = (16, 16), 2, 1
+        run_scene(args.warmup_worker, args)
+        return 0
     scenes = args.scenes.split(",") if args.scenes else (["cornell-box", "closed-room"] if args.quick else list(SCENES))
     start = time.perf_counter()
     records: list[dict[str, Any]] = []
     worker_args = ["--device", args.device, "--res", f"{args.res[0]}x{args.res[1]}", "--frames", str(args.frames),
                    "--reference-spp", str(args.reference_spp), "--seed", str(args.seed), "--methods", methods_text]
+    warm = []
+    for scene in scenes:  # compile in parallel
+        warm.append(subprocess.Popen([sys.executable, __file__, *worker_args, "--warmup-worker", scene], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=os.environ))
+        while sum(p.poll() is None for p in warm) >= args.jobs:
+            time.sleep(0.5)
+    for p in warm:
+        p.wait()
     procs = []
     with tempfile.TemporaryDirectory() as tmp:
-        for i, scene in enumerate(scenes):
+        for i, scene in enumerate(scenes):  # measure one scene at a time
             out = open(Path(tmp) / f"{i}.json", "w")
             cmd = [sys.executable, __file__, *worker_args, "--scene-worker", scene]
             procs.append((scene, subprocess.Popen(cmd, stdout=out, env=os.environ), out))
-            while sum(p.poll() is None for _, p, _ in procs) >= args.jobs:
-                time.sleep(0.5)
+            procs[-1][1].wait()
+            out.flush()
+            args.out.mkdir(parents=True, exist_ok=True)  # what is measured so far survives an interrupted run
+            (args.out / f"partial_{scene}.json").write_text((Path(tmp) / f"{i}.json").read_text())
         failed = []
         for i, (scene, p, out) in enumerate(procs):
             p.wait()
