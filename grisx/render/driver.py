@@ -190,7 +190,7 @@ register(
             Param("mb_fraction", 0.25, "probability that a 64x32 tile follows multi-bounce paths (tile Russian roulette)", minimum=1e-3, maximum=1.0),
             Param("validation_interval", 6, "replay and validate reservoir samples every N frames; 0: never", kind="int", minimum=0),
             Param("validation_tolerance", 0.2, "relative change of L_o that invalidates a sample", minimum=0.0),
-            Param("direct", "nee", "direct light: nee (path-traced, NEE + BSDF with MIS) or restir-di", kind="choice", choices=("nee", "restir-di")),
+            Param("direct", "auto", "direct light: nee (path-traced, NEE + BSDF with MIS), restir-di, or auto (restir-di above 16 lights: where it is better, measured)", kind="choice", choices=("auto", "nee", "restir-di")),
             Param("exact_bsdf", False, "re-evaluate the sample point's BSDF toward each visible point reusing it; false: its radiance reused as if Lambertian (the paper)", kind="bool"),
             Param("max_jacobian", 10.0, "reject reconnections with |J| above this (counted the same way in Z: still unbiased); 0: never (the paper)", minimum=0.0),
             Param("jitter", True, "visible point uniform over the pixel each frame (box filter: what pt estimates); false: pixel centres", kind="bool"),
@@ -384,7 +384,7 @@ def render(
     settings = {
         "scene": sc.name,
         "method": method,
-        "params": resolved,
+        "params": {**resolved, **getattr(renderer, "resolved_params", {})},  # "auto" params as the renderer resolved them
         "width": width,
         "height": height,
         "spp": int(spp),

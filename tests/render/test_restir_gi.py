@@ -237,3 +237,10 @@ def test_cli_params_and_pass_timings():
     assert {"gi_initial", "gi_temporal", "gi_spatial", "gi_shade", "gbuffer"} <= set(r.pass_seconds)
     r = render("cornell-box", "restir-gi", res=(8, 6), frames=2, accumulate=True, params={"direct": "restir-di"})
     assert {"di_initial", "di_temporal", "di_spatial", "di_shade", "gi_spatial"} <= set(r.pass_seconds)
+
+
+def test_direct_auto_takes_restir_di_only_with_many_lights():
+    # the default: ReSTIR DI where it beats NEE (hundreds of lights), NEE elsewhere; render --json says which
+    assert render("many-lights", "restir-gi", res=(8, 6)).settings["params"]["direct"] == "restir-di"
+    assert render("cornell-box", "restir-gi", res=(8, 6)).settings["params"]["direct"] == "nee"
+    assert render("many-lights", "restir-gi", res=(8, 6), params={"direct": "nee"}).settings["params"]["direct"] == "nee"
