@@ -104,3 +104,25 @@ def test_demo_writes_a_figure_and_a_summary(capsys, tmp_path):
     summary = json.loads(out.with_suffix(".json").read_text())
     assert all("UNEXPECTED" not in r["verdict"] and "NOT caught" not in r["verdict"] for r in summary["runs"])
     assert "caught: biased by design" in stdout
+
+
+def test_a_bad_render_param_names_the_render_method():
+    from grisx.errors import InvalidParameterError, UnknownNameError
+    from grisx.render.driver import render
+
+    with pytest.raises(InvalidParameterError, match="of render method 'restir-gi'"):
+        render("cornell-box", "restir-gi", res=(8, 8), params={"mb_fraction": 5})
+    with pytest.raises(UnknownNameError, match="render method 'restir-pt'"):
+        render("cornell-box", "restir-pt", res=(8, 8), params={"max_bounces": 9})
+
+
+def test_every_registered_default_is_the_constructors():
+    # params are declared once: the registry reads each default from the renderer's constructor
+    import inspect
+
+    from grisx.render import pt, restir_di, restir_gi, restir_pt
+    from grisx.render.driver import METHODS
+
+    for name, cls in (("pt", pt.PathTracer), ("restir-di", restir_di.ReSTIRDI), ("restir-gi", restir_gi.ReSTIRGI), ("restir-pt", restir_pt.ReSTIRPT)):
+        signature = inspect.signature(cls.__init__).parameters
+        assert all(p.default == signature[p.name].default for p in METHODS[name].params), name

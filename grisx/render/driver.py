@@ -9,8 +9,9 @@ frames (``accumulate``: how a reuse method converges under a static camera).
 Per-pass timings come from a :class:`PassTimer` that synchronizes the device
 before reading the clock, so GPU times are real.
 
-Methods register in :data:`METHODS` with their options (``--param k=v``,
-parsed by :class:`~grisx.theory.toys.base.Param`). The debug views
+Each renderer module registers its methods and options (``--param k=v``)
+itself, in :mod:`grisx.render.registry`'s :data:`METHODS`; importing this
+module loads them all. The debug views
 (``gbuffer``, ``albedo``, ``normal``, ``depth``, ``motion``) show the
 G-buffer every renderer reads.
 """
@@ -18,7 +19,6 @@ G-buffer every renderer reads.
 from __future__ import annotations
 
 import dataclasses
-import importlib
 import time
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -29,7 +29,7 @@ import warp as wp
 
 from grisx.device import resolve_device, synchronize
 from grisx.errors import InvalidParameterError, InvalidValueError, UnknownNameError
-from grisx.theory.toys.base import Param
+from grisx.render.registry import METHODS, RenderContext, RenderMethod, load_plugins, method_params
 
 __all__ = ["METHODS", "RenderMethod", "RenderContext", "RenderResult", "PassTimer", "render", "load_scene", "parse_res", "method_params"]
 
@@ -73,170 +73,6 @@ class _PassScope:
     def __exit__(self, *exc: Any) -> None:
         synchronize(self.timer.device)
         self.timer.seconds[self.name] = self.timer.seconds.get(self.name, 0.0) + time.perf_counter() - self.start
-
-
-@dataclasses.dataclass
-class RenderContext:
-    """What a renderer is created with."""
-
-    built: Any  # BuiltScene
-    width: int
-    height: int
-    params: dict[str, Any]  # the method's params, resolved, plus "spp"
-    seed: int
-    timer: PassTimer
-    method: str
-
-
-@dataclasses.dataclass(frozen=True)
-class RenderMethod:
-    """A named renderer: ``module.factory(ctx: RenderContext)`` → object with ``render_frame(frame)``."""
-
-    name: str
-    summary: str
-    module: str  # imported lazily: compiling a renderer's kernels costs only when it is used
-    factory: str
-    params: tuple[Param, ...] = ()
-    kind: str = "radiance"  # "radiance" (linear RGB) or "debug" (a G-buffer view)
-    #: the path tracer's max_depth whose image this method estimates (None: the scene's own)
-    reference_max_depth: int | None = None
-    #: whether ``spp`` (samples per pixel per frame) means anything to it; the others take one sample a frame
-    uses_spp: bool = False
-
-    def create(self, ctx: RenderContext) -> Any:
-        return getattr(importlib.import_module(self.module), self.factory)(ctx)
-
-
-METHODS: dict[str, RenderMethod] = {}
-
-
-def register(method: RenderMethod) -> RenderMethod:
-    METHODS[method.name] = method
-    return method
-
-
-for _view, _doc in (
-    ("gbuffer", "every G-buffer field (one EXR per field) and a contact sheet PNG"),
-    ("albedo", "albedo at the primary hit"),
-    ("normal", "shading normal at the primary hit (n/2 + 1/2 in the PNG)"),
-    ("depth", "camera-space depth of the primary hit"),
-    ("motion", "motion vector into the previous frame, in pixels (EXR: dx, dy, 0)"),
-):
-    register(RenderMethod(_view, _doc, "grisx.render.views", "create_view", kind="debug"))
-
-
-register(
-    RenderMethod(
-        "pt",
-        "reference path tracer: BSDF sampling + next-event estimation, power-heuristic MIS, Russian roulette",
-        "grisx.render.pt",
-        "create_path_tracer",
-        params=(
-            Param("max_depth", 16, "longest path in segments, Mitsuba's meaning (1: emitters only, 2: + direct light, -1: unbounded); default: the scene's", kind="int", minimum=-1),
-            Param("rr_depth", 5, "depth from which Russian roulette may end paths", kind="int", minimum=1),
-            Param("strategy", "mis", "mis: NEE and BSDF sampling with the power heuristic; nee or bsdf: one technique alone", kind="choice", choices=("mis", "nee", "bsdf")),
-        ),
-        uses_spp=True,
-    )
-)
-
-
-# ---- restir-di / restir-gi (issue 10): registered here by grisx.render.restir_di / restir_gi ----
-
-register(
-    RenderMethod(
-        "restir-di",
-        "ReSTIR DI (Bitterli et al. 2020): 32 light + 1 BSDF candidates, visibility before reuse, temporal and spatial reuse with pairwise MIS; emitted + direct light (pt's max_depth=2)",
-        "grisx.render.restir_di",
-        "create_restir_di",
-        reference_max_depth=2,
-        params=(
-            Param("light_candidates", 32, "initial light-sampled candidates per pixel", kind="int", minimum=0, maximum=1024),
-            Param("bsdf_candidates", 1, "initial BSDF-sampled candidates per pixel", kind="int", minimum=0, maximum=64),
-            Param("temporal", True, "reuse the previous frame's reservoir (reprojected)", kind="bool"),
-            Param("spatial", True, "reuse neighbouring pixels' reservoirs", kind="bool"),
-            Param("neighbors", 5, "spatial neighbours per pixel", kind="int", minimum=0, maximum=64),
-            Param("radius", 30.0, "spatial reuse radius in pixels", minimum=1.0),
-            Param("history_cap", 20.0, "cap on a reused reservoir's confidence M (the history cap)", minimum=0.0),
-            Param("unbiased", True, "true: targets at other pixels include their visibility (shadow rays), unbiased; false: unshadowed, cheaper, biased", kind="bool"),
-            Param("jitter", True, "visible point uniform over the pixel each frame (box filter: what pt estimates); false: pixel centres", kind="bool"),
-        ),
-    )
-)
-
-register(
-    RenderMethod(
-        "restir-gi",
-        "ReSTIR GI (seed 004): sample points resampled in temporal and spatial reservoir buffers with the reconnection Jacobian (Eq. 11); full global illumination",
-        "grisx.render.restir_gi",
-        "create_restir_gi",
-        params=(
-            Param("source", "uniform", "initial direction pdf (Alg. 2)", kind="choice", choices=("uniform", "cosine", "bsdf")),
-            Param("target", "full", "full: Eq. 9 (L_o f cos); radiance: Eq. 10 (L_o)", kind="choice", choices=("full", "radiance")),
-            Param("jacobian", True, "reconnection Jacobian of Eq. 11 (false reproduces Fig. 7's bias)", kind="bool"),
-            Param("unbiased", True, "true: Z counts only domains that can produce the sample (visibility rays, Alg. 4 l. 16-19); false: Z = sum of M", kind="bool"),
-            Param("temporal", True, "temporal resampling (Alg. 3)", kind="bool"),
-            Param("spatial", True, "spatial resampling (Alg. 4)", kind="bool"),
-            Param("temporal_cap", 30.0, "M cap of temporal reservoirs", minimum=0.0),
-            Param("spatial_cap", 500.0, "M cap of spatial reservoirs", minimum=0.0),
-            Param("iterations_low", 9, "maxIterations while the spatial reservoir's M < spatial_cap/2", kind="int", minimum=0, maximum=64),
-            Param("iterations_high", 3, "maxIterations otherwise", kind="int", minimum=0, maximum=64),
-            Param("adaptive_radius", True, "radius 10% of the image, halved per rejected neighbour down to min_radius; false: fixed radius", kind="bool"),
-            Param("radius", 30.0, "fixed spatial radius in pixels (adaptive_radius=false)", minimum=1.0),
-            Param("min_radius", 3.0, "smallest adaptive radius in pixels", minimum=1.0),
-            Param("low_m", 10.0, "a pixel whose spatial reservoir has M below this reuses neighbours' spatial reservoirs (Fig. 10); 0: never", minimum=0.0),
-            Param("max_depth", 16, "longest path in segments from the camera, Mitsuba's meaning (as pt); default: the scene's", kind="int", minimum=-1),
-            Param("rr_depth", 5, "depth from which Russian roulette may end the paths at sample points", kind="int", minimum=1),
-            Param("mb_fraction", 0.25, "probability that a 64x32 tile follows multi-bounce paths (tile Russian roulette)", minimum=1e-3, maximum=1.0),
-            Param("validation_interval", 6, "replay and validate reservoir samples every N frames; 0: never", kind="int", minimum=0),
-            Param("validation_tolerance", 0.2, "relative change of L_o that invalidates a sample", minimum=0.0),
-            Param("direct", "auto", "direct light: nee (path-traced, NEE + BSDF with MIS), restir-di, or auto (restir-di above 16 lights: where it is better, measured)", kind="choice", choices=("auto", "nee", "restir-di")),
-            Param("exact_bsdf", False, "re-evaluate the sample point's BSDF toward each visible point reusing it; false: its radiance reused as if Lambertian (the paper)", kind="bool"),
-            Param("max_jacobian", 10.0, "reject reconnections with |J| above this (counted the same way in Z: still unbiased); 0: never (the paper)", minimum=0.0),
-            Param("jitter", True, "visible point uniform over the pixel each frame (box filter: what pt estimates); false: pixel centres", kind="bool"),
-        ),
-    )
-)
-
-# ---- restir-pt (issue 11): registered here by grisx.render.restir_pt ----
-
-register(
-    RenderMethod(
-        "restir-pt",
-        "ReSTIR PT (Lin et al. 2022): path reservoirs with temporal and spatial GRIS reuse through replay, reconnection or hybrid shifts",
-        "grisx.render.restir_pt",
-        "create_restir_pt",
-        params=(
-            Param("shift", "hybrid", "path shift: hybrid (replay until two rough vertices, then reconnect), reconnection (at x2) or replay", kind="choice", choices=("hybrid", "reconnection", "replay")),
-            Param("candidates", 1, "initial path-tracer candidates per pixel and frame (1 real-time, 32 offline)", kind="int", minimum=1),
-            Param("max_depth", 16, "longest path in segments from the camera, Mitsuba's meaning (as pt; -1: unbounded); default: the scene's", kind="int", minimum=-1),
-            Param("rr_depth", 5, "depth from which Russian roulette may end paths (as pt)", kind="int", minimum=1),
-            Param("temporal", True, "temporal reuse (generalized balance MIS)", kind="bool"),
-            Param("spatial_rounds", 1, "rounds of spatial reuse (pairwise MIS)", kind="int", minimum=0, maximum=8),
-            Param("neighbors", 3, "spatial neighbours per round", kind="int", minimum=0, maximum=16),
-            Param("radius", 20.0, "spatial reuse radius in pixels", minimum=1.0),
-            Param("history_cap", 20.0, "temporal confidence cap (<= 0: none)"),
-            Param("rough_threshold", 0.2, "hybrid shift: vertices rougher than this may be reconnected", minimum=0.0),
-            Param("near_field", 0.01, "hybrid shift: reconnection segments must be longer than this fraction of the scene radius", minimum=0.0),
-            Param("jacobian", True, "use shift Jacobians (false: |J| = 1, the biased ablation)", kind="bool"),
-            Param("jacobian_max", 0.0, "reject shifts with |J| outside [1/J_max, J_max] (0: no threshold)", minimum=0.0),
-        ),
-    )
-)
-
-
-def method_params(method: str, params: Mapping[str, Any] | None) -> dict[str, Any]:
-    """Defaults of ``method`` merged with ``params``, parsed and range-checked."""
-    if method not in METHODS:
-        raise UnknownNameError("render method", method, sorted(METHODS))
-    m = METHODS[method]
-    known = {p.name: p for p in m.params}
-    out = {name: p.default for name, p in known.items()}
-    for key, value in (params or {}).items():
-        if key not in known:
-            raise UnknownNameError(f"param of render method '{method}'", key, sorted(known))
-        out[key] = known[key].parse(value, method)
-    return out
 
 
 def parse_res(text: str) -> tuple[int, int]:
@@ -407,3 +243,6 @@ def render(
         settings=settings,
         extra=extra,
     )
+
+
+load_plugins()  # every renderer module registers itself (grisx.render.registry.PLUGINS)

@@ -37,6 +37,8 @@ import numpy as np
 import warp as wp
 
 from grisx.device import specialized_module
+from grisx.params import Param
+from grisx.render.registry import RenderMethod, create_renderer, register, renderer_params
 from grisx.scene.bsdf import cosine_hemisphere_pdf, make_bsdf, sample_cosine_hemisphere
 from grisx.scene.camera import CameraData, camera_ray, sample_camera
 from grisx.scene.frame import frame_from_normal, to_local, to_world
@@ -375,3 +377,20 @@ def create_path_tracer(ctx: Any) -> PathTracer:
         seed=ctx.seed,
         timer=ctx.timer,
     )
+
+# ---- registration (grisx.render.registry): the method, its params (defaults: the constructor's) ----
+
+register(
+    RenderMethod(
+        "pt",
+        "reference path tracer: BSDF sampling + next-event estimation, power-heuristic MIS, Russian roulette",
+        create_path_tracer,
+        params=renderer_params(
+            PathTracer,
+            Param("max_depth", ..., "longest path in segments, Mitsuba's meaning (1: emitters only, 2: + direct light, -1: unbounded); default: the scene's", kind="int", minimum=-1),
+            Param("rr_depth", ..., "depth from which Russian roulette may end paths", kind="int", minimum=1),
+            Param("strategy", ..., "mis: NEE and BSDF sampling with the power heuristic; nee or bsdf: one technique alone", kind="choice", choices=("mis", "nee", "bsdf")),
+        ),
+        uses_spp=True,
+    )
+)

@@ -83,6 +83,8 @@ from typing import Any
 import warp as wp
 
 from grisx.device import specialized_module
+from grisx.params import Param
+from grisx.render.registry import RenderMethod, create_renderer, register, renderer_params
 from grisx.scene.bsdf import make_bsdf
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.gbuffer import GBuffer, GBufferData, gbuffer_kernel
@@ -749,20 +751,27 @@ class ReSTIRDI(ScreenSpaceRenderer):
 
 
 def create_restir_di(ctx: Any) -> ReSTIRDI:
-    p = ctx.params
-    return ReSTIRDI(
-        ctx.built,
-        ctx.width,
-        ctx.height,
-        seed=ctx.seed,
-        light_candidates=p["light_candidates"],
-        bsdf_candidates=p["bsdf_candidates"],
-        temporal=p["temporal"],
-        spatial=p["spatial"],
-        neighbors=p["neighbors"],
-        radius=p["radius"],
-        history_cap=p["history_cap"],
-        unbiased=p["unbiased"],
-        jitter=p["jitter"],
-        timer=ctx.timer,
+    return create_renderer(ReSTIRDI, ctx)
+
+# ---- registration (grisx.render.registry): the method, its params (defaults: the constructor's) ----
+
+register(
+    RenderMethod(
+        "restir-di",
+        "ReSTIR DI (Bitterli et al. 2020): 32 light + 1 BSDF candidates, visibility before reuse, temporal and spatial reuse with pairwise MIS; emitted + direct light (pt's max_depth=2)",
+        create_restir_di,
+        reference_max_depth=2,
+        params=renderer_params(
+            ReSTIRDI,
+            Param("light_candidates", ..., "initial light-sampled candidates per pixel", kind="int", minimum=0, maximum=1024),
+            Param("bsdf_candidates", ..., "initial BSDF-sampled candidates per pixel", kind="int", minimum=0, maximum=64),
+            Param("temporal", ..., "reuse the previous frame's reservoir (reprojected)", kind="bool"),
+            Param("spatial", ..., "reuse neighbouring pixels' reservoirs", kind="bool"),
+            Param("neighbors", ..., "spatial neighbours per pixel", kind="int", minimum=0, maximum=64),
+            Param("radius", ..., "spatial reuse radius in pixels", minimum=1.0),
+            Param("history_cap", ..., "cap on a reused reservoir's confidence M (the history cap)", minimum=0.0),
+            Param("unbiased", ..., "true: targets at other pixels include their visibility (shadow rays), unbiased; false: unshadowed, cheaper, biased", kind="bool"),
+            Param("jitter", ..., "visible point uniform over the pixel each frame (box filter: what pt estimates); false: pixel centres", kind="bool"),
+        ),
     )
+)

@@ -152,6 +152,8 @@ from typing import Any
 import warp as wp
 
 from grisx.device import specialized_module
+from grisx.params import Param
+from grisx.render.registry import RenderMethod, create_renderer, register, renderer_params
 from grisx.scene.bsdf import MATERIAL_ROUGH_DIELECTRIC, cosine_hemisphere_pdf, make_bsdf, sample_cosine_hemisphere
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.gbuffer import GBuffer, GBufferData, gbuffer_kernel
@@ -1107,19 +1109,40 @@ class ReSTIRGI(ScreenSpaceRenderer):
 
 
 def create_restir_gi(ctx: Any) -> ReSTIRGI:
-    p = ctx.params
-    return ReSTIRGI(
-        ctx.built,
-        ctx.width,
-        ctx.height,
-        seed=ctx.seed,
-        timer=ctx.timer,
-        **{k: p[k] for k in _FACTORY_PARAMS},
+    return create_renderer(ReSTIRGI, ctx)
+
+# ---- registration (grisx.render.registry): the method, its params (defaults: the constructor's) ----
+
+register(
+    RenderMethod(
+        "restir-gi",
+        "ReSTIR GI (seed 004): sample points resampled in temporal and spatial reservoir buffers with the reconnection Jacobian (Eq. 11); full global illumination",
+        create_restir_gi,
+        params=renderer_params(
+            ReSTIRGI,
+            Param("source", ..., "initial direction pdf (Alg. 2)", kind="choice", choices=("uniform", "cosine", "bsdf")),
+            Param("target", ..., "full: Eq. 9 (L_o f cos); radiance: Eq. 10 (L_o)", kind="choice", choices=("full", "radiance")),
+            Param("jacobian", ..., "reconnection Jacobian of Eq. 11 (false reproduces Fig. 7's bias)", kind="bool"),
+            Param("unbiased", ..., "true: Z counts only domains that can produce the sample (visibility rays, Alg. 4 l. 16-19); false: Z = sum of M", kind="bool"),
+            Param("temporal", ..., "temporal resampling (Alg. 3)", kind="bool"),
+            Param("spatial", ..., "spatial resampling (Alg. 4)", kind="bool"),
+            Param("temporal_cap", ..., "M cap of temporal reservoirs", minimum=0.0),
+            Param("spatial_cap", ..., "M cap of spatial reservoirs", minimum=0.0),
+            Param("iterations_low", ..., "maxIterations while the spatial reservoir's M < spatial_cap/2", kind="int", minimum=0, maximum=64),
+            Param("iterations_high", ..., "maxIterations otherwise", kind="int", minimum=0, maximum=64),
+            Param("adaptive_radius", ..., "radius 10% of the image, halved per rejected neighbour down to min_radius; false: fixed radius", kind="bool"),
+            Param("radius", ..., "fixed spatial radius in pixels (adaptive_radius=false)", minimum=1.0),
+            Param("min_radius", ..., "smallest adaptive radius in pixels", minimum=1.0),
+            Param("low_m", ..., "a pixel whose spatial reservoir has M below this reuses neighbours' spatial reservoirs (Fig. 10); 0: never", minimum=0.0),
+            Param("max_depth", ..., "longest path in segments from the camera, Mitsuba's meaning (as pt); default: the scene's", kind="int", minimum=-1),
+            Param("rr_depth", ..., "depth from which Russian roulette may end the paths at sample points", kind="int", minimum=1),
+            Param("mb_fraction", ..., "probability that a 64x32 tile follows multi-bounce paths (tile Russian roulette)", minimum=1e-3, maximum=1.0),
+            Param("validation_interval", ..., "replay and validate reservoir samples every N frames; 0: never", kind="int", minimum=0),
+            Param("validation_tolerance", ..., "relative change of L_o that invalidates a sample", minimum=0.0),
+            Param("direct", ..., "direct light: nee (path-traced, NEE + BSDF with MIS), restir-di, or auto (restir-di above 16 lights: where it is better, measured)", kind="choice", choices=("auto", "nee", "restir-di")),
+            Param("exact_bsdf", ..., "re-evaluate the sample point's BSDF toward each visible point reusing it; false: its radiance reused as if Lambertian (the paper)", kind="bool"),
+            Param("max_jacobian", ..., "reject reconnections with |J| above this (counted the same way in Z: still unbiased); 0: never (the paper)", minimum=0.0),
+            Param("jitter", ..., "visible point uniform over the pixel each frame (box filter: what pt estimates); false: pixel centres", kind="bool"),
+        ),
     )
-
-
-_FACTORY_PARAMS = (
-    "source", "target", "jacobian", "unbiased", "temporal", "spatial", "temporal_cap", "spatial_cap", "iterations_low",
-    "iterations_high", "adaptive_radius", "radius", "min_radius", "low_m", "max_depth", "rr_depth", "mb_fraction",
-    "validation_interval", "validation_tolerance", "direct", "exact_bsdf", "max_jacobian", "jitter",
 )

@@ -62,6 +62,8 @@ import numpy as np
 import warp as wp
 
 from grisx.device import specialized_module
+from grisx.params import Param
+from grisx.render.registry import RenderMethod, create_renderer, register, renderer_params
 from grisx.errors import InvalidParameterError
 from grisx.scene.gbuffer import GBuffer, GBufferData
 from grisx.render.path_shift import (
@@ -432,6 +434,30 @@ class ReSTIRPT(ScreenSpaceRenderer):
 
 
 def create_restir_pt(ctx: Any) -> ReSTIRPT:
-    # every registered param is a keyword of ReSTIRPT; spp does not apply (one path sample per candidate)
-    params = {k: v for k, v in ctx.params.items() if k != "spp"}
-    return ReSTIRPT(ctx.built, ctx.width, ctx.height, seed=ctx.seed, timer=ctx.timer, **params)
+    return create_renderer(ReSTIRPT, ctx)
+
+# ---- registration (grisx.render.registry): the method, its params (defaults: the constructor's) ----
+
+register(
+    RenderMethod(
+        "restir-pt",
+        "ReSTIR PT (Lin et al. 2022): path reservoirs with temporal and spatial GRIS reuse through replay, reconnection or hybrid shifts",
+        create_restir_pt,
+        params=renderer_params(
+            ReSTIRPT,
+            Param("shift", ..., "path shift: hybrid (replay until two rough vertices, then reconnect), reconnection (at x2) or replay", kind="choice", choices=("hybrid", "reconnection", "replay")),
+            Param("candidates", ..., "initial path-tracer candidates per pixel and frame (1 real-time, 32 offline)", kind="int", minimum=1),
+            Param("max_depth", ..., "longest path in segments from the camera, Mitsuba's meaning (as pt; -1: unbounded); default: the scene's", kind="int", minimum=-1),
+            Param("rr_depth", ..., "depth from which Russian roulette may end paths (as pt)", kind="int", minimum=1),
+            Param("temporal", ..., "temporal reuse (generalized balance MIS)", kind="bool"),
+            Param("spatial_rounds", ..., "rounds of spatial reuse (pairwise MIS)", kind="int", minimum=0, maximum=8),
+            Param("neighbors", ..., "spatial neighbours per round", kind="int", minimum=0, maximum=16),
+            Param("radius", ..., "spatial reuse radius in pixels", minimum=1.0),
+            Param("history_cap", ..., "temporal confidence cap (<= 0: none)"),
+            Param("rough_threshold", ..., "hybrid shift: vertices rougher than this may be reconnected", minimum=0.0),
+            Param("near_field", ..., "hybrid shift: reconnection segments must be longer than this fraction of the scene radius", minimum=0.0),
+            Param("jacobian", ..., "use shift Jacobians (false: |J| = 1, the biased ablation)", kind="bool"),
+            Param("jacobian_max", ..., "reject shifts with |J| outside [1/J_max, J_max] (0: no threshold)", minimum=0.0),
+        ),
+    )
+)

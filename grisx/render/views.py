@@ -6,6 +6,7 @@ from typing import Any
 
 import numpy as np
 
+from grisx.render.registry import RenderMethod, register
 from grisx.scene.gbuffer import GBuffer, gbuffer_kernel
 from grisx.scene.scene import BuiltScene
 
@@ -80,3 +81,13 @@ def display_image(view: str, image: np.ndarray) -> tuple[np.ndarray, bool]:
         return np.where((ids >= 0)[..., None], palette[np.maximum(ids, 0)], 0.0), False
     return a, True
 
+# ---- registration (grisx.render.registry): the method, its params (defaults: the constructor's) ----
+
+for _view, _doc in (
+    ("gbuffer", "every G-buffer field (one EXR per field) and a contact sheet PNG"),
+    ("albedo", "albedo at the primary hit"),
+    ("normal", "shading normal at the primary hit (n/2 + 1/2 in the PNG)"),
+    ("depth", "camera-space depth of the primary hit"),
+    ("motion", "motion vector into the previous frame, in pixels (EXR: dx, dy, 0)"),
+):
+    register(RenderMethod(_view, _doc, create_view, kind="debug"))

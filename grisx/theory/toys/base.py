@@ -25,72 +25,12 @@ import warp as wp
 
 from grisx.device import resolve_device, synchronize
 from grisx.errors import InvalidParameterError, InvalidValueError, UnknownNameError
+from grisx.params import Param
 
 __all__ = ["Param", "Method", "BiasedVariant", "Estimate", "ToyProblem", "TrialBatch", "CHUNK_TRIALS"]
 
 #: trials launched per kernel call; bounds host memory for per-trial results
 CHUNK_TRIALS = 1 << 20
-
-_TRUE = {"true", "1", "yes", "on"}
-_FALSE = {"false", "0", "no", "off"}
-
-
-@dataclasses.dataclass(frozen=True)
-class Param:
-    """A method option (``--param name=value``) with its type, default and range."""
-
-    name: str
-    default: Any
-    doc: str
-    kind: str = "float"  # "int" | "float" | "bool" | "choice"
-    choices: tuple[str, ...] = ()
-    minimum: float | None = None
-    maximum: float | None = None
-
-    def parse(self, value: Any, problem: str) -> Any:
-        """Convert a CLI string (or a Python value) and check its range."""
-        where = f"param '{self.name}' of toy '{problem}'"
-        if self.kind == "bool":
-            if isinstance(value, bool):
-                return value
-            text = str(value).strip().lower()
-            if text in _TRUE:
-                return True
-            if text in _FALSE:
-                return False
-            raise InvalidParameterError(f"{where} must be true or false, got '{value}'")
-        if self.kind == "choice":
-            text = str(value).strip()
-            if text not in self.choices:
-                raise InvalidParameterError(f"{where} must be one of {', '.join(self.choices)}, got '{value}'")
-            return text
-        try:
-            if self.kind == "int":
-                if isinstance(value, float) and not value.is_integer():
-                    raise ValueError
-                number: float = int(str(value).strip()) if isinstance(value, str) else int(value)
-            else:
-                number = float(value)
-        except (TypeError, ValueError):
-            raise InvalidParameterError(f"{where} must be {'an integer' if self.kind == 'int' else 'a number'}, got '{value}'") from None
-        if not math.isfinite(number):
-            raise InvalidParameterError(f"{where} must be finite, got '{value}'")
-        if self.minimum is not None and number < self.minimum:
-            raise InvalidParameterError(f"{where} must be >= {self.minimum:g}, got {number:g}")
-        if self.maximum is not None and number > self.maximum:
-            raise InvalidParameterError(f"{where} must be <= {self.maximum:g}, got {number:g}")
-        return number
-
-    def describe(self) -> dict[str, Any]:
-        out = {"name": self.name, "type": self.kind, "default": self.default, "doc": self.doc}
-        if self.choices:
-            out["choices"] = list(self.choices)
-        if self.minimum is not None:
-            out["min"] = self.minimum
-        if self.maximum is not None:
-            out["max"] = self.maximum
-        return out
-
 
 @dataclasses.dataclass(frozen=True)
 class Method:
@@ -250,7 +190,7 @@ class ToyProblem:
         for key, value in (params or {}).items():
             if key not in known:
                 raise UnknownNameError(f"param of toy '{self.name}' method '{method}'", key, sorted(known))
-            out[key] = known[key].parse(value, self.name)
+            out[key] = known[key].parse(value, f"toy '{self.name}'")
         self.check_params(method, out)
         return out
 

@@ -1,0 +1,110 @@
+"""The render-method registry: each renderer file declares its params and registers itself.
+
+As in Mitsuba 3 (a plugin per file) and pbrt-v4 (``Create`` reading a parameter
+dictionary), a renderer module ends with one :func:`register` call naming the
+method, a one-line summary, the factory and its :class:`~grisx.params.Param`
+list. A param's *default* is the renderer class's keyword default, read from its
+constructor by :func:`renderer_params` (``Param(name, ..., doc)``), so each default
+is written once; ``--param k=v`` values are parsed and range-checked by
+:func:`method_params`, and a bad one is an error naming the render method.
+
+:data:`PLUGINS` lists the renderer modules; :func:`load_plugins` imports them
+(the driver does, once), which fills :data:`METHODS`. A new renderer adds its
+module to :data:`PLUGINS`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib
+import inspect
+from collections.abc import Callable, Mapping
+from typing import Any
+
+from grisx.errors import InvalidParameterError, UnknownNameError
+from grisx.params import Param
+
+__all__ = ["RenderContext", "RenderMethod", "METHODS", "PLUGINS", "register", "renderer_params", "create_renderer", "method_params", "load_plugins"]
+
+#: the renderer modules, each of which registers its methods when imported
+PLUGINS = ("grisx.render.views", "grisx.render.pt", "grisx.render.restir_di", "grisx.render.restir_gi", "grisx.render.restir_pt")
+
+
+@dataclasses.dataclass
+class RenderContext:
+    """What a renderer is created with."""
+
+    built: Any  # BuiltScene
+    width: int
+    height: int
+    params: dict[str, Any]  # the method's params, resolved, plus "spp"
+    seed: int
+    timer: Any  # PassTimer
+    method: str
+
+
+@dataclasses.dataclass(frozen=True)
+class RenderMethod:
+    """A named renderer: ``factory(ctx: RenderContext)`` → object with ``render_frame(frame)``."""
+
+    name: str
+    summary: str
+    factory: Callable[[RenderContext], Any]
+    params: tuple[Param, ...] = ()
+    kind: str = "radiance"  # "radiance" (linear RGB) or "debug" (a G-buffer view)
+    #: the path tracer's max_depth whose image this method estimates (None: the scene's own)
+    reference_max_depth: int | None = None
+    #: whether ``spp`` (samples per pixel per frame) means anything to it; the others take one sample a frame
+    uses_spp: bool = False
+
+    def create(self, ctx: RenderContext) -> Any:
+        return self.factory(ctx)
+
+
+METHODS: dict[str, RenderMethod] = {}
+
+
+def register(method: RenderMethod) -> RenderMethod:
+    """Add ``method`` to :data:`METHODS` (a renderer module calls this once per method it offers)."""
+    if method.name in METHODS and METHODS[method.name].factory is not method.factory:
+        raise InvalidParameterError(f"render method '{method.name}' is registered twice")
+    METHODS[method.name] = method
+    return method
+
+
+def renderer_params(cls: type, *params: Param) -> tuple[Param, ...]:
+    """``params`` with each default taken from ``cls``'s constructor (write ``...`` as the default)."""
+    signature = inspect.signature(cls.__init__).parameters
+    out = []
+    for p in params:
+        if p.name not in signature:
+            raise TypeError(f"{cls.__name__} has no keyword '{p.name}' for its declared param")
+        out.append(dataclasses.replace(p, default=signature[p.name].default) if p.default is ... else p)
+    return tuple(out)
+
+
+def create_renderer(cls: type, ctx: RenderContext) -> Any:
+    """``cls(built, width, height, seed=, timer=, **its registered params)``: the factory of most renderers."""
+    names = {p.name for p in METHODS[ctx.method].params}
+    return cls(ctx.built, ctx.width, ctx.height, seed=ctx.seed, timer=ctx.timer, **{k: v for k, v in ctx.params.items() if k in names})
+
+
+def load_plugins() -> dict[str, RenderMethod]:
+    """Import every module of :data:`PLUGINS` (each registers its methods) and return :data:`METHODS`."""
+    for module in PLUGINS:
+        importlib.import_module(module)
+    return METHODS
+
+
+def method_params(method: str, params: Mapping[str, Any] | None) -> dict[str, Any]:
+    """Defaults of ``method`` merged with ``params``, parsed and range-checked."""
+    if method not in METHODS:
+        raise UnknownNameError("render method", method, sorted(METHODS))
+    m = METHODS[method]
+    known = {p.name: p for p in m.params}
+    out = {name: p.default for name, p in known.items()}
+    for key, value in (params or {}).items():
+        if key not in known:
+            raise UnknownNameError(f"param of render method '{method}'", key, sorted(known))
+        out[key] = known[key].parse(value, f"render method '{method}'")
+    return out
