@@ -36,209 +36,24 @@ from typing import Any
 import numpy as np
 import warp as wp
 
+from grisx.render.base.screen import kernel_cache
 from grisx.device import specialized_module
+from grisx.render.base.trace import STRATEGIES, make_trace_path
 from grisx.params import Param
-from grisx.render.registry import RenderMethod, create_renderer, register, renderer_params
-from grisx.scene.bsdf import cosine_hemisphere_pdf, make_bsdf, sample_cosine_hemisphere
+from grisx.render.registry import RenderMethod, register, renderer_params
 from grisx.scene.camera import CameraData, camera_ray, sample_camera
-from grisx.scene.frame import frame_from_normal, to_local, to_world
-from grisx.scene.lights import emitter_radiance, environment_eval, environment_pdf, light_pdf_emitter, sample_light
-from grisx.scene.material import MATERIAL_ROUGH_DIELECTRIC
-from grisx.scene.scene import SceneData, finite_or_dropped, intersect, light_occluded, spawn_origin, surface_material
-from grisx.theory.mis import power_heuristic
-from grisx.theory.roulette import roulette_survival
-from grisx.theory.random import random_key, random_subkey, random_uniform
+from grisx.scene.scene import SceneData, finite_or_dropped
+from grisx.theory.random import random_key, random_subkey
 
 wp.set_module_options({"enable_backward": False})
 
-__all__ = ["PathTracer", "PathRadiance", "make_path_tracer_kernel", "make_trace_path", "STRATEGIES", "create_path_tracer"]
-
-#: sampling strategies: both techniques with MIS, or one alone
-STRATEGIES = {"mis": 0, "nee": 1, "bsdf": 2}
-
-_KERNELS: dict[frozenset[int], Any] = {}
+__all__ = ["PathTracer", "make_path_tracer_kernel", "create_path_tracer"]
 
 
-_TRACE_PATHS: dict[frozenset[int], Any] = {}
 
-
-@wp.struct
-class PathRadiance:
-    """One traced path's estimate: all of it, and the part of its first ``prefix_depth`` segments.
-
-    With ``record``, also the two techniques at the first hit x, split from its BSDF so that the
-    radiance x reflects can be re-evaluated toward another direction ω' (ReSTIR GI's ``exact_bsdf``):
-    L(x → ω') = f(ω', nee_wi) ⊙ nee_li + f(ω', bs_wi) ⊙ bs_li (f with the cosine, as ``bsdf.eval``).
-    For that to be one function of the path whatever direction it was traced from, nothing at x may
-    depend on the outgoing direction: there the continuation is drawn cosine-weighted on the
-    outgoing side (not from the BSDF) and both MIS weights use that density. ``recorded`` = 0 where
-    this cannot be done (a delta or transmitting BSDF at x, or no hit): the path is then the usual one.
-    """
-
-    total: wp.vec3
-    prefix: wp.vec3  # = what the same path (same random numbers) gives with max_depth = prefix_depth
-    nee_wi: wp.vec3  # light direction of next-event estimation at the first hit (world)
-    nee_li: wp.vec3  # its radiance × MIS weight / pdf (0 when occluded or not sampled)
-    bs_wi: wp.vec3  # BSDF-sampled direction at the first hit (world)
-    bs_li: wp.vec3  # everything the path gathers after it, divided by that sample's pdf (not by f)
-    bs_li_prefix: wp.vec3  # the part of bs_li within the first prefix_depth segments
-    recorded: int  # 1: the records above describe the path
-
-
-def make_trace_path(kinds: frozenset[int]) -> Any:
-    """``trace_path(scene, o, d, key, max_depth, rr_depth, strategy, prefix_depth, record) -> PathRadiance``
-    for the material kinds ``kinds`` (cached): the radiance arriving at o from direction d, emission at
-    the first hit included. Renderers that need the path tracer's estimate at a point (ReSTIR GI's
-    outgoing radiance at a sample point) call this very function.
-
-    ``prefix`` is the estimate truncated to ``prefix_depth`` segments (Mitsuba's max_depth), from the
-    same path: a renderer that needs both (direct light and the rest; one bounce and all of them)
-    traces once. ``prefix_depth`` < 0: ``prefix`` = ``total``. ``record`` = 1 fills the first hit's
-    technique records of :class:`PathRadiance` (the path itself is the same)."""
-    kinds = frozenset(kinds)
-    if kinds in _TRACE_PATHS:
-        return _TRACE_PATHS[kinds]
-    bsdf = make_bsdf(kinds)
-
-    @wp.func
-    def trace_path(
-        scene: SceneData, o: wp.vec3, d: wp.vec3, key: wp.uint32, max_depth: int, rr_depth: int, strategy: int, prefix_depth: int, record: int
-    ) -> PathRadiance:
-        out = PathRadiance()
-        zero = wp.vec3(0.0, 0.0, 0.0)
-        out.nee_wi = zero
-        out.nee_li = zero
-        out.bs_wi = zero
-        out.bs_li = zero
-        out.bs_li_prefix = zero
-        out.recorded = 0
-        have_prefix = int(0)
-        gamma = wp.vec3(0.0, 0.0, 0.0)  # record: the throughput after the first hit's BSDF sample, over its pdf
-        use_nee = strategy != 2
-        use_bsdf_emission = strategy != 1
-        L = wp.vec3(0.0, 0.0, 0.0)
-        beta = wp.vec3(1.0, 1.0, 1.0)  # path throughput
-        eta = float(1.0)
-        prev_pdf = float(1.0)  # solid-angle pdf of the BSDF sample that led here
-        prev_delta = int(1)  # camera rays count emission fully
-        prev_p = o
-        depth = int(0)
-        while max_depth < 0 or depth < max_depth:
-            si = intersect(scene, o, d, 1.0e30)
-            c = 8 * depth
-            # ---- emission reached by the previous BSDF sample (or the camera ray) ----
-            le = wp.vec3(0.0, 0.0, 0.0)
-            if si.valid == 0:
-                le = environment_eval(scene.lights, d)
-            else:
-                le = emitter_radiance(scene.lights, si.tri, si.ng, -d)
-            if wp.length_sq(le) > 0.0:
-                w = float(1.0)
-                if prev_delta == 0:
-                    if not use_bsdf_emission:
-                        w = 0.0
-                    elif use_nee:
-                        light_pdf = float(0.0)  # the density NEE would have picked this emitter point with
-                        if si.valid == 0:
-                            light_pdf = environment_pdf(scene.lights, d)
-                        else:
-                            light_pdf = light_pdf_emitter(scene.lights, si.tri, prev_p, si.p, si.ng)
-                        w = power_heuristic(prev_pdf, light_pdf)
-                L += wp.cw_mul(beta, le) * w
-                if record != 0:
-                    out.bs_li += wp.cw_mul(gamma, le) * w
-            if si.valid == 0:
-                break
-            if depth + 1 == prefix_depth:
-                out.prefix = L  # a path of max_depth = prefix_depth would stop here
-                out.bs_li_prefix = out.bs_li
-                have_prefix = 1
-            if max_depth >= 0 and depth + 1 >= max_depth:
-                break
-            m = surface_material(scene, si)
-            frame = frame_from_normal(si.ns)
-            wo = to_local(frame, -d)
-            # record: a view-independent first vertex (cosine-weighted continuation), where the BSDF allows
-            view_free = int(0)
-            if record != 0 and depth == 0 and bsdf.is_delta(m) == 0 and m.kind != MATERIAL_ROUGH_DIELECTRIC and wo[2] != 0.0:
-                view_free = 1
-                out.recorded = 1
-            # ---- next-event estimation ----
-            if use_nee and bsdf.is_delta(m) == 0:
-                ls = sample_light(
-                    scene.lights, si.p, random_uniform(key, c + 0), wp.vec2(random_uniform(key, c + 1), random_uniform(key, c + 2))
-                )
-                if ls.pdf > 0.0 and wp.length_sq(ls.radiance) > 0.0:
-                    wi = to_local(frame, ls.wi)
-                    f = bsdf.eval(m, wo, wi)
-                    if wp.length_sq(f) > 0.0:
-                        if not light_occluded(scene, si.p, si.ng, ls):
-                            w = float(1.0)
-                            if ls.delta == 0 and use_bsdf_emission:
-                                if view_free != 0:
-                                    w = power_heuristic(ls.pdf, cosine_hemisphere_pdf(wi * wp.sign(wo[2])))
-                                else:
-                                    w = power_heuristic(ls.pdf, bsdf.pdf(m, wo, wi))
-                            li = ls.radiance * (w / ls.pdf)
-                            L += wp.cw_mul(beta, wp.cw_mul(f, li))
-                            if record != 0:
-                                if depth == 0:
-                                    out.nee_wi = ls.wi
-                                    out.nee_li = li
-                                else:
-                                    out.bs_li += wp.cw_mul(gamma, wp.cw_mul(f, li))
-            # ---- BSDF sampling ----
-            bs = bsdf.sample(m, wo, random_uniform(key, c + 3), wp.vec2(random_uniform(key, c + 4), random_uniform(key, c + 5)))
-            if view_free != 0:
-                side = wp.sign(wo[2])  # the outgoing side: a reflection, cosine-weighted about the normal there
-                wl = sample_cosine_hemisphere(wp.vec2(random_uniform(key, c + 4), random_uniform(key, c + 5)))
-                bs.wi = wp.vec3(wl[0], wl[1], wl[2] * side)
-                bs.pdf = cosine_hemisphere_pdf(wl)
-                bs.valid = int(bs.pdf > 0.0)
-                bs.delta = 0
-                bs.eta = 1.0
-                if bs.valid != 0:
-                    bs.weight = bsdf.eval(m, wo, bs.wi) / bs.pdf
-            if bs.valid == 0:
-                break
-            if record != 0:
-                if depth == 0:
-                    out.bs_wi = wp.normalize(to_world(frame, bs.wi))
-                    if bs.pdf > 0.0:
-                        gamma = wp.vec3(1.0 / bs.pdf, 1.0 / bs.pdf, 1.0 / bs.pdf)
-                else:
-                    gamma = wp.cw_mul(gamma, bs.weight)
-            beta = wp.cw_mul(beta, bs.weight)
-            if wp.max(beta) <= 0.0:
-                break
-            eta = eta * bs.eta
-            prev_pdf = bs.pdf
-            prev_delta = bs.delta
-            prev_p = si.p
-            d = wp.normalize(to_world(frame, bs.wi))
-            o = spawn_origin(scene, si.p, si.ng, d)
-            depth += 1
-            # ---- Russian roulette ----
-            if depth >= rr_depth:
-                q = roulette_survival(beta, eta)
-                if random_uniform(key, c + 6) >= q:
-                    break
-                beta = beta / q
-                gamma = gamma / q
-        out.total = L
-        if have_prefix == 0:
-            out.prefix = L  # the path ended before prefix_depth segments (or prefix_depth < 0)
-            out.bs_li_prefix = out.bs_li
-        return out
-
-    _TRACE_PATHS[kinds] = trace_path
-    return trace_path
-
-
+@kernel_cache
 def make_path_tracer_kernel(kinds: frozenset[int]) -> Any:
     """The sample-pass kernel compiled for the material kinds ``kinds`` (cached)."""
-    if kinds in _KERNELS:
-        return _KERNELS[kinds]
     trace_path = make_trace_path(kinds)
 
     module = specialized_module(__name__, kinds)
@@ -270,7 +85,6 @@ def make_path_tracer_kernel(kinds: frozenset[int]) -> Any:
         total[y, x] = total[y, x] + L
         total_sq[y, x] = total_sq[y, x] + wp.cw_mul(L, L)
 
-    _KERNELS[kinds] = sample_pass
     return sample_pass
 
 

@@ -23,7 +23,7 @@ an integral over points y on the lights. ReSTIR DI estimates it with a
    reservoir's target is p̂·V.
 3. **Temporal reuse.** The previous frame's final reservoir at the
    reprojected pixel (integer motion vector, G-buffer similarity test of
-   :mod:`grisx.render.reuse`) is merged with the new one; its confidence is
+   :mod:`grisx.render.base.reuse`) is merged with the new one; its confidence is
    capped at 20 (the history cap).
 4. **Spatial reuse.** 5 neighbours uniformly within 30 px that pass the
    similarity test are merged into the temporal result.
@@ -76,18 +76,18 @@ seed 000, Eq. 6–9 (RIS/GRIS weights); seed 004, Alg. 1 (reservoirs).
 
 from __future__ import annotations
 
-import contextlib
 import types
 from typing import Any
 
 import warp as wp
 
 from grisx.device import specialized_module
+from grisx.render.base.screen import ScreenFrame, ScreenSpaceRenderer, kernel_cache, pixel_key, screen_frame, write_pixel
 from grisx.params import Param
 from grisx.render.registry import RenderMethod, create_renderer, register, renderer_params
 from grisx.scene.bsdf import make_bsdf
 from grisx.scene.frame import frame_from_normal, to_local, to_world
-from grisx.scene.gbuffer import GBuffer, GBufferData, gbuffer_kernel
+from grisx.scene.gbuffer import GBuffer, gbuffer_kernel
 from grisx.scene.lights import (
     LightSample,
     emitter_radiance,
@@ -97,7 +97,7 @@ from grisx.scene.lights import (
     luminance,
     sample_light,
 )
-from grisx.render.reuse import (
+from grisx.render.base.reuse import (
     SIMILARITY_DEPTH,
     SIMILARITY_NORMAL_COS,
     DoubleBuffer,
@@ -105,10 +105,10 @@ from grisx.render.reuse import (
     spatial_neighbor,
     temporal_neighbor,
 )
-from grisx.scene.scene import SceneData, SurfaceInteraction, finite_or_dropped, intersect, occluded, segment_occluded, spawn_origin, surface_material
+from grisx.scene.scene import SceneData, SurfaceInteraction, intersect, occluded, segment_occluded, spawn_origin, surface_material
 from grisx.theory.gris import ris_weight
 from grisx.theory.mis import balance_mis, balance_term, pairwise_mis_canonical_term, pairwise_mis_neighbor
-from grisx.theory.random import random_key, random_subkey, random_uniform
+from grisx.theory.random import random_uniform
 from grisx.theory.reservoir import (
     Reservoir,
     confidence_capped,
@@ -126,12 +126,6 @@ __all__ = [
     "LIGHT_TRIANGLE",
     "LIGHT_POINT",
     "LIGHT_ENV",
-    "ScreenSpaceRenderer",
-    "ScreenFrame",
-    "screen_frame",
-    "pixel_key",
-    "frame_key",
-    "write_pixel",
     "make_restir_di_kernels",
     "ReSTIRDI",
     "create_restir_di",
@@ -170,44 +164,11 @@ class LightEval:
 
 
 @wp.struct
-class ScreenFrame:
-    """What every pass of a frame reads: the G-buffers of this and the last frame (``si``/``wo``: their visible
-    points, for short), seed, frame."""
-
-    g: GBufferData
-    g_prev: GBufferData
-    si: wp.array2d(dtype=SurfaceInteraction)
-    wo: wp.array2d(dtype=wp.vec3)  # unit, visible point → camera
-    si_prev: wp.array2d(dtype=SurfaceInteraction)
-    wo_prev: wp.array2d(dtype=wp.vec3)
-    seed: int
-    frame: int
-
-
-@wp.func
-def frame_key(sf: ScreenFrame, stream: int) -> wp.uint32:
-    """Random key of stream ``stream`` of this frame (stream 0: pixels; others: e.g. tiles)."""
-    return random_subkey(random_key(sf.seed, sf.frame), stream)
-
-
-@wp.func
-def pixel_key(sf: ScreenFrame, x: int, y: int, stream: int) -> wp.uint32:
-    """Random key of pass (or use) ``stream`` of pixel (x, y) in this frame."""
-    return random_subkey(random_subkey(frame_key(sf, 0), y * sf.si.shape[1] + x), stream)
-
-
-@wp.struct
 class PairwiseStep:
     """One neighbour merged with pairwise MIS: the reservoir after it, and its pair's canonical-weight share."""
 
     res: Reservoir
     canonical: float
-
-
-@wp.func
-def write_pixel(image: wp.array2d(dtype=wp.vec3), nonfinite: wp.array(dtype=wp.int32), y: int, x: int, L: wp.vec3):
-    """Store a pixel estimate; a NaN/Inf one is dropped (black) and counted (the tests require 0)."""
-    image[y, x] = finite_or_dropped(L, nonfinite)
 
 
 @wp.func
@@ -237,31 +198,11 @@ def light_point_from_sample(ls: LightSample, num_emitters: int) -> LightPoint:
     return lp
 
 
-@wp.func
-def visible_normal(si: SurfaceInteraction, wo: wp.vec3) -> wp.vec3:
-    """The shading normal turned to the viewer's side (two-sided surfaces are seen from either)."""
-    if wp.dot(si.ng, wo) < 0.0:
-        return -si.ns
-    return si.ns
 
 
-def screen_frame(gbuffer: GBuffer, seed: int, frame: int) -> ScreenFrame:
-    """The :class:`ScreenFrame` of the G-buffers as they are now (after ``fill`` for ``frame``)."""
-    sf = ScreenFrame()
-    sf.g, sf.g_prev = gbuffer.current, gbuffer.previous
-    sf.si, sf.wo, sf.si_prev, sf.wo_prev = gbuffer.current.si, gbuffer.current.wo, gbuffer.previous.si, gbuffer.previous.wo
-    sf.seed, sf.frame = int(seed), int(frame)
-    return sf
-
-
-_KERNELS: dict[frozenset[int], Any] = {}
-
-
+@kernel_cache
 def make_restir_di_kernels(kinds: frozenset[int]) -> Any:
     """ReSTIR DI's functions and kernels compiled for the material kinds ``kinds`` (cached)."""
-    kinds = frozenset(kinds)
-    if kinds in _KERNELS:
-        return _KERNELS[kinds]
     bsdf = make_bsdf(kinds)
 
     @wp.func
@@ -597,33 +538,9 @@ def make_restir_di_kernels(kinds: frozenset[int]) -> Any:
                 lps[y, x] = light_point_none()
         write_pixel(image, nonfinite, y, x, L)
 
-    _KERNELS[kinds] = types.SimpleNamespace(
+    return types.SimpleNamespace(
         light_eval=light_eval, target_at=target_at, initial_pass=initial_pass, temporal_pass=temporal_pass, spatial_pass=spatial_pass, shade_pass=shade_pass
     )
-    return _KERNELS[kinds]
-
-
-class ScreenSpaceRenderer:
-    """What the screen-space ReSTIR renderers share: timed phases, history reset, the NaN/Inf count."""
-
-    seed: int
-    frames_rendered: int
-    timer: Any
-    nonfinite: wp.array
-
-    def _phase(self, name: str) -> Any:
-        return contextlib.nullcontext() if self.timer is None else self.timer(name)
-
-    def reset(self, seed: int | None = None) -> None:
-        """Forget all history (the next frame starts fresh), optionally with a new seed: an independent run."""
-        if seed is not None:
-            self.seed = int(seed)
-        self.frames_rendered = 0
-
-    @property
-    def nonfinite_samples(self) -> int:
-        """Pixels whose estimate was NaN/Inf and was dropped (over the renderer's lifetime; 0 expected)."""
-        return int(self.nonfinite.numpy()[0])
 
 
 class ReSTIRDI(ScreenSpaceRenderer):

@@ -158,18 +158,9 @@ from grisx.scene.bsdf import MATERIAL_ROUGH_DIELECTRIC, cosine_hemisphere_pdf, m
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.gbuffer import GBuffer, GBufferData, gbuffer_kernel
 from grisx.scene.lights import emitter_radiance, environment_eval, luminance
-from grisx.render.pt import STRATEGIES, make_trace_path
-from grisx.render.restir_di import (
-    ReSTIRDI,
-    ScreenFrame,
-    ScreenSpaceRenderer,
-    frame_key,
-    pixel_key,
-    screen_frame,
-    visible_normal,
-    write_pixel,
-)
-from grisx.render.reuse import (
+from grisx.render.base.screen import ScreenFrame, ScreenSpaceRenderer, frame_key, kernel_cache, pixel_key, screen_frame, visible_normal, write_pixel
+from grisx.render.base.trace import STRATEGIES, make_trace_path
+from grisx.render.base.reuse import (
     SIMILARITY_DEPTH,
     SIMILARITY_NORMAL_COS,
     DoubleBuffer,
@@ -326,14 +317,11 @@ class SampleRadiance:
     recorded: int
 
 
-_KERNELS: dict[frozenset[int], Any] = {}
 
 
+@kernel_cache
 def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
     """ReSTIR GI's functions and kernels compiled for the material kinds ``kinds`` (cached)."""
-    kinds = frozenset(kinds)
-    if kinds in _KERNELS:
-        return _KERNELS[kinds]
     bsdf = make_bsdf(kinds)
     trace_path = make_trace_path(kinds)
     has_rough_dielectric = MATERIAL_ROUGH_DIELECTRIC in kinds
@@ -928,10 +916,9 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
             L += e.rgb * r.ucw  # seed 004, Eq. 8 (with Eq. 6's W from the spatial reservoir)
         write_pixel(image, nonfinite, y, x, L)
 
-    _KERNELS[kinds] = types.SimpleNamespace(
+    return types.SimpleNamespace(
         gi_eval=gi_eval, initial_pass=initial_pass, temporal_pass=temporal_pass, spatial_pass=spatial_pass, shade_pass=shade_pass
     )
-    return _KERNELS[kinds]
 
 
 class ReSTIRGI(ScreenSpaceRenderer):
@@ -1003,7 +990,11 @@ class ReSTIRGI(ScreenSpaceRenderer):
         shape = (self.height, self.width)
         self.di = None
         if self.direct == DIRECT["restir-di"]:
-            self.di = ReSTIRDI(built, width, height, seed=seed + 7919, jitter=jitter, timer=timer)
+            # composed through the registry, not imported: renderers do not import each other
+            from grisx.render.registry import METHODS, RenderContext
+
+            ctx = RenderContext(built, width, height, {"jitter": jitter}, seed + 7919, timer, "restir-di")
+            self.di = METHODS["restir-di"].create(ctx)
             self.gbuffer = self.di.gbuffer
         else:
             self.gbuffer = GBuffer(self.width, self.height, dev)

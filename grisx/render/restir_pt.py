@@ -2,7 +2,7 @@
 
 Each pixel's integral is the radiance leaving its primary vertex x₁ toward the
 camera, an integral over paths x₁ → … → x_n of f(x̄) (see
-:mod:`grisx.render.path_shift` for the measure and the shifts). Per frame:
+:mod:`grisx.render.base.path_shift` for the measure and the shifts). Per frame:
 
 ``# ---- primary vertices ----``
     the G-buffer's visible point — a jittered camera ray per pixel — is x₁
@@ -16,7 +16,7 @@ camera, an integral over paths x₁ → … → x_n of f(x̄) (see
     ``max_depth`` segments counted from the camera (Mitsuba's meaning, as
     ``pt``: −1 unbounded, 2 direct light only; both default to the scene
     file's ``<integrator>``), so that ``restir-pt`` and ``pt`` estimate the same
-    image (``stream_candidates`` of :func:`~grisx.render.path_shift.make_path_shift`).
+    image (``stream_candidates`` of :func:`~grisx.render.base.path_shift.make_path_shift`).
     Every light connection and every emitter hit is one candidate path x̄_l
     labelled with its technique t, target p̂ = luminance(m_t f) (m_t the power
     heuristic between the two techniques, see ``path_shift``) and RIS weight
@@ -43,7 +43,7 @@ All estimator math (``reservoir_update``/``merge``/``finalize``,
 ``confidence_capped``, ``target_from``, ``power_heuristic``, the Jacobians
 ``reconnection_jacobian`` and ``replay_jacobian``) is grisx.theory's; the
 shifts and the candidate sampler are
-:func:`grisx.render.path_shift.make_path_shift`'s. The wrong-Jacobian ablation
+:func:`grisx.render.base.path_shift.make_path_shift`'s. The wrong-Jacobian ablation
 (``jacobian=false``: |J| = 1 in every weight) is biased and the tests show it.
 
 Temporal reuse evaluates the previous frame's domains with the current
@@ -66,7 +66,7 @@ from grisx.params import Param
 from grisx.render.registry import RenderMethod, create_renderer, register, renderer_params
 from grisx.errors import InvalidParameterError
 from grisx.scene.gbuffer import GBuffer, GBufferData
-from grisx.render.path_shift import (
+from grisx.render.base.path_shift import (
     Domain,
     PathReservoir,
     PathSample,
@@ -79,19 +79,19 @@ from grisx.render.path_shift import (
     target_to,
     vertex_from_hit,
 )
-from grisx.render.restir_di import ScreenSpaceRenderer
-from grisx.render.reuse import SIMILARITY_DEPTH, SIMILARITY_NORMAL_COS, NeighborPixel, pixels_similar, spatial_neighbor, temporal_neighbor
+from grisx.render.base.screen import ScreenSpaceRenderer, kernel_cache, pixel_key_of
+from grisx.render.base.reuse import SIMILARITY_DEPTH, SIMILARITY_NORMAL_COS, NeighborPixel, pixels_similar, spatial_neighbor, temporal_neighbor
 from grisx.scene.scene import SceneData, finite_or_dropped
 from grisx.theory.gris import resampling_weight
 from grisx.theory.mis import balance_mis, balance_term, pairwise_mis_canonical_term, pairwise_mis_neighbor
-from grisx.theory.random import random_key, random_subkey, random_uniform
+from grisx.theory.random import random_subkey, random_uniform
 from grisx.theory.reservoir import Reservoir, confidence_capped, reservoir_empty, reservoir_finalize, reservoir_merge, reservoir_update
 
 wp.set_module_options({"enable_backward": False})
 
 __all__ = ["PathReservoir", "path_reservoir", "ReSTIRPT", "create_restir_pt", "make_restir_pt_kernels"]
 
-# random streams of a pixel (inside the (seed, frame) → pixel key; the camera sample has its own key)
+# random streams of a pixel (pixel_key_of: the base's one key scheme; the camera sample has its own key)
 _STREAM_RESAMPLE = wp.constant(1)
 _STREAM_TEMPORAL = wp.constant(2)
 _STREAM_SPATIAL = wp.constant(3)  # + round
@@ -121,19 +121,11 @@ def _spatial_candidate(
     return nb
 
 
-@wp.func
-def _pixel_key(seed: int, frame: int, pixel: int) -> wp.uint32:
-    return random_subkey(random_key(seed, frame), pixel)
 
 
-_KERNELS: dict[frozenset[int], dict[str, Any]] = {}
-
-
+@kernel_cache
 def make_restir_pt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     """The passes of ReSTIR PT compiled for the material kinds ``kinds`` (cached)."""
-    kinds = frozenset(kinds)
-    if kinds in _KERNELS:
-        return _KERNELS[kinds]
     shifts = make_path_shift(kinds)
     shift = shifts.shift
     sample_paths = shifts.stream_candidates
@@ -163,8 +155,7 @@ def make_restir_pt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     ):
         y, x = wp.tid()
         width = domains.shape[1]
-        pk = _pixel_key(seed, frame, y * width + x)
-        ukey = random_subkey(pk, _STREAM_RESAMPLE)
+        ukey = pixel_key_of(seed, frame, x, y, width, _STREAM_RESAMPLE)
         dom = domains[y, x]
         pr = PathReservoir()
         pr.res = reservoir_empty()
@@ -172,7 +163,7 @@ def make_restir_pt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         inv_n = 1.0 / float(candidates)
         if dom.valid != 0:
             for cand in range(candidates):
-                key = random_subkey(pk, _STREAM_PATHS + cand)  # the path's seed: shifts replay it
+                key = pixel_key_of(seed, frame, x, y, width, _STREAM_PATHS + cand)  # the path's seed: shifts replay it
                 pr = sample_paths(scene, dom, key, max_bounces, inv_n, sp, pr, random_subkey(ukey, cand))
             pr.res.confidence = 1.0  # one frame's canonical sample: the unit of the history cap
         out[y, x] = settle(scene, dom, pr, sp)
@@ -206,7 +197,7 @@ def make_restir_pt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         dom_j = domains_prev[nb.y, nb.x]
         if dom_j.valid == 0 or prev.res.confidence <= 0.0:
             return
-        ukey = random_subkey(_pixel_key(seed, frame, y * domains.shape[1] + x), _STREAM_TEMPORAL)
+        ukey = pixel_key_of(seed, frame, x, y, domains.shape[1], _STREAM_TEMPORAL)
         c_i = can.res.confidence
         c_j = confidence_capped(prev.res.confidence, history_cap)
         # canonical path y_c: p̂_i(y_c) and p̂_{←j}(y_c) through T_{i→j} (seed 001, Eq. 16)
@@ -252,7 +243,7 @@ def make_restir_pt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         dom_i = domains[y, x]
         if dom_i.valid == 0:
             return
-        ukey = random_subkey(_pixel_key(seed, frame, y * width + x), _STREAM_SPATIAL + round_index)
+        ukey = pixel_key_of(seed, frame, x, y, width, _STREAM_SPATIAL + round_index)
         # pass 1: which neighbours take part (k and the total confidence C of pairwise MIS)
         k = int(0)
         c_c = can.res.confidence
@@ -307,7 +298,6 @@ def make_restir_pt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         image[y, x] = finite_or_dropped(L, nonfinite)
 
     kernels = {"primary": primary_pass, "initial": initial_pass, "temporal": temporal_pass, "spatial": spatial_pass, "shade": shade_pass}
-    _KERNELS[kinds] = kernels
     return kernels
 
 

@@ -29,7 +29,7 @@ from grisx.scene.builtin import build_builtin
 from grisx.scene.camera import Camera, lookat
 from grisx.scene.lights import sample_light
 from grisx.scene.material import Diffuse
-from grisx.render.path_shift import DIM_NEE, Domain, ShiftParams, make_path_shift, path_dim, path_target, shift_params
+from grisx.render.base.path_shift import DIM_NEE, Domain, ShiftParams, make_path_shift, path_dim, path_target, shift_params
 from grisx.render.restir_pt import PathReservoir, ReSTIRPT
 from grisx.scene.scene import Scene, SceneData
 from grisx.scene.shapes import rectangle

@@ -16,7 +16,8 @@ from grisx.scene.builtin import BUILTIN_SCENES, build_builtin
 from grisx.scene.camera import Camera, CameraData, camera_ray, lookat
 from grisx.scene.lights import ConstantEnvironment
 from grisx.scene.material import Diffuse
-from grisx.render.pt import STRATEGIES, PathTracer, make_trace_path
+from grisx.render.base.trace import STRATEGIES, make_trace_path
+from grisx.render.pt import PathTracer
 from grisx.scene.scene import Scene, SceneData
 from grisx.scene.shapes import cube, rectangle
 from grisx.testing import BIASED_K, DEFAULT_K, z_test

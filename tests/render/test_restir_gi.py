@@ -138,7 +138,7 @@ def _shade(r: ReSTIRGI) -> np.ndarray:
     """Re-run only the shading of the last frame with the renderer's (possibly edited) initial samples."""
     import warp as wp
 
-    from grisx.render.restir_di import screen_frame
+    from grisx.render.base.screen import screen_frame
 
     sf = screen_frame(r.gbuffer, r.seed, r.frames_rendered - 1)
     wp.launch(

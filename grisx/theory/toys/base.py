@@ -15,7 +15,6 @@ biased*, so tests and users can check that the z-test catches them.
 from __future__ import annotations
 
 import dataclasses
-import math
 import time
 from collections.abc import Callable, Mapping
 from typing import Any

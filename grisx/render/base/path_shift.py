@@ -107,6 +107,7 @@ from typing import Any
 
 import warp as wp
 
+from grisx.render.base.screen import kernel_cache
 from grisx.errors import InvalidParameterError
 from grisx.scene.bsdf import make_bsdf
 from grisx.scene.frame import frame_from_normal, to_local, to_world
@@ -437,14 +438,12 @@ def _endpoint_light(x: PathSample, index: int, kind: int, p: wp.vec3, n: wp.vec3
     return out
 
 
-_CACHE: dict[frozenset[int], PathShiftFuncs] = {}
 
 
+@kernel_cache
 def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
     """The path shifts specialized to the scene's material kinds ``kinds`` (cached)."""
-    key = frozenset(int(k) for k in kinds)
-    if key in _CACHE:
-        return _CACHE[key]
+    key = frozenset(kinds)
     bsdf = make_bsdf(key)
 
     @wp.func
@@ -797,7 +796,6 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
         return out
 
     funcs = PathShiftFuncs(kinds=key, shift=shift, roughness=roughness, stream_candidates=stream_path_candidates, settle=settle)
-    _CACHE[key] = funcs
     return funcs
 
 
