@@ -54,3 +54,21 @@ def test_chi2_accepts_the_right_pdf_and_rejects_a_wrong_one():
 def test_chi2_fails_on_samples_where_the_pdf_is_zero():
     x = np.concatenate([np.full(10, 1.5), np.random.default_rng(2).uniform(0, 1, 1000)])
     assert not chi2_test(x, lambda t: np.ones_like(t), 0.0, 1.0).passed
+
+
+def test_reuse_test_catches_opposite_biases_that_cancel_in_the_image_mean():
+    from grisx.testing import block_means, reuse_unbiasedness_test
+
+    ref, var = np.ones((16, 20, 3)), np.full((16, 20, 3), 1e-4)
+
+    def noisy(seed: int, bias: float = 0.0) -> np.ndarray:
+        im = ref + np.random.default_rng(seed).normal(0.0, 0.1, ref.shape)
+        im[:, :10] += bias  # left half too bright, right half too dark: the image mean is exact
+        im[:, 10:] -= bias
+        return im
+
+    fair = reuse_unbiasedness_test(noisy, ref, var, 50)
+    assert fair.passed and fair.blocks.z.shape == (2, 3, 3)
+    biased = reuse_unbiasedness_test(lambda s: noisy(s, 0.02), ref, var, 50)
+    assert biased.image.passed and not biased.blocks.passed
+    np.testing.assert_allclose(block_means(np.arange(12.0).reshape(2, 6, 1), 4)[..., 0], [[4.5, 7.5]])

@@ -1,0 +1,67 @@
+"""Unbiasedness of a screen-space reuse renderer, the way every one of them is tested.
+
+:func:`check` renders independent runs of a registered render method (each its own seed,
+history from scratch) and compares them with the path tracer at the depth the method
+estimates, per image *and* per 8×8 block (:func:`grisx.testing.reuse_unbiasedness_test`):
+under the static camera with ``frames`` frames averaged, or under the scene's camera path
+with frame ``frames − 1`` alone against the path tracer at that frame's camera. A renderer
+added later tests itself with one parametrize entry.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from grisx.render.driver import METHODS, RenderContext, load_scene, method_params
+from grisx.render.pt import PathTracer
+from grisx.testing import DEFAULT_K, ReuseTestResult, reuse_unbiasedness_test
+
+RES = (16, 16)
+_REFERENCES: dict[Any, tuple[np.ndarray, np.ndarray]] = {}
+
+
+def _depth(method: str, params: dict[str, Any], scene: Any) -> int:
+    spec = METHODS[method]
+    if spec.reference_max_depth is not None:
+        return spec.reference_max_depth
+    return int(params.get("max_depth", scene.defaults.get("max_depth", 16)))
+
+
+def reference(scene_name: str, depth: int, camera: str, frame: int, spp: int = 4096) -> tuple[np.ndarray, np.ndarray]:
+    """The path tracer's image (jittered, as the renderers) and its per-pixel variance of the mean."""
+    key = (scene_name, depth, camera, frame, spp)
+    if key not in _REFERENCES:
+        built = load_scene(scene_name).build("cpu")
+        built.animate_camera = camera == "moving"
+        built.set_frame(float(frame))
+        pt = PathTracer(built, *RES, spp=spp, max_depth=depth, seed=987654)
+        pt.add_samples(frame, spp)
+        _REFERENCES[key] = pt.mean().astype(np.float64), pt.variance_of_mean().astype(np.float64)
+    return _REFERENCES[key]
+
+
+def check(method: str, params: dict[str, Any] | None = None, *, scene: str = "cornell-box", camera: str = "static",
+          frames: int = 4, runs: int = 64, k: float = DEFAULT_K, device: str = "cpu") -> ReuseTestResult:
+    params = dict(params or {})
+    sc = load_scene(scene)
+    depth = _depth(method, params, sc)
+    if "max_depth" in {p.name for p in METHODS[method].params}:
+        params.setdefault("max_depth", depth)
+    resolved = {**method_params(method, params), "spp": 1}
+    built = sc.build(device)
+    built.animate_camera = camera == "moving"
+
+    def run(seed: int) -> np.ndarray:
+        renderer = METHODS[method].create(RenderContext(built, *RES, dict(resolved), seed, None, method))
+        total = np.zeros(RES[::-1] + (3,))
+        for f in range(frames):
+            built.set_frame(float(f))
+            image = renderer.render_frame(f).numpy().astype(np.float64)
+            total = total + image if camera == "static" else image
+        assert renderer.nonfinite_samples == 0
+        return total / frames if camera == "static" else total
+
+    ref, var = reference(scene, depth, camera, frames - 1 if camera == "moving" else 0)
+    return reuse_unbiasedness_test(run, ref, var, runs, block=8, k=k)
