@@ -112,6 +112,7 @@ from grisx.theory.random import random_uniform
 from grisx.theory.reservoir import (
     Reservoir,
     confidence_capped,
+    reservoir_drop,
     reservoir_empty,
     reservoir_finalize,
     reservoir_merge,
@@ -531,10 +532,7 @@ def make_restir_di_kernels(kinds: frozenset[int]) -> Any:
                 L += e.rgb * r.ucw  # seed 004, Eq. 8: f(y) · W
             else:
                 # an occluded sample (possible when unbiased=false) is not handed to the next frame
-                c = r.confidence
-                r = reservoir_empty()
-                r.confidence = c
-                res[y, x] = r
+                res[y, x] = reservoir_drop(r)
                 lps[y, x] = light_point_none()
         write_pixel(image, nonfinite, y, x, L)
 

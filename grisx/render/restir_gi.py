@@ -183,7 +183,7 @@ from grisx.theory.reservoir import (
     reservoir_merge,
     reservoir_update,
 )
-from grisx.theory.shift import reconnection_jacobian_3d
+from grisx.theory.shift import JACOBIAN_BOUND_ONE_SIDED, jacobian_bounded, reconnection_jacobian_3d
 
 wp.set_module_options({"enable_backward": False})
 
@@ -435,7 +435,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         a partial bijection. Z counting applies the same test to every domain (Alg. 4 l. 17), so the
         estimator stays unbiased; it only loses the rare reuse that makes fireflies.
         """
-        return max_jacobian <= 0.0 or jacobian <= max_jacobian
+        return jacobian_bounded(jacobian, max_jacobian, JACOBIAN_BOUND_ONE_SIDED)
 
     @wp.func
     def reconnect(

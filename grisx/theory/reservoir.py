@@ -46,6 +46,8 @@ __all__ = [
     "reservoir_finalize",
     "reservoir_finalize_mis",
     "confidence_capped",
+    "reservoir_retarget",
+    "reservoir_drop",
 ]
 
 
@@ -144,3 +146,24 @@ def confidence_capped(confidence: float, cap: float) -> float:
     if cap > 0.0:
         return wp.min(confidence, cap)
     return confidence
+
+
+@wp.func
+def reservoir_retarget(r: Reservoir, target: float) -> Reservoir:
+    """The kept sample's p̂ re-evaluated in its own domain (e.g. as the shifts measure it): W then uses it.
+
+    A kept sample whose new p̂ is 0 cannot be weighted: the reservoir drops it (:func:`reservoir_drop`).
+    """
+    if not (target > 0.0):
+        return reservoir_drop(r)
+    out = r
+    out.target = target
+    return out
+
+
+@wp.func
+def reservoir_drop(r: Reservoir) -> Reservoir:
+    """Forget the kept sample (no weight, W = 0) but keep the confidence: the history of what was seen stays."""
+    out = reservoir_empty()
+    out.confidence = r.confidence
+    return out

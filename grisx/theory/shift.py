@@ -22,6 +22,13 @@ distances, n = 2 (flatland, where solid angle is plane angle and dω = cos φ
 dA / r) gives the plain ratio. :func:`reconnection_jacobian` is that
 formula; ``reconnection_jacobian_2d`` / ``_3d`` compute its inputs from points.
 
+**Bounded Jacobians.** A shift whose |J| is huge multiplies one sample's
+weight by it: a firefly. Declaring such shifts *undefined* keeps GRIS
+unbiased as long as the MIS weights see the same partial bijection
+(seed 000, Sec. 3.1): :func:`jacobian_bounded` is that rule, one-sided
+(|J| ≤ τ, with every domain counted in Z by the same test: ReSTIR GI) or
+symmetric (|J| ∈ [1/τ, τ], so T and T⁻¹ are rejected together: path shifts).
+
 **Random replay** (Lin et al. 2022, Sec. 7). A path regenerated at pixel r
 from pixel q's random numbers u has, in path space (solid-angle product
 measure), the Jacobian of ω ↦ u ↦ ω' — the ratio of the sampling densities
@@ -47,7 +54,15 @@ __all__ = [
     "reconnection_jacobian_2d",
     "reconnection_jacobian_3d",
     "replay_jacobian",
+    "jacobian_bounded",
+    "JACOBIAN_BOUND_ONE_SIDED",
+    "JACOBIAN_BOUND_SYMMETRIC",
 ]
+
+#: reject shifts with |J| > τ (ReSTIR GI's reconnections: Z counts each domain by the same test)
+JACOBIAN_BOUND_ONE_SIDED = wp.constant(0)
+#: reject shifts with |J| ∉ [1/τ, τ] (symmetric in J ↔ 1/J: T restricted to the accepted set stays a bijection)
+JACOBIAN_BOUND_SYMMETRIC = wp.constant(1)
 
 
 @wp.struct
@@ -129,3 +144,19 @@ def replay_jacobian(pdf_src: float, pdf_dst: float) -> float:
     if pdf_dst > 0.0 and pdf_src > 0.0:
         return pdf_src / pdf_dst
     return 0.0
+
+
+@wp.func
+def jacobian_bounded(jacobian: float, bound: float, symmetric: int) -> bool:
+    """Whether a shift with Jacobian ``jacobian`` is kept under the bound τ = ``bound`` (τ <= 0: no bound).
+
+    ``symmetric`` (:data:`JACOBIAN_BOUND_SYMMETRIC`): |J| ∈ [1/τ, τ], and a non-positive or non-finite J
+    is rejected outright; otherwise (:data:`JACOBIAN_BOUND_ONE_SIDED`): |J| ≤ τ.
+    """
+    if symmetric != 0:
+        if not (jacobian > 0.0) or not wp.isfinite(jacobian):
+            return False
+        if bound > 0.0:
+            return jacobian <= bound and jacobian * bound >= 1.0
+        return True
+    return bound <= 0.0 or jacobian <= bound

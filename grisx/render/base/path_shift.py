@@ -118,8 +118,8 @@ from grisx.theory.mis import power_heuristic, target_from
 from grisx.theory.gris import ris_weight
 from grisx.theory.random import random_uniform
 from grisx.theory.roulette import roulette_survival
-from grisx.theory.reservoir import Reservoir, reservoir_finalize, reservoir_update
-from grisx.theory.shift import reconnection_jacobian, replay_jacobian
+from grisx.theory.reservoir import Reservoir, reservoir_drop, reservoir_finalize, reservoir_retarget, reservoir_update
+from grisx.theory.shift import JACOBIAN_BOUND_SYMMETRIC, jacobian_bounded, reconnection_jacobian, replay_jacobian
 
 wp.set_module_options({"enable_backward": False})
 
@@ -343,12 +343,8 @@ def technique_mis(end_nee: int, light_delta: int, bsdf_delta: int, light_pdf: fl
 
 @wp.func
 def jacobian_accepted(jacobian: float, sp: ShiftParams) -> bool:
-    """The rejection threshold |J| ∈ [1/J_max, J_max] (symmetric in J ↔ 1/J, so T stays a bijection)."""
-    if not (jacobian > 0.0) or not wp.isfinite(jacobian):
-        return False
-    if sp.jacobian_max > 0.0:
-        return jacobian <= sp.jacobian_max and jacobian * sp.jacobian_max >= 1.0
-    return True
+    """The symmetric bound |J| ∈ [1/J_max, J_max] of :func:`grisx.theory.shift.jacobian_bounded` (T stays a bijection)."""
+    return jacobian_bounded(jacobian, sp.jacobian_max, JACOBIAN_BOUND_SYMMETRIC)
 
 
 @wp.func
@@ -786,9 +782,9 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
             own = shift(scene, dom, sel, sp)
             if own.valid and path_target(own.path) > 0.0:
                 sel = own.path
-                r.target = path_target(sel)
+                r = reservoir_retarget(r, path_target(sel))
             else:
-                r.w_sum = 0.0
+                r = reservoir_drop(r)
                 sel = path_sample_empty()
         out = PathReservoir()
         out.res = reservoir_finalize(r)
