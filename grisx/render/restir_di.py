@@ -98,6 +98,9 @@ from grisx.scene.lights import (
     sample_light,
 )
 from grisx.render.base.reuse import (
+    neighbor_set_add,
+    neighbor_set_empty,
+    neighbor_set_pixel,
     SIMILARITY_DEPTH,
     SIMILARITY_NORMAL_COS,
     DoubleBuffer,
@@ -477,30 +480,28 @@ def make_restir_di_kernels(kinds: frozenset[int]) -> Any:
         if si.valid == 0:
             return
         wo = sf.wo[y, x]
-        # ---- choose the neighbours (similar G-buffer only); k counts the accepted ones ----
-        k = int(0)
+        # ---- choose the neighbours (similar G-buffer only), drawn once; k counts the accepted ones ----
+        ns = neighbor_set_empty()
         total = r_c.confidence
         for i in range(neighbors):
             nb = spatial_neighbor(x, y, width, height, radius, wp.vec2(random_uniform(key, 4 * i), random_uniform(key, 4 * i + 1)))
             if nb.valid != 0 and pixels_similar(sf.g, x, y, sf.g, nb.x, nb.y, normal_cos, depth_tol):
-                k += 1
-                r_n = res_in[nb.y, nb.x]
-                total += confidence_capped(r_n.confidence, history_cap)
+                ns = neighbor_set_add(ns, nb, i)
+                total += confidence_capped(res_in[nb.y, nb.x].confidence, history_cap)
+        k = ns.count
         if k == 0:
             return
         # ---- merge each neighbour with its pairwise MIS weight; collect the canonical weight ----
         out = reservoir_empty()
         sel = light_point_none()
         m_c = float(0.0)
-        for i in range(neighbors):
-            nb = spatial_neighbor(x, y, width, height, radius, wp.vec2(random_uniform(key, 4 * i), random_uniform(key, 4 * i + 1)))
-            if nb.valid == 0 or not pixels_similar(sf.g, x, y, sf.g, nb.x, nb.y, normal_cos, depth_tol):
-                continue
+        for j in range(k):
+            nb = neighbor_set_pixel(ns, j)
             r_n = res_in[nb.y, nb.x]
             y_n = lp_in[nb.y, nb.x]
             r_n.confidence = confidence_capped(r_n.confidence, history_cap)
             step = pairwise_step(
-                scene, out, si, wo, r_c, y_c, sf.si[nb.y, nb.x], sf.wo[nb.y, nb.x], r_n, y_n, k, total, unbiased, random_uniform(key, 4 * i + 2)
+                scene, out, si, wo, r_c, y_c, sf.si[nb.y, nb.x], sf.wo[nb.y, nb.x], r_n, y_n, k, total, unbiased, random_uniform(key, 4 * ns.slot[j] + 2)
             )
             out = step.res
             m_c += step.canonical

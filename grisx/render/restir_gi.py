@@ -161,6 +161,9 @@ from grisx.scene.lights import emitter_radiance, environment_eval, luminance
 from grisx.render.base.screen import ScreenFrame, ScreenSpaceRenderer, frame_key, kernel_cache, pixel_key, screen_frame, visible_normal, write_pixel
 from grisx.render.base.trace import STRATEGIES, make_trace_path
 from grisx.render.base.reuse import (
+    neighbor_set_add,
+    neighbor_set_empty,
+    neighbor_set_pixel,
     SIMILARITY_DEPTH,
     SIMILARITY_NORMAL_COS,
     DoubleBuffer,
@@ -862,12 +865,14 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         g_n = sf.g
         if from_spatial != 0:
             g_n = sf.g_prev
+        ns = neighbor_set_empty()  # drawn once: the Z loop below reads the same neighbours
         rejections = int(0)
         for it in range(iterations):
             nb = pick_neighbor(sf.g, g_n, x, y, it, rejections, key, adaptive, radius, min_radius)
             if nb.valid == 0:
                 rejections += 1
                 continue
+            ns = neighbor_set_add(ns, nb, it)
             n = neighbor_domain(sf, nb, from_spatial, temporal_cap, spatial_cap, res_t, s_t, res_s_prev, s_s_prev)
             sh = reconnect(scene, n.si, n.wo, si, wo, n.sample, target_mode, 1, use_jacobian, max_jacobian)  # Alg. 4 l. 11–12
             out = reservoir_merge(out, n.res, n.res.confidence, sh.target, sh.jacobian, random_uniform(key, 4 * it + 10))
@@ -880,13 +885,8 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
                 moved = int(wp.length_sq(si_h.p - si.p) > 0.0)
                 if domain_counts(scene, si_h, wo_h, si, wo, sel, target_mode, unbiased * moved, unbiased, max_jacobian):
                     z += c_s
-            rejections = int(0)
-            for it in range(iterations):
-                nb = pick_neighbor(sf.g, g_n, x, y, it, rejections, key, adaptive, radius, min_radius)
-                if nb.valid == 0:
-                    rejections += 1
-                    continue
-                n = neighbor_domain(sf, nb, from_spatial, temporal_cap, spatial_cap, res_t, s_t, res_s_prev, s_s_prev)
+            for j in range(ns.count):
+                n = neighbor_domain(sf, neighbor_set_pixel(ns, j), from_spatial, temporal_cap, spatial_cap, res_t, s_t, res_s_prev, s_s_prev)
                 if n.res.confidence > 0.0 and domain_counts(scene, n.si, n.wo, si, wo, sel, target_mode, unbiased, unbiased, max_jacobian):
                     z += n.res.confidence
         out = reservoir_finalize_mis(out, support_mis(1.0, out.target, z))

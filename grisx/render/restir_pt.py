@@ -80,7 +80,17 @@ from grisx.render.base.path_shift import (
     vertex_from_hit,
 )
 from grisx.render.base.screen import ScreenSpaceRenderer, kernel_cache, pixel_key_of
-from grisx.render.base.reuse import SIMILARITY_DEPTH, SIMILARITY_NORMAL_COS, NeighborPixel, pixels_similar, spatial_neighbor, temporal_neighbor
+from grisx.render.base.reuse import (
+    SIMILARITY_DEPTH,
+    SIMILARITY_NORMAL_COS,
+    NeighborPixel,
+    neighbor_set_add,
+    neighbor_set_empty,
+    neighbor_set_pixel,
+    pixels_similar,
+    spatial_neighbor,
+    temporal_neighbor,
+)
 from grisx.scene.scene import SceneData, finite_or_dropped
 from grisx.theory.gris import resampling_weight
 from grisx.theory.mis import balance_mis, balance_term, pairwise_mis_canonical_term, pairwise_mis_neighbor
@@ -244,42 +254,41 @@ def make_restir_pt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         if dom_i.valid == 0:
             return
         ukey = pixel_key_of(seed, frame, x, y, width, _STREAM_SPATIAL + round_index)
-        # pass 1: which neighbours take part (k and the total confidence C of pairwise MIS)
-        k = int(0)
+        # ---- the neighbours, drawn once: every loop below reads this set (k and C of pairwise MIS) ----
+        ns = neighbor_set_empty()
         c_c = can.res.confidence
         total = c_c
         for q in range(neighbors):
             nb = _spatial_candidate(g, domains, inp, x, y, radius, wp.vec2(random_uniform(ukey, 2 * q), random_uniform(ukey, 2 * q + 1)))
             if nb.valid != 0:
-                k += 1
+                ns = neighbor_set_add(ns, nb, q)
                 total += inp[nb.y, nb.x].res.confidence
+        k = ns.count
         if k == 0:
             return
-        # pass 2: the canonical path's pairwise weight m_c = Σ_q (pair q's canonical share)
+        # the canonical path's pairwise weight m_c = Σ_q (pair q's canonical share)
         t_c = path_target(can.path)
         m_c = float(0.0)
-        for q in range(neighbors):
-            nb = _spatial_candidate(g, domains, inp, x, y, radius, wp.vec2(random_uniform(ukey, 2 * q), random_uniform(ukey, 2 * q + 1)))
-            if nb.valid != 0:
-                t_cq = target_to(shift(scene, domains[nb.y, nb.x], can.path, sp))  # p̂_{←q}(y_c), seed 001, Eq. 16
-                m_c += pairwise_mis_canonical_term(inp[nb.y, nb.x].res.confidence, t_cq, c_c, t_c, k, total)
+        for j in range(k):
+            nb = neighbor_set_pixel(ns, j)
+            t_cq = target_to(shift(scene, domains[nb.y, nb.x], can.path, sp))  # p̂_{←q}(y_c), seed 001, Eq. 16
+            m_c += pairwise_mis_canonical_term(inp[nb.y, nb.x].res.confidence, t_cq, c_c, t_c, k, total)
         r = reservoir_empty()
         r = reservoir_update(r, resampling_weight(m_c, t_c, can.res.ucw, 1.0), t_c, c_c, random_uniform(ukey, 100))
         sel = path_sample_empty()
         if r.selected:
             sel = can.path
-        # pass 3: each neighbour's path shifted here, weighted against the canonical domain
-        for q in range(neighbors):
-            nb = _spatial_candidate(g, domains, inp, x, y, radius, wp.vec2(random_uniform(ukey, 2 * q), random_uniform(ukey, 2 * q + 1)))
-            if nb.valid != 0:
-                other = inp[nb.y, nb.x]
-                s = shift(scene, dom_i, other.path, sp)
-                t_qi = path_target(s.path)  # 0 where the shift failed
-                t_qq = target_back(other.path, s)
-                m_q = pairwise_mis_neighbor(other.res.confidence, t_qq, c_c, t_qi, k, total)
-                r = reservoir_merge(r, other.res, m_q, t_qi, s.jacobian, random_uniform(ukey, 101 + q))  # seed 000, Eq. 9
-                if r.selected:
-                    sel = s.path
+        # each neighbour's path shifted here, weighted against the canonical domain
+        for j in range(k):
+            nb = neighbor_set_pixel(ns, j)
+            other = inp[nb.y, nb.x]
+            s = shift(scene, dom_i, other.path, sp)
+            t_qi = path_target(s.path)  # 0 where the shift failed
+            t_qq = target_back(other.path, s)
+            m_q = pairwise_mis_neighbor(other.res.confidence, t_qq, c_c, t_qi, k, total)
+            r = reservoir_merge(r, other.res, m_q, t_qi, s.jacobian, random_uniform(ukey, 101 + ns.slot[j]))  # seed 000, Eq. 9
+            if r.selected:
+                sel = s.path
         out[y, x] = path_reservoir(r, sel)
 
     # ---- shading ----

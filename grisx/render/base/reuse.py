@@ -38,6 +38,11 @@ wp.set_module_options({"enable_backward": False})
 
 __all__ = [
     "NeighborPixel",
+    "NeighborSet",
+    "NEIGHBORS_MAX",
+    "neighbor_set_empty",
+    "neighbor_set_add",
+    "neighbor_set_pixel",
     "gbuffer_similar",
     "pixels_similar",
     "temporal_neighbor",
@@ -59,6 +64,57 @@ class NeighborPixel:
     x: int
     y: int
     valid: int
+
+
+#: the most neighbours one pixel may take in one reuse pass (a NeighborSet's capacity)
+NEIGHBORS_MAX = 64
+NeighborIndices = wp.types.vector(length=NEIGHBORS_MAX, dtype=wp.int32)
+
+
+@wp.struct
+class NeighborSet:
+    """The neighbours of one pixel in one reuse pass, drawn once.
+
+    A spatial pass loops over its neighbours several times (confidences for pairwise MIS, the
+    candidates, the Z or MIS terms); every loop must see the very same neighbours. Drawing them
+    once into this set — instead of re-drawing them from the same random keys in each loop —
+    makes that true by construction. ``slot`` is each neighbour's draw index (its random numbers
+    beyond the position are keyed by it).
+    """
+
+    x: NeighborIndices
+    y: NeighborIndices
+    slot: NeighborIndices
+    count: int
+
+
+@wp.func
+def neighbor_set_empty() -> NeighborSet:
+    ns = NeighborSet()
+    ns.count = 0
+    return ns
+
+
+@wp.func
+def neighbor_set_add(ns: NeighborSet, nb: NeighborPixel, slot: int) -> NeighborSet:
+    """``ns`` with the accepted neighbour ``nb`` (drawn as number ``slot``) appended; full sets stay as they are."""
+    out = ns
+    if out.count < NEIGHBORS_MAX:
+        out.x[out.count] = nb.x
+        out.y[out.count] = nb.y
+        out.slot[out.count] = slot
+        out.count = out.count + 1
+    return out
+
+
+@wp.func
+def neighbor_set_pixel(ns: NeighborSet, j: int) -> NeighborPixel:
+    """The ``j``-th neighbour of the set (valid)."""
+    nb = NeighborPixel()
+    nb.x = ns.x[j]
+    nb.y = ns.y[j]
+    nb.valid = 1
+    return nb
 
 
 @wp.func
