@@ -55,6 +55,7 @@ __all__ = [
     "support_mis",
     "confidence_share",
     "power_heuristic",
+    "technique_mis",
     "mis_weight",
     "MIS_MODES",
 ]
@@ -255,3 +256,22 @@ def mis_weight(
     for l in range(n):
         z += confidence[l]
     return confidence_share(confidence[source], z)
+
+
+@wp.func
+def technique_mis(end_nee: int, light_delta: int, bsdf_delta: int, light_pdf: float, bsdf_pdf: float) -> float:
+    """m_t: the power-heuristic weight of the technique that made a path's last segment (Veach 1997, Eq. 9.13).
+
+    ``end_nee`` = 1: the segment came from next-event estimation (light sampling, density
+    ``light_pdf``), 0: from BSDF sampling (``bsdf_pdf``); both densities in solid angle at the
+    vertex. A delta light or a delta lobe has no competing technique: weight 1. The path tracer
+    weights its two estimates with this, and path reuse keeps m_t inside a path's integrand (a
+    shift keeps the label, so p̂ = luminance(m_t f) in every domain).
+    """
+    if end_nee != 0:
+        if light_delta != 0:
+            return 1.0
+        return power_heuristic(light_pdf, bsdf_pdf)
+    if bsdf_delta != 0:
+        return 1.0
+    return power_heuristic(bsdf_pdf, light_pdf)

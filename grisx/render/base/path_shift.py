@@ -114,7 +114,7 @@ from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.material import Material
 from grisx.scene.lights import emitter_radiance, environment_eval, environment_pdf, light_pdf_emitter, luminance, sample_light
 from grisx.scene.scene import SceneData, SurfaceInteraction, intersect, light_occluded, occluded, segment_occluded, spawn_origin, surface_material
-from grisx.theory.mis import power_heuristic, target_from
+from grisx.theory.mis import target_from, technique_mis
 from grisx.theory.gris import ris_weight
 from grisx.theory.random import random_uniform
 from grisx.theory.roulette import roulette_survival
@@ -141,7 +141,6 @@ __all__ = [
     "target_to",
     "target_back",
     "jacobian_accepted",
-    "technique_mis",
     "EmitterHit",
     "emitter_hit",
     "SHIFT_MODES",
@@ -322,23 +321,6 @@ def emitter_hit(scene: SceneData, p: wp.vec3, d: wp.vec3, si: SurfaceInteraction
         e.light_pdf = light_pdf_emitter(scene.lights, si.tri, p, si.p, si.ng)
         e.dist = wp.length(si.p - p)
     return e
-
-
-@wp.func
-def technique_mis(end_nee: int, light_delta: int, bsdf_delta: int, light_pdf: float, bsdf_pdf: float) -> float:
-    """m_t: the power-heuristic weight of the technique that made the last segment (NEE or BSDF sampling).
-
-    Part of the integrand: paths carry their technique, and a shift keeps it, so the target of a
-    path is luminance(m_t · f) in every domain (Lin et al. 2022 keep the NEE/BSDF MIS weight in f).
-    A delta light or delta lobe has no competitor (weight 1).
-    """
-    if end_nee != 0:
-        if light_delta != 0:
-            return 1.0
-        return power_heuristic(light_pdf, bsdf_pdf)
-    if bsdf_delta != 0:
-        return 1.0
-    return power_heuristic(bsdf_pdf, light_pdf)
 
 
 @wp.func

@@ -19,7 +19,7 @@ from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.lights import emitter_radiance, environment_eval, environment_pdf, light_pdf_emitter, sample_light
 from grisx.scene.material import MATERIAL_ROUGH_DIELECTRIC
 from grisx.scene.scene import SceneData, intersect, light_occluded, spawn_origin, surface_material
-from grisx.theory.mis import power_heuristic
+from grisx.theory.mis import technique_mis
 from grisx.theory.roulette import roulette_survival
 from grisx.theory.random import random_uniform
 
@@ -112,7 +112,7 @@ def make_trace_path(kinds: frozenset[int]) -> Any:
                             light_pdf = environment_pdf(scene.lights, d)
                         else:
                             light_pdf = light_pdf_emitter(scene.lights, si.tri, prev_p, si.p, si.ng)
-                        w = power_heuristic(prev_pdf, light_pdf)
+                        w = technique_mis(0, 0, prev_delta, light_pdf, prev_pdf)
                 L += wp.cw_mul(beta, le) * w
                 if record != 0:
                     out.bs_li += wp.cw_mul(gamma, le) * w
@@ -144,10 +144,12 @@ def make_trace_path(kinds: frozenset[int]) -> Any:
                         if not light_occluded(scene, si.p, si.ng, ls):
                             w = float(1.0)
                             if ls.delta == 0 and use_bsdf_emission:
+                                bsdf_pdf = float(0.0)
                                 if view_free != 0:
-                                    w = power_heuristic(ls.pdf, cosine_hemisphere_pdf(wi * wp.sign(wo[2])))
+                                    bsdf_pdf = cosine_hemisphere_pdf(wi * wp.sign(wo[2]))
                                 else:
-                                    w = power_heuristic(ls.pdf, bsdf.pdf(m, wo, wi))
+                                    bsdf_pdf = bsdf.pdf(m, wo, wi)
+                                w = technique_mis(1, ls.delta, 0, ls.pdf, bsdf_pdf)
                             li = ls.radiance * (w / ls.pdf)
                             L += wp.cw_mul(beta, wp.cw_mul(f, li))
                             if record != 0:
