@@ -175,7 +175,7 @@ from grisx.render.base.reuse import (
 )
 from grisx.scene.scene import SceneData, SurfaceInteraction, intersect, segment_occluded, spawn_origin, surface_material
 from grisx.theory.gris import ris_weight
-from grisx.theory.mis import support_count_term, support_mis
+from grisx.theory.mis import support_count, support_count_term, support_mis
 from grisx.theory.random import random_subkey, random_uniform
 from grisx.theory.reservoir import (
     Reservoir,
@@ -791,8 +791,8 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
             sel = s_new
         # ---- W = w / (Z p̂): Z counts the domains that can produce the kept sample (Alg. 3 l. 6 with Alg. 4's Z) ----
         z = support_count_term(r_new.confidence, out.target)
-        if sel.valid != 0 and domain_counts(scene, si_p, wo_p, si, wo, sel, target_mode, unbiased * moved, unbiased, max_jacobian):
-            z += r_p.confidence
+        if sel.valid != 0:
+            z = support_count(z, r_p.confidence, domain_counts(scene, si_p, wo_p, si, wo, sel, target_mode, unbiased * moved, unbiased, max_jacobian))
         out = reservoir_finalize_mis(out, support_mis(1.0, out.target, z))
         res_out[y, x] = out
         s_out[y, x] = sel
@@ -883,12 +883,11 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         if sel.valid != 0:
             if c_s > 0.0:
                 moved = int(wp.length_sq(si_h.p - si.p) > 0.0)
-                if domain_counts(scene, si_h, wo_h, si, wo, sel, target_mode, unbiased * moved, unbiased, max_jacobian):
-                    z += c_s
+                z = support_count(z, c_s, domain_counts(scene, si_h, wo_h, si, wo, sel, target_mode, unbiased * moved, unbiased, max_jacobian))
             for j in range(ns.count):
                 n = neighbor_domain(sf, neighbor_set_pixel(ns, j), from_spatial, temporal_cap, spatial_cap, res_t, s_t, res_s_prev, s_s_prev)
-                if n.res.confidence > 0.0 and domain_counts(scene, n.si, n.wo, si, wo, sel, target_mode, unbiased, unbiased, max_jacobian):
-                    z += n.res.confidence
+                if n.res.confidence > 0.0:
+                    z = support_count(z, n.res.confidence, domain_counts(scene, n.si, n.wo, si, wo, sel, target_mode, unbiased, unbiased, max_jacobian))
         out = reservoir_finalize_mis(out, support_mis(1.0, out.target, z))
         res_out[y, x] = out
         s_out[y, x] = sel

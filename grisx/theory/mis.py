@@ -51,6 +51,7 @@ __all__ = [
     "pairwise_pair_share",
     "pairwise_mis_neighbor",
     "pairwise_mis_canonical_term",
+    "support_count",
     "support_count_term",
     "support_mis",
     "confidence_share",
@@ -158,11 +159,21 @@ def pairwise_mis_canonical_term(
 
 
 @wp.func
+def support_count(z: float, confidence: float, in_support: bool) -> float:
+    """Z + c_j if domain j can produce y, else Z: Z(y) = Σ_j c_j [y ∈ supp_j] counted one domain at a time (seed 004, Alg. 4 l. 16–19).
+
+    Renderers decide ``in_support`` (a shifted target > 0, a visibility ray, a Jacobian bound) and add every
+    domain through this function, the canonical one included (:func:`support_count_term`).
+    """
+    if in_support:
+        return z + confidence
+    return z
+
+
+@wp.func
 def support_count_term(confidence: float, target_from: float) -> float:
     """c_j if domain j's support holds y (p̂_{←j}(y) > 0), else 0: one term of Z(y) (seed 004, Alg. 4)."""
-    if target_from > 0.0:
-        return confidence
-    return 0.0
+    return support_count(0.0, confidence, target_from > 0.0)
 
 
 @wp.func
