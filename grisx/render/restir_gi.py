@@ -218,6 +218,14 @@ def resolve_direct(direct: str, built: Any) -> str:
         return direct
     return "restir-di" if int(built.data.lights.num_lights) > AUTO_DI_LIGHTS else "nee"
 
+@wp.struct
+class SourceSample:
+    """A direction from the source pdf p_q and its density (solid angle; 0: none)."""
+
+    wi: wp.vec3
+    pdf: float
+
+
 _SOURCE_UNIFORM = wp.constant(0)
 _SOURCE_COSINE = wp.constant(1)
 _TARGET_FULL = wp.constant(0)
@@ -599,6 +607,68 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
                 nb.valid = 0
         return nb
 
+    # ---- the initial pass's three jobs, one function each ----
+    @wp.func
+    def validate_history(
+        scene: SceneData,
+        x: int,
+        y: int,
+        depth_from_xv: int,
+        rr_depth: int,
+        mb_fraction: float,
+        tolerance: float,
+        res_t_prev: wp.array2d(dtype=Reservoir),
+        s_t_prev: wp.array2d(dtype=GISample),
+        res_s_prev: wp.array2d(dtype=Reservoir),
+        s_s_prev: wp.array2d(dtype=GISample),
+    ):
+        """Sample validation (Sec. 4.3): replay last frame's temporal and spatial samples; clear those that changed."""
+        which = int(0)
+        while which < 2:  # the temporal, then the spatial sample (a loop: one copy of the path tracer in the kernel)
+            s_prev = s_t_prev[y, x]
+            if which == 1:
+                s_prev = s_s_prev[y, x]
+            if not validate(scene, s_prev, depth_from_xv, rr_depth, mb_fraction, tolerance):
+                if which == 0:
+                    res_t_prev[y, x] = reservoir_empty()
+                    s_t_prev[y, x] = gi_sample_none()
+                else:
+                    res_s_prev[y, x] = reservoir_empty()
+                    s_s_prev[y, x] = gi_sample_none()
+            which += 1
+
+    @wp.func
+    def sample_source(scene: SceneData, si: SurfaceInteraction, wo: wp.vec3, nv: wp.vec3, source: int, key: wp.uint32) -> SourceSample:
+        """Alg. 2: a direction ω_i at the visible point from the source pdf p_q (uniform, cosine or the BSDF)."""
+        out = SourceSample()
+        out.wi = wp.vec3(0.0)
+        out.pdf = 0.0
+        u = wp.vec2(random_uniform(key, 0), random_uniform(key, 1))
+        if source == _SOURCE_UNIFORM:
+            fv = frame_from_normal(nv)
+            wl = sample_uniform_hemisphere(u)
+            out.wi = to_world(fv, wl)
+            out.pdf = uniform_hemisphere_pdf(wl)
+        elif source == _SOURCE_COSINE:
+            fv = frame_from_normal(nv)
+            wl = sample_cosine_hemisphere(u)
+            out.wi = to_world(fv, wl)
+            out.pdf = cosine_hemisphere_pdf(wl)
+        else:
+            m = surface_material(scene, si)
+            fs = frame_from_normal(si.ns)
+            bs = bsdf.sample(m, to_local(fs, wo), random_uniform(key, 2), u)
+            if bs.valid != 0 and bs.delta == 0:
+                out.wi = to_world(fs, bs.wi)
+                out.pdf = bs.pdf
+        return out
+
+    @wp.func
+    def tile_multi_bounce(sf: ScreenFrame, x: int, y: int, width: int, mb_fraction: float) -> int:
+        """Tile Russian roulette (Sec. 5): 1 if this pixel's 64×32 tile follows multi-bounce paths this frame."""
+        tile = (y // _TILE_H) * ((width + _TILE_W - 1) // _TILE_W) + x // _TILE_W
+        return int(random_uniform(random_subkey(frame_key(sf, 1), tile), 0) < mb_fraction)
+
     module = specialized_module(__name__, kinds)
 
     @wp.kernel(module=module)
@@ -644,19 +714,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         if max_depth < 0:
             depth_from_xv = -1
         if validate_now != 0:
-            which = int(0)
-            while which < 2:  # the temporal, then the spatial sample (a loop: one copy of the path tracer in the kernel)
-                s_prev = s_t_prev[y, x]
-                if which == 1:
-                    s_prev = s_s_prev[y, x]
-                if not validate(scene, s_prev, depth_from_xv, rr_depth, mb_fraction, tolerance):
-                    if which == 0:
-                        res_t_prev[y, x] = reservoir_empty()
-                        s_t_prev[y, x] = gi_sample_none()
-                    else:
-                        res_s_prev[y, x] = reservoir_empty()
-                        s_s_prev[y, x] = gi_sample_none()
-                which += 1
+            validate_history(scene, x, y, depth_from_xv, rr_depth, mb_fraction, tolerance, res_t_prev, s_t_prev, res_s_prev, s_s_prev)
         traced_here = path_traced_here(scene, si)
         if traced_here or direct_mode == 0:
             # ---- the camera path: all of it on mirrors and glass (no reservoir there), else its first two
@@ -676,29 +734,11 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
             return  # nothing indirect to estimate
         # ---- Alg. 2: a direction from the source pdf p_q ----
         nv = visible_normal(si, wo)
-        u = wp.vec2(random_uniform(key, 0), random_uniform(key, 1))
-        wi = wp.vec3(0.0)
-        source_pdf = float(0.0)
-        if source == _SOURCE_UNIFORM:
-            fv = frame_from_normal(nv)
-            wl = sample_uniform_hemisphere(u)
-            wi = to_world(fv, wl)
-            source_pdf = uniform_hemisphere_pdf(wl)
-        elif source == _SOURCE_COSINE:
-            fv = frame_from_normal(nv)
-            wl = sample_cosine_hemisphere(u)
-            wi = to_world(fv, wl)
-            source_pdf = cosine_hemisphere_pdf(wl)
-        else:
-            m = surface_material(scene, si)
-            fs = frame_from_normal(si.ns)
-            bs = bsdf.sample(m, to_local(fs, wo), random_uniform(key, 2), u)
-            if bs.valid != 0 and bs.delta == 0:
-                wi = to_world(fs, bs.wi)
-                source_pdf = bs.pdf
+        ss = sample_source(scene, si, wo, nv, source, key)
+        source_pdf = ss.pdf
         if source_pdf <= 0.0:
             return
-        wi = wp.normalize(wi)
+        wi = wp.normalize(ss.wi)
         if wp.dot(wi, nv) <= 0.0:
             return
         if wp.dot(wi, si.ng) * wp.dot(wo, si.ng) <= 0.0:
@@ -708,9 +748,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         if hit.valid == 0:
             return  # the sky: direct light's business
         # ---- L_o at the sample point by path tracing (NEE + MIS), tile-level multi-bounce roulette ----
-        tile = (y // _TILE_H) * ((width + _TILE_W - 1) // _TILE_W) + x // _TILE_W
-        u_tile = random_uniform(random_subkey(frame_key(sf, 1), tile), 0)
-        s.multi = int(u_tile < mb_fraction)
+        s.multi = tile_multi_bounce(sf, x, y, width, mb_fraction)
         s.key = random_subkey(key, 2)
         le = emitter_radiance(scene.lights, hit.tri, hit.ng, -wi)
         s.xv = si.p
