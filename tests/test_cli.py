@@ -2,6 +2,8 @@
 
 import json
 import subprocess
+
+import numpy as np
 import sys
 
 import pytest
@@ -126,3 +128,13 @@ def test_every_registered_default_is_the_constructors():
     for name, cls in (("pt", pt.PathTracer), ("restir-di", restir_di.ReSTIRDI), ("restir-gi", restir_gi.ReSTIRGI), ("restir-pt", restir_pt.ReSTIRPT)):
         signature = inspect.signature(cls.__init__).parameters
         assert all(p.default == signature[p.name].default for p in METHODS[name].params), name
+
+
+def test_render_writes_the_format_asked_for(capsys, tmp_path):
+    code, _, _ = run_cli(capsys, "render", "cornell-box", "--method", "albedo", "--res", "8x6", "--out", str(tmp_path / "a.png"))
+    assert code == 0 and sorted(p.name for p in tmp_path.iterdir()) == ["a.json", "a.png"]
+    code, _, _ = run_cli(capsys, "render", "cornell-box", "--method", "pt", "--spp", "1", "--res", "8x6", "--out", str(tmp_path / "b.npy"), "--exr")
+    assert code == 0 and np.load(tmp_path / "b.npy").shape == (6, 8, 3) and (tmp_path / "b.exr").is_file()
+    code, _, err = run_cli(capsys, "render", "cornell-box", "--method", "pt", "--res", "8x6", "--out", str(tmp_path / "c.jpg"))
+    assert code == 2 and err.count("\n") == 1 and ".exr, .png, .npy" in err
+    assert not any(p.name.startswith("c.") for p in tmp_path.iterdir())  # nothing half-written

@@ -4,7 +4,7 @@
 
     grisx scenes [--json]
     grisx render SCENE_OR_FILE --method M [--spp N] [--frames F [--accumulate]] [--res WxH]
-                 [--device cpu|cuda] [--seed S] [--param k=v ...] [--out PATH.exr] [--json]
+                 [--device cpu|cuda] [--seed S] [--param k=v ...] [--out PATH.exr|.png|.npy [--exr]] [--json]
     grisx reference SCENE_OR_FILE [--spp N] [--res WxH] [--max-depth D] [--device cpu|cuda] [--force] [--out PATH.exr] [--json]
 
 ``render`` writes the linear EXR, a tonemapped sRGB PNG beside it and a JSON
@@ -24,6 +24,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from grisx.errors import InvalidParameterError
 
 __all__ = ["add_parsers", "write_outputs"]
 
@@ -54,7 +56,9 @@ def add_parsers(sub: Any, key_value: Any, count: Any, seed: Any) -> None:
     r.add_argument("--device", default="cpu", help="cpu (default) or cuda")
     r.add_argument("--seed", type=seed, default=0, help="seed (default 0)")
     r.add_argument("--param", type=key_value, action="append", default=[], metavar="K=V", help="method option (repeatable)")
-    r.add_argument("--out", default=None, help="output EXR path (default SCENE-METHOD.exr)")
+    r.add_argument("--out", default=None, help="output path: .exr (linear, with a tonemapped PNG beside it), .png (tonemapped) or .npy "
+                   "(linear float32); a JSON sidecar always (default SCENE-METHOD.exr)")
+    r.add_argument("--exr", action="store_true", help="with a .png or .npy --out: also write the linear EXR beside it")
     r.add_argument("--json", action="store_true", help="print one JSON object")
     r.set_defaults(handler=_render)
 
@@ -106,25 +110,57 @@ class _Progress:
         sys.stderr.flush()
 
 
-def write_outputs(result: Any, out: Path, method: str) -> list[str]:
-    """Write EXR(s), PNG and the JSON sidecar of a render; returns the paths."""
+#: what ``--out`` may name
+OUTPUT_FORMATS = (".exr", ".png", ".npy")
+
+
+def check_output(out: Path) -> None:
+    """A one-line error before any rendering if ``out`` cannot be written as asked."""
+    if out.suffix.lower() not in OUTPUT_FORMATS:
+        raise InvalidParameterError(f"--out must end in {', '.join(OUTPUT_FORMATS)}, got '{out}'")
+    if not out.parent.is_dir():
+        raise InvalidParameterError(f"--out: directory '{out.parent}' does not exist")
+
+
+def _write_npy(path: Path, array: np.ndarray) -> Path:
+    """np.save through a temporary file in the same folder, so a failure leaves nothing half-written."""
+    import os
+    import tempfile
+
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp.npy", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            np.save(f, np.asarray(array, dtype=np.float32))
+        os.replace(tmp, path)
+    finally:
+        Path(tmp).unlink(missing_ok=True)
+    return path
+
+
+def write_outputs(result: Any, out: Path, method: str, exr: bool = False) -> list[str]:
+    """Write the image as ``out`` asks (.exr + PNG, .png, .npy; ``exr``: the EXR too) and the JSON sidecar; returns the paths."""
     from grisx import __version__
-    from grisx.errors import GrisxError
     from grisx.imageio import write_exr, write_png
     from grisx.render.driver import METHODS
     from grisx.render.views import display_image
 
-    if out.suffix.lower() != ".exr":
-        raise GrisxError(f"--out must name an .exr file, got '{out}'")
-    if not out.parent.is_dir():
-        raise GrisxError(f"cannot write '{out}': directory '{out.parent}' does not exist")
-    written = [str(write_exr(out, result.image))]
+    check_output(out)
+    suffix = out.suffix.lower()
+    linear = suffix == ".exr" or exr
+    written = []
+    if suffix == ".npy":
+        written.append(str(_write_npy(out, result.image)))
+    if linear:
+        written.append(str(write_exr(out.with_suffix(".exr"), result.image)))
     png = out.with_suffix(".png")
-    if METHODS[method].kind == "debug":
+    if suffix == ".npy":
+        pass  # data only (and the EXR if asked)
+    elif METHODS[method].kind == "debug":
         if method == "gbuffer":
             tiles = []
             for name, img in result.extra.items():
-                written.append(str(write_exr(out.with_suffix(f".{name}.exr"), img)))
+                if linear:
+                    written.append(str(write_exr(out.with_suffix(f".{name}.exr"), img)))
                 view = {"normal_geo": "normal", "tri": "tri", "material": "material", "hit": "material"}.get(name, name)
                 disp, encode = display_image(view, img if img.ndim == 3 else np.repeat(img[:, :, None], 3, axis=2))
                 from grisx.imageio import srgb_encode
@@ -159,7 +195,7 @@ def write_outputs(result: Any, out: Path, method: str) -> list[str]:
 def _reference(args: argparse.Namespace) -> int:
     import shutil
 
-    from grisx.errors import InvalidParameterError
+
     from grisx.imageio import write_png
     from grisx.render.reference import reference
     from grisx.render.driver import parse_res
@@ -200,7 +236,7 @@ def _plain(v: Any) -> Any:
 
 
 def _render(args: argparse.Namespace) -> int:
-    from grisx.errors import InvalidParameterError
+
     from grisx.render.driver import parse_res, render
 
     params: dict[str, Any] = {}
@@ -211,10 +247,7 @@ def _render(args: argparse.Namespace) -> int:
     res = parse_res(args.res) if args.res else None
     stem = Path(args.scene).stem if args.scene.lower().endswith(".xml") else args.scene
     out = Path(args.out) if args.out else Path(f"{stem}-{args.method}.exr")
-    if out.suffix.lower() != ".exr":
-        raise InvalidParameterError(f"--out must name an .exr file, got '{out}'")
-    if not out.parent.is_dir():
-        raise InvalidParameterError(f"--out: directory '{out.parent}' does not exist")
+    check_output(out)
     result = render(
         args.scene,
         args.method,
@@ -227,7 +260,7 @@ def _render(args: argparse.Namespace) -> int:
         params=params,
         progress=_Progress(f"{stem} {args.method}"),
     )
-    written = write_outputs(result, out, args.method)
+    written = write_outputs(result, out, args.method, exr=args.exr)
     if args.json:
         s = result.settings
         print(json.dumps({
