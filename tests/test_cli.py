@@ -2,10 +2,9 @@
 
 import json
 import subprocess
-
-import numpy as np
 import sys
 
+import numpy as np
 import pytest
 
 from grisx.cli import main
