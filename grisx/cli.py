@@ -170,7 +170,13 @@ def _demo(args: argparse.Namespace) -> int:
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
     try:
+        if argv[:1] == ["render"] and ("-h" in argv or "--help" in argv) and "--method" in argv[:-1]:
+            from grisx.render.cli import method_help  # 'render --method M --help': that method's params
+
+            print(method_help(argv[argv.index("--method") + 1]))
+            return 0
         args = parser.parse_args(argv)
         return int(args.handler(args))
     except GrisxError as exc:

@@ -137,3 +137,12 @@ def test_render_writes_the_format_asked_for(capsys, tmp_path):
     code, _, err = run_cli(capsys, "render", "cornell-box", "--method", "pt", "--res", "8x6", "--out", str(tmp_path / "c.jpg"))
     assert code == 2 and err.count("\n") == 1 and ".exr, .png, .npy" in err
     assert not any(p.name.startswith("c.") for p in tmp_path.iterdir())  # nothing half-written
+
+
+def test_methods_explain_themselves(capsys):
+    code, out, _ = run_cli(capsys, "methods")
+    assert code == 0 and all(name in out for name in ("pt", "restir-di", "restir-gi", "restir-pt"))
+    code, out, _ = run_cli(capsys, "render", "--method", "restir-pt", "--help")
+    assert code == 0 and "--param max_depth=" in out and "--param shift=hybrid" in out
+    code, _, err = run_cli(capsys, "methods", "nope")
+    assert code == 2 and "unknown render method 'nope'" in err

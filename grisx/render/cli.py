@@ -38,14 +38,16 @@ def add_parsers(sub: Any, key_value: Any, count: Any, seed: Any) -> None:
     scenes.add_argument("--json", action="store_true", help="print one JSON object")
     scenes.set_defaults(handler=_scenes)
 
-    methods = "; ".join(
-        f"{m.name}: {m.summary}" + (f" (params: {', '.join(f'{p.name}={p.default}' for p in m.params)})" if m.params else "")
-        for m in METHODS.values()
-    )
+    m = sub.add_parser("methods", help="the render methods (a table), or one method's params")
+    m.add_argument("method", nargs="?", default=None, help="a render method: its params with defaults, ranges and help")
+    m.add_argument("--json", action="store_true", help="print one JSON object")
+    m.set_defaults(handler=_methods)
+
     r = sub.add_parser(
         "render",
         help="render a built-in scene or a Mitsuba XML file",
-        description="Render a scene. Methods — " + methods,
+        description="Render a scene. 'grisx methods' lists the methods; 'grisx render --method M --help' (or "
+        "'grisx methods M') gives one method's params.",
     )
     r.add_argument("scene", help="built-in scene name (see 'grisx scenes') or a Mitsuba XML file")
     r.add_argument("--method", required=True, help="render method: " + ", ".join(METHODS))
@@ -190,6 +192,51 @@ def write_outputs(result: Any, out: Path, method: str, exr: bool = False) -> lis
     sidecar.write_text(json.dumps(meta, indent=2, default=_plain))
     written.append(str(sidecar))
     return written
+
+
+def method_help(name: str) -> str:
+    """One method's summary and params: name, type, default, range, help (``grisx methods M``)."""
+    from grisx.errors import UnknownNameError
+    from grisx.render.driver import METHODS
+
+    if name not in METHODS:
+        raise UnknownNameError("render method", name, sorted(METHODS))
+    m = METHODS[name]
+    lines = [f"{m.name}: {m.summary}", ""]
+    if m.reference_max_depth is not None:
+        lines.append(f"estimates pt's image at max_depth {m.reference_max_depth}")
+    lines.append("spp: samples per pixel per frame" if m.uses_spp else "one sample per pixel per frame (--frames for more)")
+    if not m.params:
+        lines.append("no params")
+    for p in m.params:
+        rng = ""
+        if p.choices:
+            rng = " {" + "|".join(p.choices) + "}"
+        elif p.minimum is not None or p.maximum is not None:
+            rng = f" [{'' if p.minimum is None else f'{p.minimum:g}'}, {'' if p.maximum is None else f'{p.maximum:g}'}]"
+        lines.append(f"  --param {p.name}={p.default}  ({p.kind}{rng})  {p.doc}")
+    return "\n".join(lines)
+
+
+def _methods(args: argparse.Namespace) -> int:
+    from grisx.render.driver import METHODS
+
+    if args.method is not None:
+        if args.json:
+            m = METHODS.get(args.method)
+            method_help(args.method)  # the one-line error for an unknown name
+            print(json.dumps({"method": m.name, "summary": m.summary, "kind": m.kind, "uses_spp": m.uses_spp,
+                              "reference_max_depth": m.reference_max_depth, "params": [p.describe() for p in m.params]}, default=_plain))
+        else:
+            print(method_help(args.method))
+        return 0
+    if args.json:
+        print(json.dumps({name: {"summary": m.summary, "kind": m.kind, "params": [p.name for p in m.params]} for name, m in METHODS.items()}))
+        return 0
+    width = max(len(n) for n in METHODS)
+    for name, m in METHODS.items():
+        print(f"{name:{width}s}  {m.kind:8s}  {m.summary}")
+    return 0
 
 
 def _reference(args: argparse.Namespace) -> int:

@@ -24,7 +24,33 @@ from typing import Any
 from grisx.errors import InvalidParameterError, UnknownNameError
 from grisx.params import Param
 
-__all__ = ["RenderContext", "RenderMethod", "METHODS", "PLUGINS", "register", "renderer_params", "create_renderer", "method_params", "load_plugins"]
+__all__ = ["VOCABULARY", "SYNONYMS", "RenderContext", "RenderMethod", "METHODS", "PLUGINS", "register", "renderer_params", "create_renderer", "method_params", "load_plugins"]
+
+#: The shared vocabulary: a param name that more than one method takes means the same thing in all
+#: of them (``grisx methods M`` gives each method's own wording and default). New renderers use
+#: these names; ``tests/test_vocabulary.py`` fails on a synonym of one of them.
+VOCABULARY = {
+    "max_depth": ("int", "longest path in segments from the camera, Mitsuba's meaning (-1 unbounded, 1 emitters, 2 direct light)"),
+    "rr_depth": ("int", "depth from which Russian roulette may end paths (Mitsuba's rule)"),
+    "jitter": ("bool", "a new camera sample per pixel and frame (the box filter pt estimates); false: pixel centres"),
+    "temporal": ("bool", "reuse the previous frame's reservoirs (reprojected)"),
+    "spatial": ("bool", "reuse neighbouring pixels' reservoirs"),
+    "neighbors": ("int", "spatial neighbours per pixel and round"),
+    "radius": ("float", "spatial reuse radius in pixels"),
+    "history_cap": ("float", "cap on the confidence M a reused temporal reservoir brings"),
+    "unbiased": ("bool", "false: the cheaper biased variant of the method's MIS/visibility (an ablation)"),
+    "jacobian": ("bool", "false: shift Jacobians taken as 1 (the biased ablation)"),
+    "max_jacobian": ("float", "reject shifts whose |J| exceeds this bound, counted the same way in the MIS (still unbiased); 0: never"),
+    "candidates": ("int", "initial candidates per pixel and frame"),
+    "shift": ("choice", "the shift map of path reuse: hybrid, reconnection or replay"),
+}
+#: names that mean one of the above and must not be used for it
+SYNONYMS = {
+    "max_bounces": "max_depth", "bounces": "max_depth", "depth": "max_depth", "rr_start": "rr_depth",
+    "jacobian_max": "max_jacobian", "j_max": "max_jacobian", "temporal_cap": "history_cap", "m_cap": "history_cap",
+    "neighbours": "neighbors", "num_neighbors": "neighbors", "spatial_radius": "radius", "use_jacobian": "jacobian",
+    "jittered": "jitter", "pixel_jitter": "jitter", "num_candidates": "candidates",
+}
 
 #: the renderer modules, each of which registers its methods when imported
 PLUGINS = ("grisx.render.views", "grisx.render.pt", "grisx.render.restir_di", "grisx.render.restir_gi", "grisx.render.restir_pt")

@@ -974,7 +974,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
         unbiased: bool = True,
         temporal: bool = True,
         spatial: bool = True,
-        temporal_cap: float = 30.0,
+        history_cap: float = 30.0,
         spatial_cap: float = 500.0,
         iterations_low: int = 9,
         iterations_high: int = 3,
@@ -1002,7 +1002,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
         self.unbiased = int(bool(unbiased))
         self.temporal = bool(temporal)
         self.spatial = bool(spatial)
-        self.temporal_cap = float(temporal_cap)
+        self.history_cap = float(history_cap)  # the M cap of temporal reservoirs (the paper's temporal cap)
         self.spatial_cap = float(spatial_cap)
         self.iterations_low = int(iterations_low)
         self.iterations_high = int(iterations_high)
@@ -1093,7 +1093,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
                 self.k.temporal_pass,
                 dim=dim,
                 inputs=[
-                    data, sf, int(history and self.temporal), self.temporal_cap, self.target, self.jacobian, self.unbiased,
+                    data, sf, int(history and self.temporal), self.history_cap, self.target, self.jacobian, self.unbiased,
                     self.max_jacobian, self.initial[0], self.initial[1], self.temporal_buf.previous[0], self.temporal_buf.previous[1],
                 ],
                 outputs=[t_out[0], t_out[1]],
@@ -1106,7 +1106,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
                     self.k.spatial_pass,
                     dim=dim,
                     inputs=[
-                        data, sf, history, self.temporal_cap, self.spatial_cap, self.iterations_low, self.iterations_high,
+                        data, sf, history, self.history_cap, self.spatial_cap, self.iterations_low, self.iterations_high,
                         self.adaptive, self.radius, self.min_radius, self.low_m, self.target, self.jacobian, self.unbiased,
                         self.max_jacobian, t_out[0], t_out[1], self.spatial_buf.previous[0], self.spatial_buf.previous[1],
                     ],
@@ -1154,7 +1154,7 @@ register(
             Param("unbiased", ..., "true: Z counts only domains that can produce the sample (visibility rays, Alg. 4 l. 16-19); false: Z = sum of M", kind="bool"),
             Param("temporal", ..., "temporal resampling (Alg. 3)", kind="bool"),
             Param("spatial", ..., "spatial resampling (Alg. 4)", kind="bool"),
-            Param("temporal_cap", ..., "M cap of temporal reservoirs", minimum=0.0),
+            Param("history_cap", ..., "M cap of temporal reservoirs (the history cap; the paper's temporal cap)", minimum=0.0),
             Param("spatial_cap", ..., "M cap of spatial reservoirs", minimum=0.0),
             Param("iterations_low", ..., "maxIterations while the spatial reservoir's M < spatial_cap/2", kind="int", minimum=0, maximum=64),
             Param("iterations_high", ..., "maxIterations otherwise", kind="int", minimum=0, maximum=64),

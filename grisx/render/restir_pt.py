@@ -331,7 +331,8 @@ class ReSTIRPT(ScreenSpaceRenderer):
         rough_threshold: float = 0.2,
         near_field: float = 0.01,
         jacobian: bool = True,
-        jacobian_max: float = 0.0,
+        max_jacobian: float = 0.0,
+        jitter: bool = True,
         seed: int = 0,
         timer: Any = None,
     ) -> None:
@@ -351,6 +352,7 @@ class ReSTIRPT(ScreenSpaceRenderer):
         self.neighbors = int(neighbors)
         self.radius = float(radius)
         self.history_cap = float(history_cap)
+        self.jitter = bool(jitter)
         self.seed = int(seed)
         self.timer = timer
         # the near field is a fraction of the scene's radius, so one default fits every scene's scale
@@ -358,7 +360,7 @@ class ReSTIRPT(ScreenSpaceRenderer):
             shift,
             rough_threshold=rough_threshold,
             near_distance=float(near_field) * float(built.data.scene_radius),
-            jacobian_max=jacobian_max,
+            jacobian_max=max_jacobian,
             jacobian=jacobian,
             rr_depth=rr_depth,
         )
@@ -383,7 +385,7 @@ class ReSTIRPT(ScreenSpaceRenderer):
         dim = (self.height, self.width)
         k = self.k
         with self._phase("gbuffer"):
-            self.gbuffer.fill(b, float(frame), self.seed, jitter=True)
+            self.gbuffer.fill(b, float(frame), self.seed, jitter=self.jitter)
         self.domains.reverse()  # the previous frame's domains become "previous"
         dom, dom_prev = self.domains
         with self._phase("primary"):
@@ -456,7 +458,8 @@ register(
             Param("rough_threshold", ..., "hybrid shift: vertices rougher than this may be reconnected", minimum=0.0),
             Param("near_field", ..., "hybrid shift: reconnection segments must be longer than this fraction of the scene radius", minimum=0.0),
             Param("jacobian", ..., "use shift Jacobians (false: |J| = 1, the biased ablation)", kind="bool"),
-            Param("jacobian_max", ..., "reject shifts with |J| outside [1/J_max, J_max] (0: no threshold)", minimum=0.0),
+            Param("max_jacobian", ..., "reject shifts with |J| outside [1/τ, τ] (still unbiased: T stays a bijection); 0: never", minimum=0.0),
+            Param("jitter", ..., "visible point uniform over the pixel each frame (box filter: what pt estimates); false: pixel centres", kind="bool"),
         ),
     )
 )

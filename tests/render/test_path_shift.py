@@ -274,7 +274,7 @@ def test_jacobian_threshold_rejects_symmetrically():
     base, _ = _roundtrips("lit-wall", "hybrid", 5)
     j = base[base[:, 2] > 0, 3]
     assert np.any((j > 1.5) | (j < 1 / 1.5)), "the test needs Jacobians beyond the threshold"
-    s, _ = _roundtrips("lit-wall", "hybrid", 5, jacobian_max=1.5)
+    s, _ = _roundtrips("lit-wall", "hybrid", 5, max_jacobian=1.5)
     fwd = s[:, 2] > 0
     assert 0 < fwd.sum() < (base[:, 2] > 0).sum()
     assert np.all((s[fwd, 3] <= 1.5) & (s[fwd, 3] >= 1 / 1.5))

@@ -89,7 +89,7 @@ def test_converges_to_the_path_tracer(shift):
         {"candidates": 4, "spatial_rounds": 2},  # the offline setting in small
         {"temporal": False},  # spatial reuse alone
         {"spatial_rounds": 0},  # temporal reuse alone
-        {"jacobian_max": 2.0},  # the rejection threshold keeps T a bijection: still unbiased
+        {"max_jacobian": 2.0},  # the rejection threshold keeps T a bijection: still unbiased
     ],
     ids=["offline", "spatial-only", "temporal-only", "jacobian-threshold"],
 )
