@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections import defaultdict
 
 from grisx.render.driver import METHODS
-from grisx.render.registry import SYNONYMS, VOCABULARY
+from grisx.render.base.registry import SYNONYMS, VOCABULARY
 
 
 def test_every_param_has_help_and_no_synonym():

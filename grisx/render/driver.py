@@ -10,7 +10,7 @@ Per-pass timings come from a :class:`PassTimer` that synchronizes the device
 before reading the clock, so GPU times are real.
 
 Each renderer module registers its methods and options (``--param k=v``)
-itself, in :mod:`grisx.render.registry`'s :data:`METHODS`; importing this
+itself, in :mod:`grisx.render.base.registry`'s :data:`METHODS`; importing this
 module loads them all. The debug views
 (``gbuffer``, ``albedo``, ``normal``, ``depth``, ``motion``) show the
 G-buffer every renderer reads.
@@ -29,7 +29,7 @@ import warp as wp
 
 from grisx.device import resolve_device, synchronize
 from grisx.errors import InvalidParameterError, InvalidValueError, UnknownNameError
-from grisx.render.registry import METHODS, RenderContext, RenderMethod, load_plugins, method_params
+from grisx.render.base.registry import METHODS, RenderContext, RenderMethod, load_plugins, method_params
 
 __all__ = ["METHODS", "RenderMethod", "RenderContext", "RenderResult", "PassTimer", "render", "load_scene", "parse_res", "method_params"]
 
@@ -245,4 +245,4 @@ def render(
     )
 
 
-load_plugins()  # every renderer module registers itself (grisx.render.registry.PLUGINS)
+load_plugins()  # every renderer module registers itself (grisx.render.base.registry.PLUGINS)

@@ -40,7 +40,7 @@ from grisx.render.base.screen import kernel_cache
 from grisx.device import specialized_module
 from grisx.render.base.trace import STRATEGIES, make_trace_path
 from grisx.params import Param
-from grisx.render.registry import RenderMethod, register, renderer_params
+from grisx.render.base.registry import RenderMethod, register, renderer_params
 from grisx.scene.camera import CameraData, camera_ray, sample_camera
 from grisx.scene.scene import SceneData, finite_or_dropped
 from grisx.theory.random import random_key, random_subkey
@@ -192,7 +192,7 @@ def create_path_tracer(ctx: Any) -> PathTracer:
         timer=ctx.timer,
     )
 
-# ---- registration (grisx.render.registry): the method, its params (defaults: the constructor's) ----
+# ---- registration (grisx.render.base.registry): the method, its params (defaults: the constructor's) ----
 
 register(
     RenderMethod(

@@ -84,7 +84,7 @@ import warp as wp
 from grisx.device import specialized_module
 from grisx.render.base.screen import ScreenFrame, ScreenSpaceRenderer, kernel_cache, pixel_key, screen_frame, write_pixel
 from grisx.params import Param
-from grisx.render.registry import RenderMethod, create_renderer, register, renderer_params
+from grisx.render.base.registry import RenderMethod, create_renderer, register, renderer_params
 from grisx.scene.bsdf import make_bsdf
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.gbuffer import GBuffer, gbuffer_kernel
@@ -669,7 +669,7 @@ class ReSTIRDI(ScreenSpaceRenderer):
 def create_restir_di(ctx: Any) -> ReSTIRDI:
     return create_renderer(ReSTIRDI, ctx)
 
-# ---- registration (grisx.render.registry): the method, its params (defaults: the constructor's) ----
+# ---- registration (grisx.render.base.registry): the method, its params (defaults: the constructor's) ----
 
 register(
     RenderMethod(

@@ -153,7 +153,7 @@ import warp as wp
 
 from grisx.device import specialized_module
 from grisx.params import Param
-from grisx.render.registry import RenderMethod, create_renderer, register, renderer_params
+from grisx.render.base.registry import RenderMethod, create_renderer, register, renderer_params
 from grisx.scene.bsdf import MATERIAL_ROUGH_DIELECTRIC, cosine_hemisphere_pdf, make_bsdf, sample_cosine_hemisphere
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.gbuffer import GBuffer, GBufferData, gbuffer_kernel
@@ -1028,7 +1028,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
         self.di = None
         if self.direct == DIRECT["restir-di"]:
             # composed through the registry, not imported: renderers do not import each other
-            from grisx.render.registry import METHODS, RenderContext
+            from grisx.render.base.registry import METHODS, RenderContext
 
             ctx = RenderContext(built, width, height, {"jitter": jitter}, seed + 7919, timer, "restir-di")
             self.di = METHODS["restir-di"].create(ctx)
@@ -1139,7 +1139,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
 def create_restir_gi(ctx: Any) -> ReSTIRGI:
     return create_renderer(ReSTIRGI, ctx)
 
-# ---- registration (grisx.render.registry): the method, its params (defaults: the constructor's) ----
+# ---- registration (grisx.render.base.registry): the method, its params (defaults: the constructor's) ----
 
 register(
     RenderMethod(

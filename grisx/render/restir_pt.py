@@ -63,7 +63,7 @@ import warp as wp
 
 from grisx.device import specialized_module
 from grisx.params import Param
-from grisx.render.registry import RenderMethod, create_renderer, register, renderer_params
+from grisx.render.base.registry import RenderMethod, create_renderer, register, renderer_params
 from grisx.errors import InvalidParameterError
 from grisx.scene.gbuffer import GBuffer, GBufferData
 from grisx.render.base.path_shift import (
@@ -437,7 +437,7 @@ class ReSTIRPT(ScreenSpaceRenderer):
 def create_restir_pt(ctx: Any) -> ReSTIRPT:
     return create_renderer(ReSTIRPT, ctx)
 
-# ---- registration (grisx.render.registry): the method, its params (defaults: the constructor's) ----
+# ---- registration (grisx.render.base.registry): the method, its params (defaults: the constructor's) ----
 
 register(
     RenderMethod(

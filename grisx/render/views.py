@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from grisx.render.registry import RenderMethod, register
+from grisx.render.base.registry import RenderMethod, register
 from grisx.scene.gbuffer import GBuffer, gbuffer_kernel
 from grisx.scene.scene import BuiltScene
 
@@ -81,7 +81,7 @@ def display_image(view: str, image: np.ndarray) -> tuple[np.ndarray, bool]:
         return np.where((ids >= 0)[..., None], palette[np.maximum(ids, 0)], 0.0), False
     return a, True
 
-# ---- registration (grisx.render.registry): the method, its params (defaults: the constructor's) ----
+# ---- registration (grisx.render.base.registry): the method, its params (defaults: the constructor's) ----
 
 for _view, _doc in (
     ("gbuffer", "every G-buffer field (one EXR per field) and a contact sheet PNG"),
