@@ -545,13 +545,13 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         if s.valid == 0:
             return True
         hit = intersect(scene, s.ray_o, s.ray_d, 1.0e30)
-        if hit.valid == 0 or wp.length(hit.p - s.xs) > 1.0e-3 * wp.max(1.0, wp.length(s.xs - s.xv)):
+        if hit.valid == 0 or wp.length(hit.p - s.xs) > 1.0e-3 * wp.length(s.xs - s.xv):  # relative: units do not matter
             return False
         le = emitter_radiance(scene.lights, hit.tri, hit.ng, -s.ray_d)
         lo = outgoing_radiance(scene, s.ray_o, s.ray_d, le, s.key, max_depth, rr_depth, s.multi, mb_fraction, int(s.exact != 0)).lo
         a = luminance(lo)
         b = luminance(s.lo)
-        return wp.abs(a - b) <= tolerance * wp.max(wp.max(a, b), 1.0e-6)
+        return wp.abs(a - b) <= tolerance * wp.max(a, b)  # relative: a scene 10⁻⁶ as bright validates alike
 
     @wp.func
     def neighbor_domain(

@@ -556,7 +556,10 @@ class BuiltScene:
         self.mesh = wp.Mesh(points=self.positions, indices=self.indices)
         lo, hi = scene.bounds()
         self.bounds = (lo, hi)
-        radius = float(max(np.linalg.norm(hi - lo) / 2, 1e-3))
+        radius = float(np.linalg.norm(hi - lo) / 2)
+        if not radius > 0.0:
+            radius = 1.0  # a scene of one point: any positive scale
+        extent = float(np.max(np.abs(np.concatenate([lo, hi])))) if np.all(np.isfinite(np.concatenate([lo, hi]))) else radius
         self.scene_radius = radius
         self.num_triangles = tri_base
         self.num_vertices = base
@@ -591,7 +594,9 @@ class BuiltScene:
         d.materials = self.materials
         d.textures = self.textures
         d.lights = self.lights
-        d.ray_epsilon = 1.0e-4 * max(1.0, radius)
+        # relative to the scene's size, and above float32 rounding at its coordinates: a scene scaled by k (all of
+        # it, camera included) renders the same image (an absolute floor made a millimetre-sized box 1% darker)
+        d.ray_epsilon = 1.0e-4 * radius + 1.0e-6 * extent
         d.scene_radius = radius
         self.data = d
 
