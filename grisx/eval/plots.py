@@ -23,6 +23,7 @@ import numpy as np
 
 from grisx.eval.files import write_atomic
 from grisx.eval.metrics import to_srgb
+from grisx.theory.gris import LUMINANCE_WEIGHTS
 
 __all__ = ["display_exposure", "plot_error_vs_time", "plot_image_grid", "plot_xt", "choose_inset"]
 
@@ -46,7 +47,7 @@ def _luminance(img: np.ndarray) -> np.ndarray:
     if img.ndim == 2:
         return img
     if img.shape[2] >= 3:
-        return 0.2126 * img[..., 0] + 0.7152 * img[..., 1] + 0.0722 * img[..., 2]
+        return img[..., :3] @ np.asarray(LUMINANCE_WEIGHTS)  # the one luminance (Rec. 709, Mitsuba's weights)
     return img[..., 0]
 
 

@@ -93,7 +93,7 @@ from grisx.render.base.reuse import (
 )
 from grisx.scene.scene import SceneData, finite_or_dropped
 from grisx.theory.gris import resampling_weight
-from grisx.theory.mis import balance_mis, balance_term, pairwise_mis_canonical_term, pairwise_mis_neighbor
+from grisx.theory.mis import pairwise_mis_canonical_term, pairwise_mis_neighbor, two_domain_balance
 from grisx.theory.random import random_subkey, random_uniform
 from grisx.theory.reservoir import Reservoir, confidence_capped, reservoir_empty, reservoir_finalize, reservoir_merge, reservoir_update
 
@@ -213,12 +213,12 @@ def make_restir_pt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         # canonical path y_c: p̂_i(y_c) and p̂_{←j}(y_c) through T_{i→j} (seed 001, Eq. 16)
         t_c = path_target(can.path)
         t_cj = target_to(shift(scene, dom_j, can.path, sp))
-        m_c = balance_mis(c_i, t_c, balance_term(c_i, t_c) + balance_term(c_j, t_cj))  # seed 001, Eq. 15
+        m_c = two_domain_balance(c_i, t_c, c_j, t_cj)  # seed 001, Eq. 15
         # history path y_t shifted into this pixel: p̂_i(T(y_t)) and p̂_{←j}(T(y_t)) = p̂_j(y_t) / |J|
         s_t = shift(scene, dom_i, prev.path, sp)
         t_ti = path_target(s_t.path)  # 0 where the shift failed
         t_tj = target_back(prev.path, s_t)
-        m_t = balance_mis(c_j, t_tj, balance_term(c_j, t_tj) + balance_term(c_i, t_ti))
+        m_t = two_domain_balance(c_j, t_tj, c_i, t_ti)
         r = reservoir_empty()
         r = reservoir_update(r, resampling_weight(m_c, t_c, can.res.ucw, 1.0), t_c, c_i, random_uniform(ukey, 0))
         sel = path_sample_empty()

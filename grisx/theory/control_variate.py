@@ -42,7 +42,7 @@ with their UCWs and the confidence-weighted targets::
 Both are unbiased because ω_ij(x) + ω_ji(T_{i→j} x) = 1 wherever either
 target is positive (the Jacobian of the reverse shift cancels). The paper's
 Eq. 10 keeps |J| inside f_j(T(·)); here it is an explicit factor (1 for
-identity shifts). :func:`difference_mis` is Eq. 5/11 (written with the
+identity shifts). :func:`grisx.theory.mis.two_domain_balance` is Eq. 5/11 (written with the
 generalized balance heuristic of :mod:`grisx.theory.mis`), :class:`DifferenceSample`
 one side's record and :func:`difference_estimate` Eq. 4/10.
 
@@ -73,7 +73,6 @@ from __future__ import annotations
 import warp as wp
 
 from grisx.theory.gris import luminance, ucw_from_source_pdf
-from grisx.theory.mis import balance_mis, balance_term, target_from
 from grisx.theory.reservoir import confidence_capped
 
 # grisx never differentiates through its kernels: skip adjoint code (halves compile time)
@@ -95,7 +94,6 @@ __all__ = [
     "cv_composite_add",
     "cv_composite_value",
     "compositing_weight",
-    "difference_mis",
     "difference_sample",
     "difference_estimate",
     "mc_contribution",
@@ -197,19 +195,6 @@ def cv_composite_value(c: CVComposite) -> wp.vec3:
 def compositing_weight(confidence: float) -> float:
     """q_j = M_j capped at 20 (seed 002, Sec. 5.3 "Compositing weights"); q_init is :data:`Q_INIT`."""
     return confidence_capped(confidence, Q_CAP)
-
-
-@wp.func
-def difference_mis(confidence_a: float, target_a: float, confidence_b: float, target_b_shifted: float, jacobian: float) -> float:
-    """ω̂_ab(x) = M_a p̂_a(x) / (M_a p̂_a(x) + M_b p̂_b(T_{a→b} x) |∂T_{a→b}/∂x|) (seed 002, Eq. 11).
-
-    With unit confidences and pdfs for targets it is Eq. 5's balance
-    heuristic. ``target_b_shifted`` is p̂_b at the shifted sample (0 where the
-    shift fails, giving ω = 1). Then ω̂_ab(x) + ω̂_ba(T_{a→b} x) = 1 wherever
-    either term is positive: what keeps Eq. 10 unbiased.
-    """
-    a = balance_term(confidence_a, target_a)
-    return balance_mis(confidence_a, target_a, a + balance_term(confidence_b, target_from(target_b_shifted, jacobian)))
 
 
 @wp.func

@@ -71,7 +71,7 @@ from __future__ import annotations
 import warp as wp
 
 from grisx.theory.gris import resampling_weight
-from grisx.theory.mis import balance_mis, balance_term, target_from
+from grisx.theory.mis import target_from, two_domain_balance
 from grisx.theory.reservoir import Reservoir, reservoir_update
 from grisx.theory.shift import ShiftResult
 
@@ -122,9 +122,8 @@ def gradient_mis(density_base: float, density_offset: float, jacobian: float, va
     """
     offset = float(0.0)
     if valid:
-        offset = balance_term(1.0, target_from(density_offset, jacobian))
-    base = balance_term(1.0, density_base)
-    return balance_mis(1.0, density_base, base + offset)
+        offset = target_from(density_offset, jacobian)
+    return two_domain_balance(1.0, density_base, 1.0, offset)
 
 
 @wp.func

@@ -48,6 +48,7 @@ __all__ = [
     "target_from",
     "balance_term",
     "balance_mis",
+    "two_domain_balance",
     "pairwise_pair_share",
     "pairwise_mis_neighbor",
     "pairwise_mis_canonical_term",
@@ -94,6 +95,20 @@ def balance_mis(confidence: float, target_from: float, term_sum: float) -> float
     if term_sum > 0.0:
         return balance_term(confidence, target_from) / term_sum
     return 0.0
+
+
+@wp.func
+def two_domain_balance(confidence_a: float, target_a: float, confidence_b: float, target_b_from: float) -> float:
+    """m_a = c_a p̂_a / (c_a p̂_a + c_b p̂_{←b}): the generalized balance heuristic over two domains (seed 001, Eq. 15).
+
+    The one copy of the weight that gradient-domain ReSTIR (seed 000, Eq. 4 and 13: unit confidences,
+    pdfs or targets), the ReSTIR difference estimator (seed 002, Eq. 5 and 11) and temporal reuse
+    (ReSTIR PT) use. ``target_b_from`` is domain b's target carried to a's sample,
+    p̂_b(T x)·|∂T/∂x| (:func:`target_from`; 0 where b cannot produce the sample, giving m_a = 1 when
+    p̂_a > 0). m_a(x) + m_b(T x) = 1 wherever either term is positive.
+    """
+    a = balance_term(confidence_a, target_a)
+    return balance_mis(confidence_a, target_a, a + balance_term(confidence_b, target_b_from))
 
 
 @wp.func

@@ -26,15 +26,19 @@ from grisx.theory.control_variate import (
     cv_estimate,
     decoupled_contribution,
     difference_estimate,
-    difference_mis,
     difference_sample,
     luminance,
     mc_contribution,
 )
 from grisx.theory.gris import resampling_weight
-from grisx.theory.mis import MIS_BALANCE, mis_weight
+from grisx.theory.mis import MIS_BALANCE, mis_weight, target_from, two_domain_balance
 from grisx.theory.toys import PROBLEMS, get_problem, run_toy
-from grisx.theory.toys.chromatic_cv import LIGHT_GREEN, LIGHT_RED, chromatic_exact, chromatic_layout
+from grisx.theory.toys.chromatic_cv import (
+    LIGHT_GREEN,
+    LIGHT_RED,
+    chromatic_exact,
+    chromatic_layout,
+)
 
 wp.set_module_options({"enable_backward": False})
 
@@ -57,7 +61,7 @@ def _alpha_kernel(mode: int, rho_i: wp.array(dtype=wp.vec3), rho_j: wp.array(dty
 def _difference_mis_kernel(m: wp.array2d(dtype=float), out: wp.array(dtype=float)):
     # columns: M_a, p̂_a(x), M_b, p̂_b(T x), |J|
     t = wp.tid()
-    out[t] = difference_mis(m[t, 0], m[t, 1], m[t, 2], m[t, 3], m[t, 4])
+    out[t] = two_domain_balance(m[t, 0], m[t, 1], m[t, 2], target_from(m[t, 3], m[t, 4]))
 
 
 @wp.kernel
@@ -102,8 +106,8 @@ def _decoupled_vs_restcv_kernel(
     t = wp.tid()
     zero = wp.vec3(0.0, 0.0, 0.0)
     # ReSTCV's from-j estimator with a zero neighbour (⟨F_j⟩ = 0, f_j = 0), Eq. 7 and 10–11
-    w_ij = difference_mis(m[t, 0], m[t, 4], m[t, 1], m[t, 5], 1.0)
-    w_ji = difference_mis(m[t, 1], m[t, 7], m[t, 0], m[t, 6], 1.0)
+    w_ij = two_domain_balance(m[t, 0], m[t, 4], m[t, 1], m[t, 5])
+    w_ji = two_domain_balance(m[t, 1], m[t, 7], m[t, 0], m[t, 6])
     s_i = difference_sample(w_ij, m[t, 2], colours[t, 0], zero, 1.0)
     s_j = difference_sample(w_ji, m[t, 3], zero, colours[t, 1], 1.0)
     out[t, 0] = cv_estimate(zero, colours[t, 2], difference_estimate(s_i, s_j, colours[t, 2]))

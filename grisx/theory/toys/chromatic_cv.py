@@ -83,13 +83,12 @@ from grisx.theory.control_variate import (
     cv_estimate,
     decoupled_contribution,
     difference_estimate,
-    difference_mis,
     difference_sample,
     luminance,
     mc_contribution,
 )
 from grisx.theory.gris import resampling_weight, ris_weight, ucw_from_source_pdf
-from grisx.theory.mis import MIS_BALANCE, mis_weight
+from grisx.theory.mis import MIS_BALANCE, mis_weight, target_from, two_domain_balance
 from grisx.theory.random import random_key, random_subkey, random_uniform
 from grisx.theory.reservoir import Reservoir, confidence_capped, reservoir_empty, reservoir_finalize, reservoir_update
 from grisx.theory.toys.base import BiasedVariant, Method, Param, ToyProblem, TrialBatch
@@ -214,8 +213,8 @@ def _direct_difference(spec: ChromaticSpec, t: int, i: int, j: int, xs: wp.array
     for c in range(candidates):
         x_i = xs[t, i * candidates + c]
         x_j = xs[t, j * candidates + c]
-        s_i = difference_sample(difference_mis(1.0, p, 1.0, p, 1.0), ucw_from_source_pdf(p), chromatic_integrand(spec, i, x_i), chromatic_integrand(spec, j, x_i), 1.0)
-        s_j = difference_sample(difference_mis(1.0, p, 1.0, p, 1.0), ucw_from_source_pdf(p), chromatic_integrand(spec, j, x_j), chromatic_integrand(spec, i, x_j), 1.0)
+        s_i = difference_sample(two_domain_balance(1.0, p, 1.0, p), ucw_from_source_pdf(p), chromatic_integrand(spec, i, x_i), chromatic_integrand(spec, j, x_i), 1.0)
+        s_j = difference_sample(two_domain_balance(1.0, p, 1.0, p), ucw_from_source_pdf(p), chromatic_integrand(spec, j, x_j), chromatic_integrand(spec, i, x_j), 1.0)
         out = out + difference_estimate(s_i, s_j, alpha)
     return out / float(candidates)
 
@@ -238,8 +237,8 @@ def _reservoir_difference(
     w_ij = float(1.0)
     w_ji = float(1.0)
     if dmis == _DMIS_CONFIDENCE or dmis == _DMIS_BALANCE:
-        w_ij = difference_mis(m_i, luminance(f_i_yi), m_j, luminance(f_j_yi), 1.0)  # Eq. 11
-        w_ji = difference_mis(m_j, luminance(f_j_yj), m_i, luminance(f_i_yj), 1.0)
+        w_ij = two_domain_balance(m_i, luminance(f_i_yi), m_j, target_from(luminance(f_j_yi), 1.0))  # Eq. 11
+        w_ji = two_domain_balance(m_j, luminance(f_j_yj), m_i, target_from(luminance(f_i_yj), 1.0))
     s_i = difference_sample(w_ij, r_i.ucw, f_i_yi, f_j_yi, 1.0)
     s_j = difference_sample(w_ji, r_j.ucw, f_j_yj, f_i_yj, 1.0)
     return difference_estimate(s_i, s_j, alpha)

@@ -59,7 +59,7 @@ from grisx.theory.gradient import (
     signed_target,
 )
 from grisx.theory.gris import ris_weight, ucw_from_source_pdf
-from grisx.theory.mis import balance_mis, balance_term, target_from
+from grisx.theory.mis import balance_mis, balance_term, target_from, two_domain_balance
 from grisx.theory.random import random_key, random_subkey, random_uniform
 from grisx.theory.reservoir import (
     Reservoir,
@@ -243,7 +243,7 @@ def make_gradient_kernels(
                     if back.valid:
                         t_prev = target_from(integrand(spec, frame - 1, pix, back.x), back.jacobian)
                     t_cur = integrand(spec, frame, pix, y)
-                    m = balance_mis(c_c, t_cur, balance_term(c_c, t_cur) + balance_term(c_p, t_prev))
+                    m = two_domain_balance(c_c, t_cur, c_p, t_prev)
                     r = reservoir_merge(r, canonical, m, t_cur, 1.0, random_uniform(m_key, 0))
                     y_new = y
                     s = tau(spec, frame - 1, pix, frame, pix, ys[t, pix])
@@ -253,7 +253,7 @@ def make_gradient_kernels(
                         # p̂_{←prev}(T y) = p̂_prev(y)·|∂T⁻¹/∂(Ty)| = p̂_prev(y)/|∂T/∂y|
                         if s.jacobian > 0.0:
                             t_prev = t_prev / s.jacobian
-                        m = balance_mis(c_p, t_prev, balance_term(c_c, t_cur) + balance_term(c_p, t_prev))
+                        m = two_domain_balance(c_p, t_prev, c_c, t_cur)
                         jac = s.jacobian
                         if use_jacobian == 0:
                             jac = 1.0  # the ablation: biased wherever |∂τ/∂x| ≠ 1
