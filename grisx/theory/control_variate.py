@@ -73,7 +73,8 @@ from __future__ import annotations
 import warp as wp
 
 from grisx.theory.gris import luminance, ucw_from_source_pdf
-from grisx.theory.reservoir import confidence_capped
+from grisx.theory.mis import target_from, two_domain_balance
+from grisx.theory.reservoir import Reservoir, confidence_capped
 
 # grisx never differentiates through its kernels: skip adjoint code (halves compile time)
 wp.set_module_options({"enable_backward": False})
@@ -96,9 +97,16 @@ __all__ = [
     "compositing_weight",
     "difference_sample",
     "difference_estimate",
+    "reservoir_difference",
+    "DIFFERENCE_MIS",
     "mc_contribution",
     "decoupled_contribution",
 ]
+
+#: Eq. 10's weights: Eq. 11 with the reservoirs' confidences M, with unit confidences (Eq. 5), or none (ω = 1: biased)
+DIFFERENCE_MIS = {"confidence": 0, "balance": 1, "none": 2}
+DMIS_CONFIDENCE = wp.constant(0)
+DMIS_BALANCE = wp.constant(1)
 
 ALPHA_HEURISTIC = wp.constant(0)
 ALPHA_ONE = wp.constant(1)
@@ -241,3 +249,37 @@ def decoupled_contribution(w: float, target: float, f: wp.vec3) -> wp.vec3:
     if w > 0.0 and target > 0.0:
         return f * (w / target)
     return wp.vec3(0.0, 0.0, 0.0)
+
+
+@wp.func
+def reservoir_difference(
+    r_i: Reservoir,
+    r_j: Reservoir,
+    f_i_yi: wp.vec3,
+    f_j_yi: wp.vec3,
+    f_j_yj: wp.vec3,
+    f_i_yj: wp.vec3,
+    jacobian_ij: float,
+    jacobian_ji: float,
+    alpha: wp.vec3,
+    mis_mode: int,
+) -> wp.vec3:
+    """⟨F_i − α F_j⟩ from the two reservoirs' kept samples y_i, y_j (seed 002, Eq. 10 with Eq. 11's weights).
+
+    ``f_a_yb`` is f_a at pixel b's sample carried into a's domain (f_j_yi = f_j(T_{i→j} y_i), with
+    ``jacobian_ij`` = |∂T_{i→j}/∂y_i|, 0 where the shift fails); the targets are the luminances of
+    these four values, which Eq. 10 needs anyway. ``mis_mode``: :data:`DIFFERENCE_MIS`.
+    """
+    m_i = r_i.confidence
+    m_j = r_j.confidence
+    if mis_mode == DMIS_BALANCE:
+        m_i = 1.0
+        m_j = 1.0
+    w_ij = float(1.0)
+    w_ji = float(1.0)
+    if mis_mode == DMIS_CONFIDENCE or mis_mode == DMIS_BALANCE:
+        w_ij = two_domain_balance(m_i, luminance(f_i_yi), m_j, target_from(luminance(f_j_yi), jacobian_ij))  # Eq. 11
+        w_ji = two_domain_balance(m_j, luminance(f_j_yj), m_i, target_from(luminance(f_i_yj), jacobian_ji))
+    s_i = difference_sample(w_ij, r_i.ucw, f_i_yi, f_j_yi, jacobian_ij)
+    s_j = difference_sample(w_ji, r_j.ucw, f_j_yj, f_i_yj, jacobian_ji)
+    return difference_estimate(s_i, s_j, alpha)

@@ -73,6 +73,7 @@ from grisx.device import resolve_device, synchronize
 from grisx.errors import InvalidParameterError
 from grisx.theory.control_variate import (
     ALPHA_MODES,
+    DIFFERENCE_MIS,
     Q_CAP,
     Q_INIT,
     compositing_weight,
@@ -86,11 +87,18 @@ from grisx.theory.control_variate import (
     difference_sample,
     luminance,
     mc_contribution,
+    reservoir_difference,
 )
 from grisx.theory.gris import resampling_weight, ris_weight, ucw_from_source_pdf
-from grisx.theory.mis import MIS_BALANCE, mis_weight, target_from, two_domain_balance
+from grisx.theory.mis import MIS_BALANCE, mis_weight, two_domain_balance
 from grisx.theory.random import random_key, random_subkey, random_uniform
-from grisx.theory.reservoir import Reservoir, confidence_capped, reservoir_empty, reservoir_finalize, reservoir_update
+from grisx.theory.reservoir import (
+    Reservoir,
+    confidence_capped,
+    reservoir_empty,
+    reservoir_finalize,
+    reservoir_update,
+)
 from grisx.theory.toys.base import BiasedVariant, Method, Param, ToyProblem, TrialBatch
 from grisx.theory.toys.domains import interval_pdf, sample_interval
 
@@ -109,9 +117,6 @@ _STCV = wp.constant(4)
 _RESTCV = wp.constant(5)
 
 #: Eq. 11's weights for restcv: confidence-weighted, unit-confidence, or none (biased)
-DIFFERENCE_MIS = {"confidence": 0, "balance": 1, "none": 2}
-_DMIS_CONFIDENCE = wp.constant(0)
-_DMIS_BALANCE = wp.constant(1)
 
 #: colours of the two halves of the strip light (seed 002, Fig. 2: red and green)
 LIGHT_RED = (1.0, 0.08, 0.03)
@@ -229,19 +234,7 @@ def _reservoir_difference(
     f_j_yi = chromatic_integrand(spec, j, y_i)
     f_j_yj = chromatic_integrand(spec, j, y_j)
     f_i_yj = chromatic_integrand(spec, i, y_j)
-    m_i = r_i.confidence
-    m_j = r_j.confidence
-    if dmis == _DMIS_BALANCE:
-        m_i = 1.0
-        m_j = 1.0
-    w_ij = float(1.0)
-    w_ji = float(1.0)
-    if dmis == _DMIS_CONFIDENCE or dmis == _DMIS_BALANCE:
-        w_ij = two_domain_balance(m_i, luminance(f_i_yi), m_j, target_from(luminance(f_j_yi), 1.0))  # Eq. 11
-        w_ji = two_domain_balance(m_j, luminance(f_j_yj), m_i, target_from(luminance(f_i_yj), 1.0))
-    s_i = difference_sample(w_ij, r_i.ucw, f_i_yi, f_j_yi, 1.0)
-    s_j = difference_sample(w_ji, r_j.ucw, f_j_yj, f_i_yj, 1.0)
-    return difference_estimate(s_i, s_j, alpha)
+    return reservoir_difference(r_i, r_j, f_i_yi, f_j_yi, f_j_yj, f_i_yj, 1.0, 1.0, alpha, dmis)  # Eq. 10–11
 
 
 @wp.func
