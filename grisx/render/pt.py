@@ -192,6 +192,7 @@ def create_path_tracer(ctx: Any) -> PathTracer:
         timer=ctx.timer,
     )
 
+
 # ---- registration (grisx.render.base.registry): the method, its params (defaults: the constructor's) ----
 
 register(

@@ -669,6 +669,7 @@ class ReSTIRDI(ScreenSpaceRenderer):
 def create_restir_di(ctx: Any) -> ReSTIRDI:
     return create_renderer(ReSTIRDI, ctx)
 
+
 # ---- registration (grisx.render.base.registry): the method, its params (defaults: the constructor's) ----
 
 register(

@@ -1139,6 +1139,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
 def create_restir_gi(ctx: Any) -> ReSTIRGI:
     return create_renderer(ReSTIRGI, ctx)
 
+
 # ---- registration (grisx.render.base.registry): the method, its params (defaults: the constructor's) ----
 
 register(

@@ -437,6 +437,7 @@ class ReSTIRPT(ScreenSpaceRenderer):
 def create_restir_pt(ctx: Any) -> ReSTIRPT:
     return create_renderer(ReSTIRPT, ctx)
 
+
 # ---- registration (grisx.render.base.registry): the method, its params (defaults: the constructor's) ----
 
 register(

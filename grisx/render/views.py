@@ -81,6 +81,7 @@ def display_image(view: str, image: np.ndarray) -> tuple[np.ndarray, bool]:
         return np.where((ids >= 0)[..., None], palette[np.maximum(ids, 0)], 0.0), False
     return a, True
 
+
 # ---- registration (grisx.render.base.registry): the method, its params (defaults: the constructor's) ----
 
 for _view, _doc in (
