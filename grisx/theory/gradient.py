@@ -56,8 +56,29 @@ estimate ω* G(y) W_y has a fixed sign and Δ is their sum. Reuse *across signs*
 an outer shift a sample may change sign. :func:`signed_target` is Eq. 19
 (``sign`` = 0) and Eq. 25–26 (``sign`` = ±1) in one place.
 
+**MIS of a positivized merge** (seed 001, Eq. 15–16 over the inputs of seed
+000, Sec. 4.4). A merge into the reservoir of sign s reads, from every source
+l (the pair's own reservoir l = 0, its previous frame, neighbour pairs), the
+reservoir of sign s and — reusing across signs — the one of sign −s. Input
+(l, e) has the target p̂^{s_e} (s_0 = s, s_1 = −s) and the generalized balance
+heuristic over all inputs is
+
+    m_{l,e}(y) = c_{l,e} p̂^{s_e}_{←l}(y) / Σ_{l',e'} c_{l',e'} p̂^{s_e'}_{←l'}(y),
+    p̂^{s}_{←l}(y) = p̂^{s}_l(T*⁻¹ y) · |∂T*⁻¹/∂y|                       (seed 001, Eq. 15–16)
+
+Both signs of one source read the same shifted value ω*G(T*⁻¹ y); since
+p̂₊ p̂₋ = 0, at most one of a source's two terms is non-zero. The pair's own
+reservoir of sign −s is no input: at the identity shift its samples have
+p̂^{s} = 0 and its term vanishes wherever p̂^{s}(y) > 0.
+:func:`pair_source_inputs`, :func:`pair_input_sign` and :func:`pair_input_slot`
+enumerate the inputs; :class:`PairBalance` accumulates the sum one source at a
+time (:func:`pair_balance_add`) and :func:`pair_balance_mis` gives m.
+
 Every function takes plain values (integrands, pdfs or targets, Jacobians,
-validity), so the toys here and a path-space renderer call the same code.
+validity), so the toys here and a path-space renderer call the same code. The
+integrand values f and G are floats (the toys) or RGB ``wp.vec3`` (a renderer),
+through float and vec3 overloads of one generic body; densities, targets and
+weights are scalars.
 Assumptions: pdfs/targets are ≥ 0, Jacobians are |det|, and a failed shift is
 reported by ``valid = False`` (its other inputs are then ignored).
 
@@ -68,10 +89,12 @@ Eq. 1–4, 10–26; M. Kettunen et al., "Gradient-domain path tracing", ACM TOG
 
 from __future__ import annotations
 
+from typing import Any
+
 import warp as wp
 
 from grisx.theory.gris import resampling_weight
-from grisx.theory.mis import target_from, two_domain_balance
+from grisx.theory.mis import balance_mis, balance_term, target_from, two_domain_balance
 from grisx.theory.reservoir import Reservoir, reservoir_update
 from grisx.theory.shift import ShiftResult
 
@@ -82,6 +105,7 @@ __all__ = [
     "SIGN_POS",
     "SIGN_NEG",
     "PairShift",
+    "PairBalance",
     "gradient_mis",
     "shifted_difference",
     "pair_contribution",
@@ -91,6 +115,14 @@ __all__ = [
     "outer_shift",
     "pair_outer_weight",
     "pair_update",
+    "pair_slot_sign",
+    "pair_source_inputs",
+    "pair_input_sign",
+    "pair_input_slot",
+    "pair_target_from",
+    "pair_balance_empty",
+    "pair_balance_add",
+    "pair_balance_mis",
 ]
 
 #: k of a paired-pixel sample whose base path lives in pixel i / pixel j (Eq. 14)
@@ -112,6 +144,18 @@ class PairShift:
     valid: wp.bool
 
 
+@wp.struct
+class PairBalance:
+    """Running sums of the generalized balance heuristic over a positivized merge's inputs (seed 001, Eq. 15).
+
+    ``term_sum`` = Σ_{l,e} c_{l,e} p̂^{s_e}_{←l}(y) over the inputs added so far; ``own`` =
+    p̂^{s_e}_{←l}(y) of the input the candidate y came from.
+    """
+
+    term_sum: float
+    own: float
+
+
 @wp.func
 def gradient_mis(density_base: float, density_offset: float, jacobian: float, valid: wp.bool) -> float:
     """ω_ij(x) = p_i(x) / (p_i(x) + p_j(T_ij x)|∂T_ij/∂x|) (seed 000, Eq. 4; Eq. 13 with targets).
@@ -126,12 +170,42 @@ def gradient_mis(density_base: float, density_offset: float, jacobian: float, va
     return two_domain_balance(1.0, density_base, 1.0, offset)
 
 
+# The integrand values f and G come as floats (toys) or RGB wp.vec3 (renderers): one generic body
+# per formula, and a concrete float and vec3 overload of each public name. (Concrete overloads,
+# not public Any parameters: Warp 1.19 resolves a generic call's argument types by name before
+# code generation and mistakes a kernel's local variable for a same-named module global.)
+
+
+@wp.func
+def _shifted_difference(f_base: Any, f_offset: Any, jacobian: float, valid: wp.bool):
+    if valid:
+        return f_base - f_offset * wp.abs(jacobian)  # seed 000, Eq. 2
+    return f_base
+
+
+@wp.func
+def _pair_contribution(k: int, f_base: Any, f_offset: Any, jacobian: float, valid: wp.bool):
+    d = _shifted_difference(f_base, f_offset, jacobian, valid)
+    if k == PAIR_BASE_J:
+        return -d  # seed 000, Eq. 15, k = 1
+    return d
+
+
+@wp.func
+def _pair_value(k: int, f_base: Any, f_offset: Any, pdf_base: float, pdf_offset: float, jacobian: float, valid: wp.bool):
+    return gradient_mis(pdf_base, pdf_offset, jacobian, valid) * _pair_contribution(k, f_base, f_offset, jacobian, valid)  # Eq. 14–16
+
+
 @wp.func
 def shifted_difference(f_base: float, f_offset: float, jacobian: float, valid: wp.bool) -> float:
     """f_i(x) − f_j(T_ij x)|∂T_ij/∂x| (seed 000, Eq. 2): base minus shifted offset (0 offset if T failed)."""
-    if valid:
-        return f_base - f_offset * wp.abs(jacobian)
-    return f_base
+    return _shifted_difference(f_base, f_offset, jacobian, valid)
+
+
+@wp.func
+def shifted_difference(f_base: wp.vec3, f_offset: wp.vec3, jacobian: float, valid: wp.bool) -> wp.vec3:  # noqa: F811 (a Warp overload)
+    """Eq. 2 on RGB values, per channel."""
+    return _shifted_difference(f_base, f_offset, jacobian, valid)
 
 
 @wp.func
@@ -141,16 +215,25 @@ def pair_contribution(k: int, f_base: float, f_offset: float, jacobian: float, v
     ``f_base`` is the integrand of the pixel x lives in (i for k = 0, j for
     k = 1), ``f_offset`` the other pixel's at the inner shift of x.
     """
-    d = shifted_difference(f_base, f_offset, jacobian, valid)
-    if k == PAIR_BASE_J:
-        return -d
-    return d
+    return _pair_contribution(k, f_base, f_offset, jacobian, valid)
+
+
+@wp.func
+def pair_contribution(k: int, f_base: wp.vec3, f_offset: wp.vec3, jacobian: float, valid: wp.bool) -> wp.vec3:  # noqa: F811 (a Warp overload)
+    """Eq. 15 on RGB values, per channel."""
+    return _pair_contribution(k, f_base, f_offset, jacobian, valid)
 
 
 @wp.func
 def pair_value(k: int, f_base: float, f_offset: float, pdf_base: float, pdf_offset: float, jacobian: float, valid: wp.bool) -> float:
     """ω*_ij(x, k) · G_ij(x, k) (seed 000, Eq. 14–16): the integrand of Δ_ij over the paired-pixel domain."""
-    return gradient_mis(pdf_base, pdf_offset, jacobian, valid) * pair_contribution(k, f_base, f_offset, jacobian, valid)
+    return _pair_value(k, f_base, f_offset, pdf_base, pdf_offset, jacobian, valid)
+
+
+@wp.func
+def pair_value(k: int, f_base: wp.vec3, f_offset: wp.vec3, pdf_base: float, pdf_offset: float, jacobian: float, valid: wp.bool) -> wp.vec3:  # noqa: F811 (a Warp overload)
+    """Eq. 14–16 on RGB values: one scalar ω* (densities or targets are scalars) times G per channel."""
+    return _pair_value(k, f_base, f_offset, pdf_base, pdf_offset, jacobian, valid)
 
 
 @wp.func
@@ -168,13 +251,24 @@ def signed_target(sign: int, value: float) -> float:
 
 
 @wp.func
+def _pair_estimate(value: Any, ucw: float):
+    return value * ucw  # seed 000, Eq. 17
+
+
+@wp.func
 def pair_estimate(value: float, ucw: float) -> float:
     """⟨Δ_ij⟩ = ω*G(y) · W_y (seed 000, Eq. 17); also Eq. 11 for Gradient after ReSTIR.
 
     With positivization the ``pos`` and ``neg`` reservoirs' estimates have
     fixed signs and Δ is their sum (Eq. 24).
     """
-    return value * ucw
+    return _pair_estimate(value, ucw)
+
+
+@wp.func
+def pair_estimate(value: wp.vec3, ucw: float) -> wp.vec3:  # noqa: F811 (a Warp overload)
+    """Eq. 17 on an RGB ω*G."""
+    return _pair_estimate(value, ucw)
 
 
 @wp.func
@@ -211,3 +305,106 @@ def pair_update(r: Reservoir, sign: int, value: float, mis: float, ucw: float, j
     """
     target = signed_target(sign, value)
     return reservoir_update(r, resampling_weight(mis, target, ucw, jacobian), target, confidence, u)
+
+
+# ---- MIS of a positivized merge, with reuse across signs (seed 000, Sec. 4.4; seed 001, Eq. 15–16) ----
+
+
+@wp.func
+def pair_slot_sign(positivize: int, slot: int) -> int:
+    """The target sign of reservoir ``slot`` of a pair: slot 0 holds ``pos`` (or, unpositivized, the one |ω*G| reservoir), slot 1 ``neg``."""
+    if positivize == 0:
+        return SIGN_ABS
+    if slot == 0:
+        return SIGN_POS
+    return SIGN_NEG
+
+
+@wp.func
+def pair_source_inputs(source: int, positivize: int, cross_sign: int) -> int:
+    """How many of source ``source``'s reservoirs a merge into one sign reads: 1, or 2 reusing across signs.
+
+    Reuse across signs (Chang et al. 2023; seed 000, Sec. 4.4) reads the reservoir of the other sign
+    too (input e = 1), except from source 0, the pair's own reservoir: there p̂₊ p̂₋ = 0 at the
+    identity shift, so it would add nothing. Needs ``positivize``.
+    """
+    if positivize != 0 and cross_sign != 0 and source != 0:
+        return 2
+    return 1
+
+
+@wp.func
+def pair_input_sign(sign: int, e: int) -> int:
+    """s_e: the target sign of input e of a source in a merge of sign ``sign`` (e = 0 same sign, 1 the other)."""
+    if e == 1:
+        return -sign
+    return sign
+
+
+@wp.func
+def pair_input_slot(slot: int, e: int) -> int:
+    """The reservoir slot of input e of a source in a merge into ``slot`` (e = 1: the other sign's slot)."""
+    if e == 1:
+        return 1 - slot
+    return slot
+
+
+@wp.func
+def pair_target_from(sign: int, value_from: float, jacobian: float, valid: wp.bool) -> float:
+    """p̂^s_{←l}(y) = p̂^s_l(T*⁻¹ y) · |∂T*⁻¹/∂y| (seed 001, Eq. 16; p̂^s of seed 000, Eq. 19, 25–26).
+
+    ``value_from`` is ω*G in source l's domain at T*⁻¹(y), ``jacobian`` = |∂T*⁻¹/∂y|; 0 where T*⁻¹ fails.
+    """
+    if not valid:
+        return 0.0
+    return target_from(signed_target(sign, value_from), jacobian)
+
+
+@wp.func
+def pair_balance_empty() -> PairBalance:
+    """No input added yet."""
+    b = PairBalance()
+    b.term_sum = 0.0
+    b.own = 0.0
+    return b
+
+
+@wp.func
+def pair_balance_add(
+    b: PairBalance,
+    sign: int,
+    inputs: int,
+    confidence_same: float,
+    confidence_other: float,
+    value_from: float,
+    jacobian: float,
+    valid: wp.bool,
+    own_input: int,
+) -> PairBalance:
+    """Add source l's ``inputs`` terms c_{l,e} p̂^{s_e}_{←l}(y) to the denominator of Eq. 15 (seed 001).
+
+    ``confidence_same``/``confidence_other`` are c of l's reservoirs of sign s and −s (the latter read
+    only if ``inputs`` = 2, see :func:`pair_source_inputs`); ``value_from``, ``jacobian``, ``valid``
+    describe T*⁻¹(y) into l's domain (:func:`pair_target_from`). ``own_input`` = e if y came from
+    input (l, e), else −1.
+    """
+    out = b
+    t = pair_target_from(sign, value_from, jacobian, valid)
+    out.term_sum = b.term_sum + balance_term(confidence_same, t)
+    if own_input == 0:
+        out.own = t
+    if inputs > 1:
+        t = pair_target_from(-sign, value_from, jacobian, valid)
+        out.term_sum = out.term_sum + balance_term(confidence_other, t)
+        if own_input == 1:
+            out.own = t
+    return out
+
+
+@wp.func
+def pair_balance_mis(b: PairBalance, confidence: float) -> float:
+    """m_{l,e}(y) = c_{l,e} p̂^{s_e}_{←l}(y) / Σ_{l',e'} c_{l',e'} p̂^{s_e'}_{←l'}(y) (seed 001, Eq. 15); 0 when nothing covers y.
+
+    ``confidence`` is c_{l,e} of the candidate's input, after every input was added to ``b``.
+    """
+    return balance_mis(confidence, b.own, b.term_sum)

@@ -46,20 +46,23 @@ from typing import Any
 import warp as wp
 
 from grisx.theory.gradient import (
-    SIGN_ABS,
-    SIGN_NEG,
-    SIGN_POS,
     PairShift,
     outer_shift,
+    pair_balance_add,
+    pair_balance_empty,
+    pair_balance_mis,
     pair_contribution,
     pair_estimate,
+    pair_input_slot,
     pair_outer_weight,
+    pair_slot_sign,
+    pair_source_inputs,
     pair_update,
     pair_value,
     signed_target,
 )
 from grisx.theory.gris import ris_weight, ucw_from_source_pdf
-from grisx.theory.mis import balance_mis, balance_term, target_from, two_domain_balance
+from grisx.theory.mis import target_from, two_domain_balance
 from grisx.theory.random import random_key, random_subkey, random_uniform
 from grisx.theory.reservoir import (
     Reservoir,
@@ -83,16 +86,6 @@ MAX_SOURCES = 8
 _PREV = wp.constant(0)  # the previous frame's final reservoirs
 _CUR = wp.constant(1)  # input of the current stage
 _OUT = wp.constant(2)  # output of the current stage
-
-
-@wp.func
-def _slot_sign(positivize: int, slot: int) -> int:
-    # slot 0 holds pos (or the single |ω*G| reservoir), slot 1 neg
-    if positivize == 0:
-        return SIGN_ABS
-    if slot == 0:
-        return SIGN_POS
-    return SIGN_NEG
 
 
 @wp.func
@@ -146,12 +139,11 @@ def make_gradient_kernels(
         return outer_shift(tau(spec, frame_src, pair_pixel(spec, p_src, k), frame_dst, pair_pixel(spec, p_dst, k), x), k)
 
     @wp.func
-    def carried_target(spec: spec_type, sign: int, frame_l: int, p_l: int, frame: int, p: int, k: int, y: float) -> float:
-        # p̂_{←l}(y): domain l's target at T*⁻¹(y) times that shift's Jacobian (seed 001, Eq. 16)
-        s = pair_shift(spec, frame, p, frame_l, p_l, k, y)
+    def carried_value(spec: spec_type, s: PairShift, frame_l: int, p_l: int, k: int) -> float:
+        # ω*G in domain l at T*⁻¹(y) (0 where the shift fails: its target is dropped anyway)
         if not s.valid:
             return 0.0
-        return target_from(signed_target(sign, value_at(spec, frame_l, p_l, k, s.x, 0)), s.jacobian)
+        return value_at(spec, frame_l, p_l, k, s.x, 0)
 
     # ---- mc-difference --------------------------------------------------------------
     @wp.kernel(module="unique", enable_backward=False)
@@ -297,43 +289,32 @@ def make_gradient_kernels(
         mkey: wp.uint32,
     ) -> Reservoir:
         # GRIS over the pair's own reservoir (source 0) and the other sources, through T*,
-        # with generalized-balance MIS over every input domain (seed 001, Eq. 15–16).
-        sign = _slot_sign(positivize, slot)
-        signs = 1
-        if positivize != 0 and cross_sign != 0:
-            signs = 2  # reuse across signs (Chang et al. 2023): also the other sign's reservoir
+        # with generalized-balance MIS over every input (l, e) — across signs with cross_sign
+        # (seed 000, Sec. 4.4; seed 001, Eq. 15–16)
+        sign = pair_slot_sign(positivize, slot)
         r = reservoir_empty()
         y = float(0.0)
         yk = int(0)
         for l in range(sources):
-            for e in range(signs):
-                if l == 0 and e == 1:
-                    continue  # the own neg sample has p̂₊ = 0 here: nothing to reuse
-                src_slot = slot
-                if e == 1:
-                    src_slot = 1 - slot
-                idx = src_pair[l] * 2 + src_slot
+            for e in range(pair_source_inputs(l, positivize, cross_sign)):
+                idx = src_pair[l] * 2 + pair_input_slot(slot, e)
                 rin = state[src_layer[l], idx]
                 sh = pair_shift(spec, src_frame[l], src_pair[l], frame, p, ks[src_layer[l], idx], xs[src_layer[l], idx])
                 if sh.valid and rin.ucw > 0.0:
                     target = signed_target(sign, value_at(spec, frame, p, sh.k, sh.x, 0))
-                    mine = float(0.0)
-                    den = float(0.0)
+                    bal = pair_balance_empty()
                     for l2 in range(sources):
-                        for e2 in range(signs):
-                            if l2 == 0 and e2 == 1:
-                                continue
-                            s2 = slot
-                            sign2 = sign
-                            if e2 == 1:
-                                s2 = 1 - slot
-                                sign2 = -sign
-                            c2 = state[src_layer[l2], src_pair[l2] * 2 + s2].confidence
-                            tf = carried_target(spec, sign2, src_frame[l2], src_pair[l2], frame, p, sh.k, sh.x)
-                            den += balance_term(c2, tf)
-                            if l2 == l and e2 == e:
-                                mine = tf
-                    m = balance_mis(rin.confidence, mine, den)
+                        inputs = pair_source_inputs(l2, positivize, cross_sign)
+                        c_same = state[src_layer[l2], src_pair[l2] * 2 + slot].confidence
+                        c_other = float(0.0)
+                        if inputs > 1:
+                            c_other = state[src_layer[l2], src_pair[l2] * 2 + pair_input_slot(slot, 1)].confidence
+                        own = int(-1)
+                        if l2 == l:
+                            own = e
+                        back = pair_shift(spec, frame, p, src_frame[l2], src_pair[l2], sh.k, sh.x)  # T*⁻¹ into l2
+                        bal = pair_balance_add(bal, sign, inputs, c_same, c_other, carried_value(spec, back, src_frame[l2], src_pair[l2], sh.k), back.jacobian, back.valid, own)
+                    m = pair_balance_mis(bal, rin.confidence)
                     if use_jacobian == 0:
                         sh.jacobian = 1.0  # the ablation: biased wherever |∂τ/∂x| ≠ 1
                     w = pair_outer_weight(m, target, rin.ucw, sh)  # seed 000, Eq. 20
@@ -397,7 +378,7 @@ def make_gradient_kernels(
                             v = value_at(spec, frame, p, k, x, 0)
                             # each part's M candidates are one technique; the other part cannot produce x: m = 1/M
                             ucw = ucw_from_source_pdf(x_pdf(spec, frame, pix, x))
-                            r = pair_update(r, _slot_sign(positivize, slot), v, inv_m, ucw, 1.0, 1.0, random_uniform(ckey, 3 * n + 1 + slot))
+                            r = pair_update(r, pair_slot_sign(positivize, slot), v, inv_m, ucw, 1.0, 1.0, random_uniform(ckey, 3 * n + 1 + slot))
                             if r.selected:
                                 y = x
                                 yk = k
