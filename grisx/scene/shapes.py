@@ -61,6 +61,7 @@ import dataclasses
 import math
 import os
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -363,6 +364,17 @@ def load_obj(path: str | os.PathLike, flip_tex_coords: bool = True) -> MeshData:
 _PLY_UV_NAMES = (("u", "v"), ("s", "t"), ("texture_u", "texture_v"), ("texture_s", "texture_t"))
 
 
+def _ply_used_vertices(face_data: Any) -> np.ndarray | None:
+    """Sorted indices of the vertices a PLY file's faces use, from trimesh's raw face element (ASCII or binary)."""
+    if face_data is None:
+        return None
+    lists = face_data["vertex_indices"]
+    if isinstance(lists, np.ndarray) and lists.dtype.names:  # binary: (count, indices) records
+        lists = lists[lists.dtype.names[-1]]
+    flat = [np.asarray(f, dtype=np.int64).reshape(-1) for f in lists] if lists.dtype == object else [np.asarray(lists, dtype=np.int64).reshape(-1)]
+    return np.unique(np.concatenate(flat)) if flat else None
+
+
 def load_ply(path: str | os.PathLike, flip_tex_coords: bool = False) -> MeshData:
     """Read a PLY file (ASCII or binary) with trimesh, keeping its vertex order, normals and uvs.
 
@@ -388,7 +400,15 @@ def load_ply(path: str | os.PathLike, flip_tex_coords: bool = False) -> MeshData
     raw = {name: data[name] for name in names}
     if "x" in raw:  # trimesh keeps the file's vertex order with process=False; check it
         xyz = np.column_stack([np.asarray(raw[c], dtype=np.float64).reshape(-1) for c in ("x", "y", "z")])
-        if xyz.shape != vertices.shape or not np.allclose(xyz, vertices):
+        if xyz.shape != vertices.shape:
+            # with uvs trimesh drops vertices no face uses (keeping the order of the rest); Mitsuba keeps
+            # them, and the per-vertex columns below are the file's: index the file's vertices instead
+            used = _ply_used_vertices((m.metadata or {}).get("_ply_raw", {}).get("face", {}).get("data"))
+            if used is None or used.size != len(vertices) or used[-1] >= len(xyz) or not np.allclose(xyz[used], vertices):
+                raise _mesh_error(path, "internal: trimesh reordered the vertices")
+            faces = used[faces]
+            vertices = xyz
+        elif not np.allclose(xyz, vertices):
             raise _mesh_error(path, "internal: trimesh reordered the vertices")
 
     def column(name: str) -> np.ndarray:

@@ -206,6 +206,26 @@ def test_binary_ply_roundtrip(tmp_path):
     assert shapes.mesh_area(m.vertices, m.faces) == pytest.approx(shapes.mesh_area(src.vertices, src.faces), rel=1e-6)
 
 
+@pytest.mark.parametrize("binary", [False, True])
+def test_ply_with_uvs_keeps_unused_vertices(tmp_path, binary):
+    """trimesh drops vertices no face uses when a PLY has uvs; Mitsuba keeps them, and so must the face indices."""
+    import struct
+
+    verts = [(9, 9, 9, 0.9, 0.9), (0, 0, 0, 0, 0), (1, 0, 0, 1, 0), (7, 7, 7, 0.7, 0.7), (0, 1, 0, 0, 1)]  # 0 and 3 unused
+    head = ["ply", f"format {'binary_little_endian' if binary else 'ascii'} 1.0", "element vertex 5",
+            *[f"property float {c}" for c in "xyzuv"], "element face 1", "property list uchar int vertex_indices", "end_header"]
+    path = tmp_path / "unused.ply"
+    with open(path, "wb") as f:
+        f.write(("\n".join(head) + "\n").encode())
+        if binary:
+            f.write(b"".join(struct.pack("<5f", *v) for v in verts) + struct.pack("<B3i", 3, 1, 2, 4))
+        else:
+            f.write(("\n".join(" ".join(map(str, v)) for v in verts) + "\n3 1 2 4\n").encode())
+    m = shapes.load_mesh(path)
+    np.testing.assert_allclose(m.vertices[m.faces[0]], [[0, 0, 0], [1, 0, 0], [0, 1, 0]])
+    np.testing.assert_allclose(m.uvs[m.faces[0]], [[0, 0], [1, 0], [0, 1]])
+
+
 @pytest.mark.parametrize(
     "text, message",
     [
