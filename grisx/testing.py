@@ -30,6 +30,12 @@ mean over independent runs of the image mean *and* of every block mean
 that biases of opposite sign in different parts of the image — which cancel
 in the image mean — are still seen.
 
+Two renderers that should agree — grisx's path tracer and Mitsuba 3's on the
+same scene file — are compared by :func:`image_agreement_test`: both give
+per-pixel means and variances (pixels independent, as a path tracer's are),
+and the image mean and block means are z-tested, Šidák-corrected over a whole
+suite of scenes (``tests/conformance``).
+
 References: Z. Šidák, "Rectangular confidence regions for the means of
 multivariate normal distributions", JASA 62 (1967); W. Jakob et al., Mitsuba 3
 ``mitsuba.chi2``.
@@ -58,6 +64,7 @@ __all__ = [
     "sidak_alpha",
     "sidak_threshold",
     "chi2_test",
+    "image_agreement_test",
     "DEFAULT_K",
     "BIASED_K",
 ]
@@ -238,7 +245,10 @@ def block_means(image: np.ndarray, block: int = 8) -> np.ndarray:
 
 @dataclasses.dataclass(frozen=True)
 class ReuseTestResult:
-    """The image-mean z-test and the per-block z-test of :func:`reuse_unbiasedness_test`."""
+    """The image-mean z-test and the per-block z-test of :func:`reuse_unbiasedness_test` or :func:`image_agreement_test`.
+
+    ``runs``: the independent runs behind the standard errors (0 when they came from per-pixel variances).
+    """
 
     image: ZTestResult
     blocks: ZTestResult
@@ -274,14 +284,62 @@ def reuse_unbiasedness_test(
     if runs < 2 or images.shape[1:] != ref.shape:
         raise InvalidParameterError(f"need >= 2 runs of images shaped like the reference {ref.shape}, got {images.shape}")
     c = ref.shape[-1]
-    rows, cols = -(-ref.shape[0] // block), -(-ref.shape[1] // block)
-    n_block = np.asarray([[min(block, ref.shape[0] - i * block) * min(block, ref.shape[1] - j * block) for j in range(cols)]
-                          for i in range(rows)], dtype=np.float64)[..., None]  # pixels per block
+    ref_block_se, ref_se = _independent_pixel_errors(var, block)
     run_blocks = np.asarray([block_means(im, block) for im in images])
-    ref_blocks = block_means(ref, block)
-    ref_block_se = np.sqrt(block_means(var, block) / n_block)  # Σ var / n² = mean(var) / n
-    blocks = z_test(run_blocks.mean(axis=0) - ref_blocks, np.sqrt(run_blocks.var(axis=0, ddof=1) / runs + ref_block_se**2), 0.0, k=k)
+    blocks = z_test(run_blocks.mean(axis=0) - block_means(ref, block), np.sqrt(run_blocks.var(axis=0, ddof=1) / runs + ref_block_se**2), 0.0, k=k)
     run_means = images.reshape(runs, -1, c).mean(axis=1)
-    ref_se = np.sqrt(var.reshape(-1, c).sum(axis=0)) / (ref.shape[0] * ref.shape[1])
     image = z_test(run_means.mean(axis=0) - ref.reshape(-1, c).mean(axis=0), np.sqrt(run_means.var(axis=0, ddof=1) / runs + ref_se**2), 0.0, k=k)
     return ReuseTestResult(image=image, blocks=blocks, runs=runs)
+
+
+def _independent_pixel_errors(variance: np.ndarray, block: int) -> tuple[np.ndarray, np.ndarray]:
+    """Standard errors of every block mean and of the image mean of an image whose pixels are independent.
+
+    ``variance`` is the per-pixel variance of the pixel estimates; a mean over n pixels has
+    variance Σ var / n² = mean(var) / n.
+    """
+    h, w, c = variance.shape
+    rows, cols = -(-h // block), -(-w // block)
+    n_block = np.asarray([[min(block, h - i * block) * min(block, w - j * block) for j in range(cols)]
+                          for i in range(rows)], dtype=np.float64)[..., None]  # pixels per block
+    return np.sqrt(block_means(variance, block) / n_block), np.sqrt(variance.reshape(-1, c).sum(axis=0)) / (h * w)
+
+
+def image_agreement_test(
+    image: np.ndarray,
+    variance: np.ndarray,
+    reference: np.ndarray,
+    reference_variance: np.ndarray,
+    *,
+    block: int = 8,
+    k: float = DEFAULT_K,
+    family: int | None = None,
+) -> ReuseTestResult:
+    """Do two independent estimates of one image agree — e.g. grisx's path tracer and Mitsuba 3's?
+
+    Both images must have *independent pixels* (a path tracer's, not a reuse renderer's);
+    ``variance`` and ``reference_variance`` are the per-pixel variances of the two estimates
+    (e.g. the spread over independent runs divided by their number). The image mean and every
+    ``block``×``block`` block mean are z-tested per channel. ``family`` is the number of z-values
+    sharing one verdict (a whole suite of scenes: every case's blocks + 1, times channels);
+    the threshold is ``sidak_threshold(k, family)``, by default over this image's own count.
+    Where both estimates are noiseless (e.g. a constant environment seen directly), float32
+    rounding is the only difference (a renderer summing n equal float32 samples is off by up
+    to ~n·2⁻²⁴ of the value; Mitsuba's film at 2048 spp by ~1e-5): the standard error has a
+    floor of 1e-4 of the value, so differences below 0.01% are below this test's resolution.
+    """
+    a, va, b, vb = (np.asarray(x, dtype=np.float64) for x in (image, variance, reference, reference_variance))
+    if a.ndim != 3 or not (a.shape == va.shape == b.shape == vb.shape):
+        raise InvalidParameterError(f"image_agreement_test needs four (H, W, C) arrays of one shape, got {a.shape}, {va.shape}, {b.shape}, {vb.shape}")
+    c = a.shape[-1]
+    (se_a_blocks, se_a), (se_b_blocks, se_b) = _independent_pixel_errors(va, block), _independent_pixel_errors(vb, block)
+    n_values = se_a_blocks.size + c
+    threshold = sidak_threshold(k, family if family is not None else n_values)
+
+    def check(x: np.ndarray, y: np.ndarray, se_x: np.ndarray, se_y: np.ndarray) -> ZTestResult:
+        se = np.maximum(np.hypot(se_x, se_y), 1e-4 * np.maximum(np.abs(x), np.abs(y)))  # float32 rounding
+        return z_test(x - y, se, 0.0, k=threshold, sidak=False)
+
+    blocks = check(block_means(a, block), block_means(b, block), se_a_blocks, se_b_blocks)
+    mean = check(a.reshape(-1, c).mean(axis=0), b.reshape(-1, c).mean(axis=0), se_a, se_b)
+    return ReuseTestResult(image=mean, blocks=blocks, runs=0)

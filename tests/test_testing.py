@@ -5,7 +5,7 @@ import pytest
 import scipy.stats
 
 from grisx.errors import InvalidValueError
-from grisx.testing import chi2_test, sidak_alpha, sidak_threshold, z_test
+from grisx.testing import chi2_test, image_agreement_test, sidak_alpha, sidak_threshold, z_test
 
 
 def test_z_test_hand_computed():
@@ -72,3 +72,21 @@ def test_reuse_test_catches_opposite_biases_that_cancel_in_the_image_mean():
     biased = reuse_unbiasedness_test(lambda s: noisy(s, 0.02), ref, var, 50)
     assert biased.image.passed and not biased.blocks.passed
     np.testing.assert_allclose(block_means(np.arange(12.0).reshape(2, 6, 1), 4)[..., 0], [[4.5, 7.5]])
+
+
+def test_image_agreement_test_passes_equal_means_and_catches_a_shift():
+    rng = np.random.default_rng(3)
+    truth = rng.uniform(0.1, 1.0, (24, 32, 3))
+    var = np.full_like(truth, 1e-4)
+    a = truth + rng.normal(0, 1e-2, truth.shape)
+    b = truth + rng.normal(0, 1e-2, truth.shape)
+    assert image_agreement_test(a, var, b, var).passed
+    shifted = image_agreement_test(a * 1.01, var, b, var)  # 1% too bright: z ≈ 0.01·0.55·√768/0.014 ≈ 11
+    assert not shifted.passed and shifted.image.max_abs_z > 6
+    # noiseless and equal up to float32 rounding: passes; a real difference: fails
+    flat = np.full((8, 8, 3), 0.6)
+    zero = np.zeros_like(flat)
+    assert image_agreement_test(flat, zero, flat * (1 + 1e-6), zero).passed
+    assert not image_agreement_test(flat, zero, flat * 1.001, zero).passed
+    # a larger family raises the threshold (Šidák)
+    assert image_agreement_test(a, var, b, var, family=10_000).image.threshold > image_agreement_test(a, var, b, var).image.threshold

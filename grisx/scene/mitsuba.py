@@ -27,7 +27,7 @@ Values
     Where a colour is expected, ``rgb``, ``spectrum`` and ``float`` are accepted.
 Transforms ``<transform name="to_world">``
     ``translate`` (x/y/z or value), ``rotate`` (axis as x/y/z or value,
-    ``angle`` in degrees, right-handed), ``scale`` (value: 1 or 3 numbers, or
+    ``angle`` in degrees, right-handed; the axis is not normalized, as in Mitsuba), ``scale`` (value: 1 or 3 numbers, or
     x/y/z), ``matrix`` (value: 16 numbers row-major, or 9 for the linear
     part), ``lookat`` (origin, target, optional up); each one is applied after
     the ones before it (M ← op · M), as Mitsuba composes them.
@@ -58,8 +58,8 @@ Transforms ``<transform name="to_world">``
     ``rectangle``, ``cube`` (``face_normals``), ``sphere`` (``center``,
     ``radius``), ``disk``, ``obj`` (``filename``, ``face_normals``, ``flip_tex_coords`` [true]),
     ``ply`` (``filename``, ``face_normals``, ``flip_tex_coords`` [false]); all with ``to_world`` and
-    ``flip_normals``; a nested or referenced ``bsdf`` (default: diffuse 0.5)
-    and a nested ``emitter type="area"``. Geometry: :mod:`grisx.scene.shapes`.
+    ``flip_normals``; a nested or referenced ``bsdf`` (default: diffuse 0.5 — black
+    on a shape with an emitter, as in Mitsuba 3) and a nested ``emitter type="area"``. Geometry: :mod:`grisx.scene.shapes`.
 ``bsdf``
     ``diffuse`` (``reflectance``: colour or ``bitmap`` texture [0.5]);
     ``conductor`` / ``roughconductor`` (``material`` [none] or ``eta``/``k``,
@@ -575,7 +575,7 @@ class _Loader:
         self.records: dict[int, Any] = {}  # id(node) -> material record
         self.material_ids: dict[int, int] = {}  # id(node) -> scene material id
         self.texture_ids: dict[int, int] = {}  # id(node) -> scene texture id
-        self.default_material: int | None = None
+        self.default_materials: dict[str, int] = {}  # "default" / "default_emitter" -> scene material id
         self.shape_count = 0
         self.sensor_seen: _Node | None = None
         self.environment_seen: _Node | None = None
@@ -727,6 +727,12 @@ class _Loader:
         p.choice("distribution", None, ("ggx",))
         p.bool("sample_visible", True)  # a sampling choice: the expected image is the same
 
+    def default_material(self, name: str) -> int:
+        """Mitsuba's BSDF for a shape given none: diffuse 0.5, or diffuse 0 if the shape emits (``Shape::Shape``)."""
+        if name not in self.default_materials:
+            self.default_materials[name] = self.scene.add_material(Diffuse((0.0,) * 3 if name == "default_emitter" else (0.5,) * 3), name=name)
+        return self.default_materials[name]
+
     def material_id(self, node: _Node) -> int:
         target = self._deref(node, "bsdf")
         if id(target) not in self.material_ids:
@@ -772,12 +778,6 @@ class _Loader:
         bsdfs = p.take_objects(("bsdf",))
         if len(bsdfs) > 1:
             raise self.ctx.error(bsdfs[1], "a shape takes one BSDF")
-        if bsdfs:
-            mid = self.material_id(bsdfs[0])
-        else:  # Mitsuba's default: diffuse with reflectance 0.5
-            if self.default_material is None:
-                self.default_material = self.scene.add_material(Diffuse(), name="default")
-            mid = self.default_material
         emission = None
         emitters = p.take_objects(("emitter",))
         if len(emitters) > 1:
@@ -790,6 +790,10 @@ class _Loader:
             ep = _Props(self, em)
             emission = ep.color("radiance", None)
             ep.finish()
+        if bsdfs:
+            mid = self.material_id(bsdfs[0])
+        else:  # Mitsuba's default: diffuse 0.5, but black on an emitter (an emitting shape reflects nothing)
+            mid = self.default_material("default_emitter" if emission is not None else "default")
         p.finish()
         self.shape_count += 1
         name = node.attrs.get("id") or f"{t}{self.shape_count}"

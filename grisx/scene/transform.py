@@ -24,16 +24,20 @@ def translate(v: Sequence[float]) -> np.ndarray:
 
 
 def rotate(axis: Sequence[float], angle: float) -> np.ndarray:
-    """Counter-clockwise rotation by ``angle`` degrees about ``axis`` (Rodrigues)."""
+    """Counter-clockwise rotation by ``angle`` degrees about ``axis``, exactly as Mitsuba 3's ``rotate``.
+
+    The matrix is cos θ·I + sin θ·[a]ₓ + (1 − cos θ)·a aᵀ with the axis ``a`` *as given*:
+    Mitsuba does not normalize it, so a non-unit axis (``x="1" y="1"``) also scales and
+    shears, and a scene file that relies on that must render the same here.
+    """
     a = np.asarray(axis, dtype=np.float64).reshape(3)
     n = np.linalg.norm(a)
     if not np.isfinite(n) or n == 0:
         raise InvalidParameterError(f"rotate: axis must be a non-zero vector, got {a.tolist()}")
-    a = a / n
     t = math.radians(angle)
     k = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
     m = np.eye(4)
-    m[:3, :3] = np.eye(3) + math.sin(t) * k + (1 - math.cos(t)) * (k @ k)
+    m[:3, :3] = math.cos(t) * np.eye(3) + math.sin(t) * k + (1 - math.cos(t)) * np.outer(a, a)
     return m
 
 

@@ -156,7 +156,8 @@ def test_transform_ops():
     np.testing.assert_allclose(rect_with('<scale value="1 2 3"/>')[2], [1, 2, 0])
     np.testing.assert_allclose(rect_with('<translate value="1,2 3"/>')[2], [2, 3, 3])
     np.testing.assert_allclose(rect_with('<rotate z="1" angle="90"/>')[1], [1, 1, 0], atol=1e-12)  # (1,−1) → (1, 1)
-    np.testing.assert_allclose(rect_with('<rotate value="0, 0, 2" angle="90"/>')[1], [1, 1, 0], atol=1e-12)
+    # Mitsuba 3 does not normalize the axis: (0, 0, 2) rotates and scales xy by |a| = 2 (its own answer: [2, 2, 0])
+    np.testing.assert_allclose(rect_with('<rotate value="0, 0, 2" angle="90"/>')[1], [2, 2, 0], atol=1e-12)
     np.testing.assert_allclose(rect_with('<matrix value="1 0 0 5  0 1 0 6  0 0 1 7  0 0 0 1"/>')[0], [4, 5, 7])
     np.testing.assert_allclose(rect_with('<matrix value="0 -1 0  1 0 0  0 0 1"/>')[1], [1, 1, 0])
     # lookat without 'up' picks Mitsuba's coordinate_system(dir) tangent
@@ -224,6 +225,13 @@ def test_cube_face_normals_and_ply_flip_tex_coords():
 def test_shape_without_bsdf_gets_mitsubas_default():
     s = load_mitsuba(doc('<shape type="cube"/><shape type="rectangle"/>'))
     assert s.materials == [Diffuse(reflectance=(0.5, 0.5, 0.5))]
+
+
+def test_emitter_without_bsdf_is_black():
+    """Mitsuba 3 gives an emitting shape without a BSDF a black diffuse: it reflects nothing (conformance case emitter_no_bsdf)."""
+    s = load_mitsuba(doc('<shape type="rectangle"><emitter type="area"><rgb name="radiance" value="1"/></emitter></shape>'
+                         '<shape type="cube"/><shape type="disk"><emitter type="area"><rgb name="radiance" value="2"/></emitter></shape>'))
+    assert [s.materials[o.material] for o in s.objects] == [Diffuse(reflectance=(0.0,) * 3), Diffuse(reflectance=(0.5,) * 3), Diffuse(reflectance=(0.0,) * 3)]
 
 
 # ---- BSDFs ------------------------------------------------------------------------------------------

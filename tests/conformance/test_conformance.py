@@ -1,0 +1,140 @@
+"""Conformance with Mitsuba 3: each feature the loader accepts renders as Mitsuba renders it.
+
+Every case is a tiny Mitsuba scene file in ``scenes/`` (32×24 or 24×32) that
+exercises one feature — a shape type, a BSDF, a texture, an emitter, a camera
+model, a transform chain, an integrator setting — and a reference that
+Mitsuba 3 itself rendered (``refs/``, written by ``make_references.py``; its
+version is in ``refs/meta.json``). grisx's ``pt`` renders the same file in
+``frames`` independent frames of ``spp`` samples; the per-pixel means and
+variances of the two renderers give z-values for the image mean and for every
+8×8 block mean per channel (:func:`grisx.testing.image_agreement_test`),
+Šidák-corrected over the whole suite so that the suite as one verdict has the
+false-alarm rate of a single 4σ test.
+
+Adding a case: write ``scenes/NAME.xml``, run ``python
+tests/conformance/make_references.py NAME``, add one line to ``CASES``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from grisx.imageio import read_exr
+from grisx.render import render
+from grisx.scene.material import Diffuse
+from grisx.scene.mitsuba import load_mitsuba
+from grisx.testing import block_means, image_agreement_test
+
+HERE = Path(__file__).resolve().parent
+SCENES = HERE / "scenes"
+REFS = HERE / "refs"
+BLOCK = 8
+
+#: case → (spp per frame, frames) of grisx's run; the scene file says what the case checks
+CASES: dict[str, tuple[int, int]] = {
+    "emitter_no_bsdf": (32, 16),
+    "emitter_with_bsdf": (32, 16),
+    "rectangle": (32, 16),
+    "disk": (32, 16),
+    "cube": (32, 16),
+    "sphere": (32, 16),
+    "sphere_light": (32, 16),
+    "obj_normals_uv": (32, 16),
+    "obj_plain": (32, 16),
+    "ply_normals_uv": (32, 16),
+    "ply_plain": (32, 16),
+    "twosided": (32, 16),
+    "flip_normals": (32, 16),
+    "conductor_none": (32, 16),
+    "conductor_named": (32, 16),
+    "conductor_eta_k": (32, 16),
+    "roughconductor": (32, 16),
+    "roughconductor_all_normals": (32, 16),
+    "twosided_conductor": (32, 16),
+    "dielectric": (32, 16),
+    "dielectric_named": (32, 16),
+    "roughdielectric": (32, 16),
+    "texture_srgb": (32, 16),
+    "texture_raw": (32, 16),
+    "texture_exr": (32, 16),
+    "envmap": (32, 16),
+    "constant": (32, 16),
+    "point": (32, 16),
+    "thinlens": (32, 16),
+    "fov_axis_x": (16, 16),
+    "fov_axis_y": (16, 16),
+    "fov_axis_diagonal": (16, 16),
+    "fov_axis_smaller": (16, 16),
+    "fov_axis_larger": (16, 16),
+    "focal_length": (16, 16),
+    "nested_transforms": (32, 16),
+    "max_depth_1": (16, 16),
+    "max_depth_2": (16, 16),
+    "max_depth_4_rr_1": (32, 16),
+}
+
+
+def _reference(case: str) -> tuple[np.ndarray, np.ndarray]:
+    return read_exr(REFS / f"{case}.exr"), read_exr(REFS / f"{case}.var.exr")
+
+
+def _values_per_case(case: str) -> int:
+    ref, _ = _reference(case)
+    return block_means(ref, BLOCK).size + ref.shape[-1]
+
+
+#: z-values sharing the suite's one verdict: every case's blocks and image mean, per channel
+FAMILY = sum(_values_per_case(c) for c in CASES)
+
+
+def render_runs(scene, spp: int, frames: int, seed: int = 7) -> tuple[np.ndarray, np.ndarray]:
+    """grisx ``pt``: the mean of ``frames`` independent frames and the per-pixel variance of that mean."""
+    images = []
+    render(scene, "pt", spp=spp, frames=frames, camera="static", seed=seed,
+           on_frame=lambda i, img, s: images.append(np.asarray(img, dtype=np.float64)))
+    stack = np.stack(images)
+    return stack.mean(axis=0), stack.var(axis=0, ddof=1) / frames
+
+
+def agreement(scene, case: str):
+    spp, frames = CASES[case]
+    mean, variance = render_runs(scene, spp, frames)
+    ref, ref_var = _reference(case)
+    return image_agreement_test(mean, variance, ref, ref_var, block=BLOCK, family=FAMILY)
+
+
+def test_every_scene_file_has_a_case_and_a_reference():
+    files = {p.stem for p in SCENES.glob("*.xml")}
+    assert files == set(CASES), f"scene files without a case: {sorted(files - set(CASES))}; cases without a file: {sorted(set(CASES) - files)}"
+    meta = json.loads((REFS / "meta.json").read_text())
+    assert meta["renderer"].startswith("Mitsuba 3"), meta["renderer"]
+    assert set(meta["cases"]) >= set(CASES)
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_conformance(case):
+    result = agreement(str(SCENES / f"{case}.xml"), case)
+    assert result.passed, f"{case}: image mean {result.image}; blocks {result.blocks}; z (image mean) = {np.round(result.image.z, 2)}"
+
+
+# ---- the suite can fail ----------------------------------------------------------------------
+
+
+def test_a_reflecting_emitter_is_caught():
+    """Before the fix grisx gave an emitter without a BSDF Mitsuba's default diffuse 0.5 (Mitsuba: black)."""
+    scene = load_mitsuba(SCENES / "emitter_no_bsdf.xml")
+    scene.materials[scene.material_names["default_emitter"]] = Diffuse()
+    result = agreement(scene, "emitter_no_bsdf")
+    assert not result.passed, f"a 0.5 reflectance on the emitters went unnoticed: {result}"
+
+
+def test_a_two_percent_dimmer_light_is_caught():
+    scene = load_mitsuba(SCENES / "max_depth_2.xml")
+    scene.objects[:] = [o if o.emission is None else dataclasses.replace(o, emission=0.98 * o.emission) for o in scene.objects]
+    result = agreement(scene, "max_depth_2")
+    assert not result.passed, f"a 2% dimmer light went unnoticed: {result}"
