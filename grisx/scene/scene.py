@@ -553,7 +553,9 @@ class BuiltScene:
         self.normals = wp.clone(self.base_normals)
         self.indices = wp.array(np.concatenate(faces).reshape(-1).astype(np.int32), dtype=wp.int32, device=dev)
         self.vertex_object = wp.array(np.concatenate(vobj).astype(np.int32), dtype=wp.int32, device=dev)
-        self.mesh = wp.Mesh(points=self.positions, indices=self.indices)
+        # SAH on every device (Warp's CUDA default is an LBVH): built once on the host (0.45 s for
+        # 1M triangles), it traces 7-15% faster at 1080p (benchmarks/reference/vs_mitsuba_h100/bvh_*.json)
+        self.mesh = wp.Mesh(points=self.positions, indices=self.indices, bvh_constructor="sah")
         lo, hi = scene.bounds()
         self.bounds = (lo, hi)
         radius = float(np.linalg.norm(hi - lo) / 2)
