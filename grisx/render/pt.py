@@ -78,7 +78,7 @@ def make_path_tracer_kernel(kinds: frozenset[int]) -> Any:
         key = random_subkey(random_subkey(random_key(seed, frame), pixel), sample)
         # counters 0–3 of the key are the camera's (box filter over the pixel and the lens; jitter = 0: the
         # pixel centre through the lens centre, as an unjittered G-buffer sees it); paths use subkey 1
-        cs = sample_camera(key, x, y, jitter)
+        cs = sample_camera(cam, key, x, y, jitter)
         ray = camera_ray(cam, cs.pixel[0], cs.pixel[1], cs.lens)
         L = trace_path(scene, ray.o, ray.d, random_subkey(key, 1), max_depth, rr_depth, strategy, -1, 0).total
         L = finite_or_dropped(L, nonfinite)

@@ -123,6 +123,7 @@ class Camera:
         c.focus_distance = float(self.focus_distance) if self.aperture_radius > 0 else 1.0
         c.near_clip = float(self.near_clip)
         c.far_clip = float(self.far_clip)
+        c.filter_stddev = 0.0  # the film's; set by BuiltScene.camera_data
         return c
 
 
@@ -174,6 +175,7 @@ class CameraData:
     focus_distance: float
     near_clip: float
     far_clip: float
+    filter_stddev: float  # the film's reconstruction filter: 0 = box, else Mitsuba's gaussian (pixels)
 
 
 @wp.struct
@@ -249,15 +251,68 @@ def camera_sample_key(seed: int, frame: int, pixel: int) -> wp.uint32:
     return random_subkey(random_subkey(random_key(seed, frame), pixel), CAMERA_SAMPLE_STREAM)
 
 
+#: Mitsuba's gaussian filter reaches 4 standard deviations; tries of the rejection step (each accepts with p > 0.99)
+GAUSSIAN_RADIUS = wp.constant(4.0)
+GAUSSIAN_TRIES = wp.constant(16)
+
+
 @wp.func
-def sample_camera(key: wp.uint32, x: int, y: int, jitter: int) -> CameraSample:
-    """Pixel (x, y)'s camera sample: with ``jitter`` a uniform point of the pixel (a box filter) and of
-    the lens (counters 0–3 of ``key``), else the pixel centre through the lens centre."""
+def _gaussian_cdf(t: float, stddev: float) -> float:
+    return 0.5 * (1.0 + wp.erf(t / (stddev * 1.41421356)))
+
+
+@wp.func
+def sample_gaussian_offset(u: float, stddev: float, lo: float, hi: float) -> float:
+    """An offset t ∈ [lo, hi] with density ∝ exp(−t²/2σ²) there (inverse CDF of the truncated gaussian)."""
+    a = _gaussian_cdf(lo, stddev)
+    b = _gaussian_cdf(hi, stddev)
+    q = wp.clamp(2.0 * (a + u * (b - a)) - 1.0, -0.9999999, 0.9999999)
+    return wp.clamp(stddev * 1.41421356 * wp.erfinv(q), lo, hi)
+
+
+@wp.func
+def gaussian_filter_sample(key: wp.uint32, x: int, y: int, width: int, height: int, stddev: float) -> wp.vec2:
+    """A film position for pixel (x, y) distributed as Mitsuba's ``gaussian`` filter around its centre.
+
+    Mitsuba splats every sample onto the pixels within r = 4σ with weight
+    f(t) = max(0, exp(−t²/2σ²) − exp(−r²/2σ²)) per axis and divides by the weights' sum
+    (samples come from inside the film only), so a pixel estimates
+    ∫ f·L / ∫ f over the film. Drawing the position from f restricted to the film
+    estimates the same with weight 1: per axis a gaussian truncated to
+    [−r, r] ∩ film by its inverse CDF, then the constant offset removed by rejection,
+    accepting with (1 − b/g(t_x))(1 − b/g(t_y)) (b = exp(−r²/2σ²), g the gaussian;
+    p > 0.99 per try). Random counters 16, 17, 18, ... of ``key``.
+    """
+    cx = float(x) + 0.5
+    cy = float(y) + 0.5
+    r = GAUSSIAN_RADIUS * stddev
+    inv2var = 1.0 / (2.0 * stddev * stddev)
+    bias = wp.exp(-r * r * inv2var)
+    p = wp.vec2(cx, cy)
+    for k in range(GAUSSIAN_TRIES):
+        tx = sample_gaussian_offset(random_uniform(key, 16 + 3 * k), stddev, wp.max(-r, -cx), wp.min(r, float(width) - cx))
+        ty = sample_gaussian_offset(random_uniform(key, 17 + 3 * k), stddev, wp.max(-r, -cy), wp.min(r, float(height) - cy))
+        p = wp.vec2(cx + tx, cy + ty)
+        accept = (1.0 - bias * wp.exp(tx * tx * inv2var)) * (1.0 - bias * wp.exp(ty * ty * inv2var))
+        if random_uniform(key, 18 + 3 * k) < accept:
+            break
+    return p
+
+
+@wp.func
+def sample_camera(cam: CameraData, key: wp.uint32, x: int, y: int, jitter: int) -> CameraSample:
+    """Pixel (x, y)'s camera sample: with ``jitter`` a point of the pixel's filter footprint — uniform
+    over the pixel for a box filter (counters 0–1 of ``key``), :func:`gaussian_filter_sample` for
+    Mitsuba's gaussian — and a uniform point of the lens (counters 2–3); else the pixel centre
+    through the lens centre."""
     s = CameraSample()
     s.pixel = wp.vec2(float(x) + 0.5, float(y) + 0.5)
     s.lens = wp.vec2(0.5, 0.5)
     if jitter != 0:
-        s.pixel = wp.vec2(float(x) + random_uniform(key, 0), float(y) + random_uniform(key, 1))
+        if cam.filter_stddev > 0.0:
+            s.pixel = gaussian_filter_sample(key, x, y, cam.width, cam.height, cam.filter_stddev)
+        else:
+            s.pixel = wp.vec2(float(x) + random_uniform(key, 0), float(y) + random_uniform(key, 1))
         s.lens = wp.vec2(random_uniform(key, 2), random_uniform(key, 3))
     return s
 

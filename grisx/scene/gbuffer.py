@@ -83,7 +83,7 @@ def gbuffer_kernel(
     g: GBufferData,
 ):
     y, x = wp.tid()
-    cs = sample_camera(camera_sample_key(seed, frame, y * cam.width + x), x, y, jitter)
+    cs = sample_camera(cam, camera_sample_key(seed, frame, y * cam.width + x), x, y, jitter)
     ray = camera_ray(cam, cs.pixel[0], cs.pixel[1], cs.lens)
     si = intersect(scene, ray.o, ray.d, cam.far_clip)
     g.si[y, x] = si

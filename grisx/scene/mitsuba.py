@@ -41,10 +41,11 @@ Transforms ``<transform name="to_world">``
 ``film``
     ``hdrfilm``: ``width`` [768], ``height`` [576]; ``pixel_format``,
     ``component_format``, ``file_format`` accepted, ignored (output encoding).
-    Nested ``rfilter``: ``box``; ``gaussian`` (``stddev``) is accepted and
-    reconstructed as a box — deliberately: it is Mitsuba's default filter, so
-    almost every Mitsuba scene uses it implicitly, and it only changes
-    sub-pixel reconstruction. Other filters are errors.
+    Nested ``rfilter``: ``box`` (each pixel averages its own area) or
+    ``gaussian`` (``stddev`` [0.5], radius 4·stddev, Mitsuba's default when no
+    filter is given): camera rays are drawn from the filter around the pixel
+    centre, so a pixel estimates what Mitsuba's splatting film converges to
+    (:func:`grisx.scene.camera.gaussian_filter_sample`). Other filters are errors.
 ``sampler``
     ``independent``, ``stratified``, ``multijitter``, ``orthogonal``,
     ``ldsampler``: ``sample_count`` [4] → ``scene.defaults["spp"]``; ``seed``
@@ -900,16 +901,18 @@ class _Loader:
         filters = p.take_objects(("rfilter",))
         if len(filters) > 1:
             raise self.ctx.error(filters[1], "a film takes one <rfilter>")
+        stddev = 0.5  # no <rfilter>: Mitsuba's default, a gaussian of standard deviation 0.5 px
         if filters:
             f = self._deref(filters[0], "rfilter")
             ft = self._require_type(f, ("box", "gaussian"))
             fp = _Props(self, f)
-            if ft == "gaussian":
-                fp.float("stddev", 0.5)  # reconstructed as a box (see module docstring)
+            stddev = fp.float("stddev", 0.5) if ft == "gaussian" else 0.0
             fp.finish()
+            if ft == "gaussian" and not (0 < stddev <= 64):
+                raise self.ctx.error(fp.values.get("stddev", f), f"stddev must be in (0, 64] pixels, got {stddev}", "stddev")
         p.finish()
         try:
-            self.scene.film = Film(width, height)
+            self.scene.film = Film(width, height, filter_stddev=stddev)
         except GrisxError as exc:
             raise self.ctx.error(node, str(exc)) from None
 

@@ -83,16 +83,20 @@ TRI_HAS_UVS = wp.constant(2)
 
 @dataclasses.dataclass(frozen=True)
 class Film:
-    """Mitsuba's ``hdrfilm``: the output size."""
+    """Mitsuba's ``hdrfilm``: the output size and the reconstruction filter."""
 
     width: int = 256
     height: int = 256
+    filter_stddev: float = 0.0  # reconstruction filter: 0 = box (the pixel's area), else Mitsuba's gaussian (pixels)
 
     def __post_init__(self) -> None:
         for name in ("width", "height"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not (1 <= v <= 16384):
                 raise InvalidParameterError(f"film {name} must be an integer in [1, 16384], got {v!r}")
+        sd = self.filter_stddev
+        if isinstance(sd, bool) or not isinstance(sd, (int, float, np.floating, np.integer)) or not (math.isfinite(sd) and 0 <= sd <= 64):
+            raise InvalidParameterError(f"film filter_stddev must be 0 (box) or a gaussian's standard deviation in (0, 64] pixels, got {sd!r}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -651,4 +655,6 @@ class BuiltScene:
         return dataclasses.replace(self.camera, to_world=self.camera_path.to_world(max(frame, 0.0)))
 
     def camera_data(self, frame: float, width: int, height: int) -> CameraData:
-        return self.camera_at(frame).data(width, height)
+        d = self.camera_at(frame).data(width, height)
+        d.filter_stddev = float(self.film.filter_stddev)
+        return d

@@ -7,7 +7,7 @@ Mitsuba 3 itself rendered (``refs/``, written by ``make_references.py``; its
 version is in ``refs/meta.json``). grisx's ``pt`` renders the same file in
 ``frames`` independent frames of ``spp`` samples; the per-pixel means and
 variances of the two renderers give z-values for the image mean and for every
-8×8 block mean per channel (:func:`grisx.testing.image_agreement_test`),
+block mean (8×8 pixels, 2×2 where a case needs it) per channel (:func:`grisx.testing.image_agreement_test`),
 Šidák-corrected over the whole suite so that the suite as one verdict has the
 false-alarm rate of a single 4σ test.
 
@@ -20,6 +20,7 @@ from __future__ import annotations
 import dataclasses
 import json
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import pytest
@@ -33,49 +34,59 @@ from grisx.testing import block_means, image_agreement_test
 HERE = Path(__file__).resolve().parent
 SCENES = HERE / "scenes"
 REFS = HERE / "refs"
-BLOCK = 8
 
-#: case → (spp per frame, frames) of grisx's run; the scene file says what the case checks
-CASES: dict[str, tuple[int, int]] = {
-    "emitter_no_bsdf": (32, 16),
-    "emitter_with_bsdf": (32, 16),
-    "rectangle": (32, 16),
-    "disk": (32, 16),
-    "cube": (32, 16),
-    "sphere": (32, 16),
-    "sphere_light": (32, 16),
-    "obj_normals_uv": (32, 16),
-    "obj_plain": (32, 16),
-    "ply_normals_uv": (32, 16),
-    "ply_plain": (32, 16),
-    "twosided": (32, 16),
-    "flip_normals": (32, 16),
-    "conductor_none": (32, 16),
-    "conductor_named": (32, 16),
-    "conductor_eta_k": (32, 16),
-    "roughconductor": (32, 16),
-    "roughconductor_all_normals": (32, 16),
-    "twosided_conductor": (32, 16),
-    "dielectric": (32, 16),
-    "dielectric_named": (32, 16),
-    "roughdielectric": (32, 16),
-    "texture_srgb": (32, 16),
-    "texture_raw": (32, 16),
-    "texture_exr": (32, 16),
-    "envmap": (32, 16),
-    "constant": (32, 16),
-    "point": (32, 16),
-    "thinlens": (32, 16),
-    "fov_axis_x": (16, 16),
-    "fov_axis_y": (16, 16),
-    "fov_axis_diagonal": (16, 16),
-    "fov_axis_smaller": (16, 16),
-    "fov_axis_larger": (16, 16),
-    "focal_length": (16, 16),
-    "nested_transforms": (32, 16),
-    "max_depth_1": (16, 16),
-    "max_depth_2": (16, 16),
-    "max_depth_4_rr_1": (32, 16),
+
+class Case(NamedTuple):
+    """grisx's run for one scene file: ``frames`` independent frames of ``spp`` samples, z-tests per ``block``×``block`` pixels."""
+
+    spp: int
+    frames: int
+    block: int = 8
+
+
+#: case → grisx's run; the scene file says what the case checks
+CASES: dict[str, Case] = {
+    "emitter_no_bsdf": Case(32, 16),
+    "emitter_with_bsdf": Case(32, 16),
+    "rectangle": Case(32, 16),
+    "disk": Case(32, 16),
+    "cube": Case(32, 16),
+    "sphere": Case(32, 16),
+    "sphere_light": Case(32, 16),
+    "obj_normals_uv": Case(32, 16),
+    "obj_plain": Case(32, 16),
+    "ply_normals_uv": Case(32, 16),
+    "ply_plain": Case(32, 16),
+    "twosided": Case(32, 16),
+    "flip_normals": Case(32, 16),
+    "conductor_none": Case(32, 16),
+    "conductor_named": Case(32, 16),
+    "conductor_eta_k": Case(32, 16),
+    "roughconductor": Case(32, 16),
+    "roughconductor_all_normals": Case(32, 16),
+    "twosided_conductor": Case(32, 16),
+    "dielectric": Case(32, 16),
+    "dielectric_named": Case(32, 16),
+    "roughdielectric": Case(32, 16),
+    "texture_srgb": Case(32, 16),
+    "texture_raw": Case(32, 16),
+    "texture_exr": Case(32, 16),
+    "envmap": Case(32, 16),
+    "constant": Case(32, 16),
+    "point": Case(32, 16),
+    "thinlens": Case(32, 16),
+    "fov_axis_x": Case(16, 16),
+    "fov_axis_y": Case(16, 16),
+    "fov_axis_diagonal": Case(16, 16),
+    "fov_axis_smaller": Case(16, 16),
+    "fov_axis_larger": Case(16, 16),
+    "focal_length": Case(16, 16),
+    "nested_transforms": Case(32, 16),
+    "max_depth_1": Case(16, 16),
+    "max_depth_2": Case(16, 16),
+    "max_depth_4_rr_1": Case(32, 16),
+    "filter_gaussian_default": Case(32, 16, block=2),  # a filter moves energy between neighbouring pixels: small blocks
+    "filter_gaussian_wide": Case(32, 16, block=2),
 }
 
 
@@ -85,7 +96,7 @@ def _reference(case: str) -> tuple[np.ndarray, np.ndarray]:
 
 def _values_per_case(case: str) -> int:
     ref, _ = _reference(case)
-    return block_means(ref, BLOCK).size + ref.shape[-1]
+    return block_means(ref, CASES[case].block).size + ref.shape[-1]
 
 
 #: z-values sharing the suite's one verdict: every case's blocks and image mean, per channel
@@ -102,10 +113,10 @@ def render_runs(scene, spp: int, frames: int, seed: int = 7) -> tuple[np.ndarray
 
 
 def agreement(scene, case: str):
-    spp, frames = CASES[case]
-    mean, variance = render_runs(scene, spp, frames)
+    c = CASES[case]
+    mean, variance = render_runs(scene, c.spp, c.frames)
     ref, ref_var = _reference(case)
-    return image_agreement_test(mean, variance, ref, ref_var, block=BLOCK, family=FAMILY)
+    return image_agreement_test(mean, variance, ref, ref_var, block=c.block, family=FAMILY)
 
 
 def test_every_scene_file_has_a_case_and_a_reference():
@@ -138,3 +149,10 @@ def test_a_two_percent_dimmer_light_is_caught():
     scene.objects[:] = [o if o.emission is None else dataclasses.replace(o, emission=0.98 * o.emission) for o in scene.objects]
     result = agreement(scene, "max_depth_2")
     assert not result.passed, f"a 2% dimmer light went unnoticed: {result}"
+
+
+def test_a_box_filter_is_caught_where_mitsuba_uses_its_default_gaussian():
+    scene = load_mitsuba(SCENES / "filter_gaussian_default.xml")
+    scene.film = dataclasses.replace(scene.film, filter_stddev=0.0)
+    result = agreement(scene, "filter_gaussian_default")
+    assert not result.passed, f"a box filter instead of Mitsuba's gaussian went unnoticed: {result}"

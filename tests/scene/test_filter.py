@@ -1,0 +1,68 @@
+"""Mitsuba's gaussian reconstruction filter as a camera-sample distribution (grisx.scene.camera).
+
+A pixel of Mitsuba's splatting film converges to ∫ f·L / ∫ f over the film, f the
+filter around the pixel centre; grisx draws camera rays from f restricted to the film.
+χ² tests of the sampled offsets against f, inside the film and at its border; the
+sibling shows that the plain (unshifted) gaussian is told apart from Mitsuba's.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import warp as wp
+
+from grisx.scene.camera import gaussian_filter_sample
+from grisx.testing import chi2_test
+from grisx.theory.random import random_key
+
+
+@wp.kernel
+def _offsets(x: int, y: int, width: int, height: int, stddev: float, out: wp.array(dtype=wp.vec2)):
+    i = wp.tid()
+    p = gaussian_filter_sample(random_key(11, i), x, y, width, height, stddev)
+    out[i] = wp.vec2(p[0] - (float(x) + 0.5), p[1] - (float(y) + 0.5))
+
+
+def offsets(x: int, y: int, stddev: float, n: int = 200_000, size: int = 16) -> np.ndarray:
+    out = wp.empty(n, dtype=wp.vec2, device="cpu")
+    wp.launch(_offsets, dim=n, inputs=[x, y, size, size, stddev], outputs=[out], device="cpu")
+    return out.numpy()
+
+
+def mitsuba_filter(stddev: float, lo: float, hi: float, bias: bool = True):
+    """Mitsuba's gaussian f(t) = max(0, exp(−t²/2σ²) − exp(−r²/2σ²)), r = 4σ, normalized on [lo, hi]."""
+    r = 4 * stddev
+    b = math.exp(-r * r / (2 * stddev**2)) if bias else 0.0
+
+    def f(t):
+        return np.maximum(np.exp(-np.asarray(t) ** 2 / (2 * stddev**2)) - b, 0.0)
+
+    ts = np.linspace(lo, hi, 20001)
+    norm = float(np.sum(f(ts)) * (ts[1] - ts[0]))
+    return lambda t: np.where((np.asarray(t) >= lo) & (np.asarray(t) <= hi), f(t) / norm, 0.0)
+
+
+@pytest.mark.parametrize("stddev", [0.5, 1.0])
+def test_interior_pixel_offsets_follow_the_filter(stddev):
+    t = offsets(8, 8, stddev)
+    r = 4 * stddev
+    assert np.all(np.abs(t) <= r + 1e-5)
+    for axis in range(2):
+        result = chi2_test(t[:, axis], mitsuba_filter(stddev, -r, r), -r, r, bins=48, tests=4)
+        assert result.passed, f"axis {axis}: {result}"
+
+
+def test_border_pixel_offsets_stay_on_the_film():
+    t = offsets(0, 15, 1.0)  # left column, bottom row: the film ends 0.5 px away
+    assert t[:, 0].min() >= -0.5 - 1e-6 and t[:, 1].max() <= 0.5 + 1e-6
+    assert chi2_test(t[:, 0], mitsuba_filter(1.0, -0.5, 4.0), -0.5, 4.0, bins=48, tests=2).passed
+    assert chi2_test(t[:, 1], mitsuba_filter(1.0, -4.0, 0.5), -4.0, 0.5, bins=48, tests=2).passed
+
+
+def test_a_filter_not_cut_at_the_film_border_is_told_apart():
+    """Mitsuba's border pixels see only samples from inside the film; the whole filter is a different distribution."""
+    t = offsets(0, 8, 1.0)
+    assert not chi2_test(t[:, 0], mitsuba_filter(1.0, -4.0, 4.0), -4.0, 4.0, bins=48).passed
