@@ -94,13 +94,17 @@ from grisx.scene.material import (
 from grisx.scene.microfacet import (
     fresnel_conductor,
     fresnel_dielectric,
+    MICROFACET_BECKMANN,
     ggx_d,
     ggx_g1,
-    ggx_g2,
-    ggx_vndf_pdf,
+    microfacet_d,
+    microfacet_g1,
+    microfacet_g2,
+    microfacet_pdf,
+    microfacet_visible_weight,
     reflect,
     refract,
-    sample_ggx_vndf,
+    sample_microfacet,
 )
 
 wp.set_module_options({"enable_backward": False})
@@ -275,33 +279,36 @@ def rough_conductor_eval(m: Material, wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
     if wo[2] <= 0.0 or wi[2] <= 0.0:
         return wp.vec3(0.0, 0.0, 0.0)
     h = wp.normalize(wo + wi)
-    dg = ggx_d(h, m.alpha) * ggx_g2(wo, wi, h, m.alpha) / (4.0 * wo[2])
+    dg = microfacet_d(h, m.alpha, m.distribution) * microfacet_g2(wo, wi, h, m.alpha, m.distribution) / (4.0 * wo[2])
     f = fresnel_conductor(wp.dot(wo, h), m.eta, m.k)
     return wp.cw_mul(m.reflectance, f) * dg
 
 
 @wp.func
 def rough_conductor_pdf(m: Material, wo: wp.vec3, wi: wp.vec3) -> float:
-    """D_wo(h) / (4 wi·h) = D(h) G1(wo, h) / (4 cos θ_o)."""
+    """GGX: D_wo(h) / (4 wi·h) = D(h) G1(wo, h) / (4 cos θ_o); Beckmann: D(h) cos θ_h / (4 wi·h)."""
     if wo[2] <= 0.0 or wi[2] <= 0.0:
         return 0.0
     h = wp.normalize(wo + wi)
+    if m.distribution == MICROFACET_BECKMANN:
+        return microfacet_pdf(wo, h, m.alpha, m.distribution) / (4.0 * wp.dot(wi, h))
     return ggx_d(h, m.alpha) * ggx_g1(wo, h, m.alpha) / (4.0 * wo[2])
 
 
 @wp.func
 def rough_conductor_sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2) -> BsdfSample:
-    """Visible-normal sample reflected about m; weight = F(wo·m) G1(wi, m) · specular_reflectance."""
+    """A microfacet normal m (``sample_microfacet``) reflected; weight = F(wo·m) G1(wi, m) · specular_reflectance
+    (× ``microfacet_visible_weight`` where m is not a visible-normal sample)."""
     s = _no_sample()
     if wo[2] <= 0.0:
         return s
-    mn = sample_ggx_vndf(wo, m.alpha, u)
+    mn = sample_microfacet(wo, m.alpha, m.distribution, u)
     wi = reflect(wo, mn)
     dot_i = wp.dot(wi, mn)
     if wi[2] <= 0.0 or dot_i <= 0.0:
         return s
-    pdf = ggx_vndf_pdf(wo, mn, m.alpha) / (4.0 * dot_i)
-    g1 = ggx_g1(wi, mn, m.alpha)
+    pdf = microfacet_pdf(wo, mn, m.alpha, m.distribution) / (4.0 * dot_i)
+    g1 = microfacet_g1(wi, mn, m.alpha, m.distribution) * microfacet_visible_weight(wo, mn, m.alpha, m.distribution)
     if not (pdf > 0.0) or g1 <= 0.0:
         return s
     s.wi = wi
@@ -362,8 +369,8 @@ def rough_dielectric_eval(m: Material, wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
     h = _half_vector(m, wo, wi)
     dot_o = wp.dot(wo, h)
     dot_i = wp.dot(wi, h)
-    d = ggx_d(h, m.alpha)
-    g = ggx_g2(wo, wi, h, m.alpha)
+    d = microfacet_d(h, m.alpha, m.distribution)
+    g = microfacet_g2(wo, wi, h, m.alpha, m.distribution)
     f = fresnel_dielectric(dot_o, m.eta[0]).f
     if cos_o * cos_i > 0.0:
         return m.reflectance * (f * d * g / (4.0 * wp.abs(cos_o)))
@@ -392,7 +399,7 @@ def rough_dielectric_pdf(m: Material, wo: wp.vec3, wi: wp.vec3) -> float:
     if dot_o * cos_o <= 0.0 or dot_i * cos_i <= 0.0:
         return 0.0
     f = fresnel_dielectric(dot_o, m.eta[0]).f
-    pm = ggx_vndf_pdf(wo * wp.sign(cos_o), h, m.alpha)
+    pm = microfacet_pdf(wo * wp.sign(cos_o), h, m.alpha, m.distribution)
     if cos_o * cos_i > 0.0:
         return pm * f / (4.0 * wp.abs(dot_i))
     denom = dot_o + eta * dot_i
@@ -409,9 +416,11 @@ def rough_dielectric_sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2)
     if cos_o == 0.0:
         return s
     side = wp.sign(cos_o)
-    mn = sample_ggx_vndf(wo * side, m.alpha, u)
-    pm = ggx_vndf_pdf(wo * side, mn, m.alpha)
+    mn = sample_microfacet(wo * side, m.alpha, m.distribution, u)
+    pm = microfacet_pdf(wo * side, mn, m.alpha, m.distribution)
     dot_o = wp.dot(wo, mn)
+    if dot_o * cos_o <= 0.0:  # a facet wo cannot see (only non-visible-normal sampling draws one)
+        return s
     fr = fresnel_dielectric(dot_o, m.eta[0])
     wi = wp.vec3(0.0, 0.0, 1.0)
     pdf = float(0.0)
@@ -431,7 +440,7 @@ def rough_dielectric_sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2)
         pdf = pm * (1.0 - fr.f) * wp.abs(fr.eta_it * fr.eta_it * dot_i / (denom * denom))
         weight = m.transmittance * (fr.eta_ti * fr.eta_ti)
         s.eta = fr.eta_it
-    g1 = ggx_g1(wi, mn, m.alpha)
+    g1 = microfacet_g1(wi, mn, m.alpha, m.distribution) * microfacet_visible_weight(wo, mn, m.alpha, m.distribution)
     if not (pdf > 0.0) or g1 <= 0.0:
         return _no_sample()
     s.wi = wi

@@ -20,10 +20,10 @@ a two-sided one mirrors the frame. Dielectrics are two-sided by nature (their
 back side is the interior, with η inverted) and ignore the flag, as Mitsuba
 refuses to wrap them.
 
-Differences from Mitsuba that the loader must respect: only the GGX
-distribution with isotropic ``alpha`` is implemented (Mitsuba's rough plugins
-default to ``beckmann``; a loader should map ``distribution="ggx"`` and reject
-the rest), and ``sample_visible`` is always on.
+Rough records take ``distribution`` ``"ggx"`` or ``"beckmann"`` (Mitsuba's
+default) with an isotropic ``alpha``; GGX samples its visible normals, Beckmann
+D(m) cos θ_m (:mod:`grisx.scene.microfacet`): ``sample_visible`` only changes
+the variance, so it is not a field.
 
 Conductor indices come from ``conductor_material(name)``: RGB η and k for
 Mitsuba's measured presets (the spectral ``data/ior/<name>.{eta,k}.spd`` tables
@@ -97,6 +97,9 @@ MATERIAL_KINDS: tuple[int, ...] = (
     MATERIAL_ROUGH_DIELECTRIC,
 )
 #: Mitsuba plugin name of each kind
+#: microfacet distributions of the rough records → grisx.scene.microfacet's MICROFACET_* ids
+MICROFACET_DISTRIBUTIONS: dict[str, int] = {"ggx": 0, "beckmann": 1}
+
 MATERIAL_KIND_NAMES: dict[int, str] = {
     MATERIAL_DIFFUSE: "diffuse",
     MATERIAL_CONDUCTOR: "conductor",
@@ -159,9 +162,10 @@ class Conductor:
 
 @dataclasses.dataclass(frozen=True)
 class RoughConductor:
-    """Mitsuba ``roughconductor`` with ``distribution="ggx"``: GGX microfacet metal of roughness ``alpha``."""
+    """Mitsuba ``roughconductor``: microfacet metal of roughness ``alpha`` (``distribution`` ggx or beckmann)."""
 
     alpha: float = 0.1
+    distribution: str = "ggx"
     eta: RGB | float = _NONE_ETA
     k: RGB | float = _NONE_K
     specular_reflectance: RGB | float = (1.0, 1.0, 1.0)
@@ -185,9 +189,10 @@ class Dielectric:
 
 @dataclasses.dataclass(frozen=True)
 class RoughDielectric:
-    """Mitsuba ``roughdielectric`` with ``distribution="ggx"``: GGX reflection + refraction (Walter et al. 2007)."""
+    """Mitsuba ``roughdielectric``: microfacet reflection + refraction (Walter et al. 2007), ggx or beckmann."""
 
     alpha: float = 0.1
+    distribution: str = "ggx"
     int_ior: float = 1.5046
     ext_ior: float = 1.000277
     specular_reflectance: RGB | float = (1.0, 1.0, 1.0)
@@ -215,8 +220,8 @@ class Material:
     ``kind``: a MATERIAL_* constant. ``reflectance``: diffuse reflectance, or
     ``specular_reflectance`` of conductors/dielectrics (for a textured diffuse
     material the caller replaces it with the texture's value before calling a
-    BSDF). ``texture``: texture id or −1. ``alpha``: GGX roughness (0 for smooth
-    kinds). ``eta``, ``k``: conductor complex index per channel; for
+    BSDF). ``texture``: texture id or −1. ``alpha``: microfacet roughness (0 for smooth
+    kinds), ``distribution``: MICROFACET_GGX or MICROFACET_BECKMANN. ``eta``, ``k``: conductor complex index per channel; for
     dielectrics ``eta`` = int_ior/ext_ior in every channel and ``k`` = 0.
     ``transmittance``: ``specular_transmittance`` of dielectrics. ``two_sided``:
     1 if the frame is mirrored on the back side. ``bump_amplitude``,
@@ -228,6 +233,7 @@ class Material:
     reflectance: wp.vec3
     texture: int
     alpha: float
+    distribution: int
     eta: wp.vec3
     k: wp.vec3
     transmittance: wp.vec3
@@ -274,6 +280,7 @@ def _pack_one(desc: MaterialDesc, index: int) -> Material:
     m.kind = kind
     m.texture = -1
     m.alpha = 0.0
+    m.distribution = 0
     m.eta = wp.vec3(1.0, 1.0, 1.0)
     m.k = wp.vec3(0.0, 0.0, 0.0)
     m.transmittance = wp.vec3(0.0, 0.0, 0.0)
@@ -308,6 +315,9 @@ def _pack_one(desc: MaterialDesc, index: int) -> Material:
         m.transmittance = wp.vec3(*_rgb(desc.specular_transmittance, f"{where}: specular_transmittance"))
     if isinstance(desc, (RoughConductor, RoughDielectric)):
         m.alpha = _positive(desc.alpha, f"{where}: alpha")
+        if desc.distribution not in MICROFACET_DISTRIBUTIONS:
+            raise InvalidParameterError(f"{where}: distribution must be one of {', '.join(MICROFACET_DISTRIBUTIONS)}, got {desc.distribution!r}")
+        m.distribution = MICROFACET_DISTRIBUTIONS[desc.distribution]
     return m
 
 

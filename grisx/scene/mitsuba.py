@@ -64,12 +64,11 @@ Transforms ``<transform name="to_world">``
 ``bsdf``
     ``diffuse`` (``reflectance``: colour or ``bitmap`` texture [0.5]);
     ``conductor`` / ``roughconductor`` (``material`` [none] or ``eta``/``k``,
-    ``specular_reflectance``; rough: ``alpha`` [0.1], ``distribution`` must be
-    ``ggx`` — Mitsuba's default is ``beckmann``, which grisx does not
-    implement, so it must be given — ``sample_visible``);
+    ``specular_reflectance``; rough: ``alpha`` [0.1], ``distribution``
+    ``beckmann`` [default, as Mitsuba] or ``ggx``, ``sample_visible``);
     ``dielectric`` / ``roughdielectric`` (``int_ior`` [bk7], ``ext_ior`` [air]
     as numbers or Mitsuba's named IORs, ``specular_reflectance``,
-    ``specular_transmittance``; rough: ``alpha``, ``distribution`` = ggx,
+    ``specular_transmittance``; rough: ``alpha``, ``distribution``,
     ``sample_visible``); ``twosided`` around one non-transmissive BSDF.
 ``emitter``
     ``area`` (inside a shape; ``radiance``, required), ``constant``
@@ -114,6 +113,7 @@ from grisx.imageio import srgb_decode as srgb_to_linear
 from grisx.scene.material import (
     Conductor,
     Dielectric,
+    MICROFACET_DISTRIBUTIONS,
     Diffuse,
     RoughConductor,
     RoughDielectric,
@@ -717,16 +717,9 @@ class _Loader:
     def _smooth_or_rough(self, p: _Props, rough: bool, kw: dict[str, Any], smooth: type, rough_cls: type) -> Any:
         if not rough:
             return smooth(**kw)
-        self._ggx(p)
-        return rough_cls(alpha=p.float("alpha", 0.1), **kw)
-
-    def _ggx(self, p: _Props) -> None:
-        if not p.has("distribution"):
-            raise self.ctx.error(p.node, "missing parameter 'distribution': Mitsuba's default is 'beckmann', "
-                                         "which grisx does not implement; add "
-                                         "<string name=\"distribution\" value=\"ggx\"/>", "distribution")
-        p.choice("distribution", None, ("ggx",))
+        distribution = p.choice("distribution", "beckmann", tuple(MICROFACET_DISTRIBUTIONS))  # Mitsuba's default
         p.bool("sample_visible", True)  # a sampling choice: the expected image is the same
+        return rough_cls(alpha=p.float("alpha", 0.1), distribution=distribution, **kw)
 
     def default_material(self, name: str) -> int:
         """Mitsuba's BSDF for a shape given none: diffuse 0.5, or diffuse 0 if the shape emits (``Shape::Shape``)."""

@@ -64,10 +64,12 @@ CASES: dict[str, Case] = {
     "conductor_eta_k": Case(32, 16),
     "roughconductor": Case(32, 16),
     "roughconductor_all_normals": Case(32, 16),
+    "roughconductor_beckmann": Case(32, 16),
     "twosided_conductor": Case(32, 16),
     "dielectric": Case(32, 16),
     "dielectric_named": Case(32, 16),
     "roughdielectric": Case(32, 16),
+    "roughdielectric_beckmann": Case(32, 16),
     "texture_srgb": Case(32, 16),
     "texture_raw": Case(32, 16),
     "texture_exr": Case(32, 16),
@@ -156,3 +158,10 @@ def test_a_box_filter_is_caught_where_mitsuba_uses_its_default_gaussian():
     scene.film = dataclasses.replace(scene.film, filter_stddev=0.0)
     result = agreement(scene, "filter_gaussian_default")
     assert not result.passed, f"a box filter instead of Mitsuba's gaussian went unnoticed: {result}"
+
+
+def test_ggx_is_caught_where_mitsuba_defaults_to_beckmann():
+    scene = load_mitsuba(SCENES / "roughconductor_beckmann.xml")
+    scene.materials[:] = [dataclasses.replace(m, distribution="ggx") if hasattr(m, "distribution") else m for m in scene.materials]
+    result = agreement(scene, "roughconductor_beckmann")
+    assert not result.passed, f"GGX instead of Mitsuba's default Beckmann went unnoticed: {result}"

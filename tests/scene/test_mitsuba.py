@@ -261,6 +261,9 @@ def test_bsdfs():
               '<string name="int_ior" value="diamond"/></bsdf>')
     assert rd == RoughDielectric(alpha=0.05, int_ior=2.419, ext_ior=1.000277)
     ts = bsdf('<bsdf type="twosided"><bsdf type="roughconductor"><string name="distribution" value="ggx"/></bsdf></bsdf>')
+    # Mitsuba's default distribution is Beckmann
+    assert bsdf('<bsdf type="roughconductor"/>').distribution == "beckmann"
+    assert bsdf('<bsdf type="roughdielectric"><float name="alpha" value="0.2"/></bsdf>') == RoughDielectric(alpha=0.2, distribution="beckmann")
     assert ts == RoughConductor(two_sided=True)
 
 
@@ -374,9 +377,8 @@ ERRORS = [
     (doc('<shape type="cube">\n<float name="radius" value="1"/></shape>'), 3, "float", "radius", "unsupported parameter"),
     (doc('<shape type="cube"><bsdf type="roughconductor">\n<float name="alpha" value="0.1" foo="2"/>'
          '<string name="distribution" value="ggx"/></bsdf></shape>'), 3, "float", "foo", "unsupported attribute 'foo'"),
-    (doc('<shape type="cube"><bsdf type="roughconductor">\n<string name="distribution" value="beckmann"/></bsdf></shape>'),
-     3, "string", "distribution", "beckmann"),
-    (doc('<shape type="cube">\n<bsdf type="roughdielectric"/></shape>'), 3, "bsdf", "distribution", "beckmann"),
+    (doc('<shape type="cube"><bsdf type="roughconductor">\n<string name="distribution" value="phong"/></bsdf></shape>'),
+     3, "string", "distribution", "phong"),
     (doc('<shape type="cube">\n<bsdf type="diffuse"><rgb name="reflectance" value="$albedo"/></bsdf></shape>'),
      3, "rgb", "value", "unknown parameter '$albedo'"),
     (doc('<shape type="cube">\n<ref id="nowhere"/></shape>'), 3, "ref", "id", "unknown id 'nowhere'"),
