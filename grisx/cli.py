@@ -84,7 +84,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     demo = sub.add_parser("demo", help="run every toy problem, print estimates beside exact values, write a figure")
     demo.add_argument("--out", default="grisx-demo.png", help="figure path (PNG); a JSON summary is written beside it")
-    demo.add_argument("--trials", type=_count, default=200_000, help="trials per run (default 200000)")
+    demo.add_argument("--trials", type=_count, default=100_000, help="trials per toy run (default 100000; heavy toys take a share)")
     demo.add_argument("--seed", type=_seed, default=0)
     demo.add_argument("--device", default="cpu", help="cpu or cuda")
     demo.set_defaults(handler=_demo)

@@ -12,12 +12,13 @@ import os
 import sys
 import tempfile
 from collections.abc import Iterable
+from typing import Any
 
 import warp as wp
 
 from grisx.errors import DeviceError
 
-__all__ = ["init", "resolve_device", "cuda_available", "synchronize", "specialized_module"]
+__all__ = ["init", "resolve_device", "cuda_available", "synchronize", "specialized_module", "load_kernels"]
 
 
 #: a line Warp's native library prints on every machine without a GPU; on such
@@ -102,3 +103,38 @@ def specialized_module(owner: str, kinds: Iterable[int]) -> wp.context.Module:
     module.options["enable_backward"] = False
     module.options["fast_math"] = FAST_MATH
     return module
+
+
+#: seconds a kernel load may take before the user is told that Warp is compiling (cached loads take milliseconds)
+COMPILE_NOTICE_SECONDS = 1.0
+
+
+def load_kernels(kernels: Iterable[Any], device: Any, what: str) -> None:
+    """Load (compile on first use) the Warp modules of ``kernels`` on ``device``, saying so when it takes a while.
+
+    Warp compiles a module the first time it is loaded on a device and caches the binary
+    (``~/.cache/warp``); a first CUDA render can then be silent for half a minute. When the
+    load has not finished after :data:`COMPILE_NOTICE_SECONDS` and stderr is a terminal,
+    one line says what is being compiled.
+    """
+    import threading
+
+    done = threading.Event()
+
+    def notice() -> None:
+        if not done.wait(COMPILE_NOTICE_SECONDS):
+            print(f"grisx: compiling kernels for {what} on {device} (first run only; cached afterwards) ...", file=sys.stderr, flush=True)
+
+    watcher = threading.Thread(target=notice, daemon=True) if sys.stderr.isatty() else None
+    if watcher is not None:
+        watcher.start()
+    try:
+        seen = set()
+        for kernel in kernels:
+            if id(kernel.module) not in seen:
+                seen.add(id(kernel.module))
+                wp.load_module(kernel.module, device=device)
+    finally:
+        done.set()
+        if watcher is not None:
+            watcher.join()

@@ -105,6 +105,11 @@ def test_demo_writes_a_figure_and_a_summary(capsys, tmp_path):
     summary = json.loads(out.with_suffix(".json").read_text())
     assert all("UNEXPECTED" not in r["verdict"] and "NOT caught" not in r["verdict"] for r in summary["runs"])
     assert "caught: biased by design" in stdout
+    # every toy problem is shown, and the scene comparison (seed 004) gives both errors
+    from grisx.theory.toys import PROBLEMS
+
+    assert {r["problem"] for r in summary["runs"]} == set(PROBLEMS)
+    assert summary["scene"]["relmse_pt"] > 0 and summary["scene"]["relmse_restir_gi"] > 0
 
 
 def test_a_bad_render_param_names_the_render_method():
@@ -146,3 +151,19 @@ def test_methods_explain_themselves(capsys):
     assert code == 0 and "--param max_depth=" in out and "--param shift=hybrid" in out
     code, _, err = run_cli(capsys, "methods", "nope")
     assert code == 2 and "unknown render method 'nope'" in err
+
+
+def test_kernel_loads_that_take_a_while_are_announced_on_a_terminal_only(monkeypatch, capsys):
+    import sys as _sys
+
+    import grisx.device as device
+    from grisx.render.pt import _scale
+
+    monkeypatch.setattr(device, "COMPILE_NOTICE_SECONDS", 0.0)  # every load counts as slow
+    monkeypatch.setattr(_sys.stderr, "isatty", lambda: True)
+    device.load_kernels([_scale, _scale], "cpu", "pt (diffuse)")
+    err = capsys.readouterr().err
+    assert err.count("compiling kernels for pt (diffuse)") == 1
+    monkeypatch.setattr(_sys.stderr, "isatty", lambda: False)
+    device.load_kernels([_scale], "cpu", "pt (diffuse)")
+    assert capsys.readouterr().err == ""

@@ -27,9 +27,10 @@ from typing import Any
 import numpy as np
 import warp as wp
 
-from grisx.device import resolve_device, synchronize
+from grisx.device import load_kernels, resolve_device, synchronize
 from grisx.errors import InvalidParameterError, InvalidValueError, UnknownNameError
 from grisx.render.base.registry import METHODS, RenderContext, RenderMethod, load_plugins, method_params
+from grisx.scene.material import MATERIAL_KIND_NAMES
 
 __all__ = ["METHODS", "RenderMethod", "RenderContext", "RenderResult", "PassTimer", "render", "load_scene", "parse_res", "method_params"]
 
@@ -175,10 +176,9 @@ def render(
     built.animate_camera = camera == "path" or (camera == "auto" and frames > 1 and not accumulate)
     timer = PassTimer(dev)
     renderer = spec.create(RenderContext(built, width, height, {**resolved, "spp": int(spp)}, int(seed), timer, method))
-    for kernel in renderer.kernels() if hasattr(renderer, "kernels") else ():
-        wp.load_module(kernel.module, device=dev)  # compiling is not rendering: keep it off the clock
-    for kernel in (_accumulate, _average):
-        wp.load_module(kernel.module, device=dev)
+    # compiling is not rendering: keep it off the clock, and say so when it takes a while
+    kinds = ", ".join(MATERIAL_KIND_NAMES[k] for k in sorted(built.features.material_kinds))
+    load_kernels([*(renderer.kernels() if hasattr(renderer, "kernels") else ()), _accumulate, _average], dev, f"{method} ({kinds})")
     acc = None  # running sum: on the device (float64) for device frames, on the host otherwise
     average = None
     image = None

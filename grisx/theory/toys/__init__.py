@@ -57,6 +57,8 @@ def run_toy(
     params: Mapping[str, Any] | None = None,
     device: str = "cpu",
     return_samples: bool = False,
+    return_values: bool = False,
 ) -> Estimate:
     """Run toy ``name`` with ``method``; see :meth:`ToyProblem.run`."""
-    return get_problem(name).run(method, trials=trials, seed=seed, params=params, device=device, return_samples=return_samples)
+    return get_problem(name).run(method, trials=trials, seed=seed, params=params, device=device,
+                                 return_samples=return_samples, return_values=return_values)

@@ -79,6 +79,8 @@ class Estimate:
     seconds: float
     device: str
     samples: np.ndarray | None = None
+    #: every trial's own estimate (trials × components, or trials for scalar problems), when asked for
+    values: np.ndarray | None = None
     #: problem-specific run statistics (e.g. Newton iterations per solution), or None
     stats: dict[str, Any] | None = None
 
@@ -218,8 +220,13 @@ class ToyProblem:
         params: Mapping[str, Any] | None = None,
         device: str = "cpu",
         return_samples: bool = False,
+        return_values: bool = False,
     ) -> Estimate:
-        """Run ``trials`` independent trials of ``method`` and compare with the exact value."""
+        """Run ``trials`` independent trials of ``method`` and compare with the exact value.
+
+        ``return_samples``: the selected sample of every trial; ``return_values``: every trial's
+        estimate (e.g. to draw the estimator's distribution, as seed 000's Fig. 3 does).
+        """
         resolved = self.resolve_params(method, params)
         trials = _check_count("trials", trials)
         if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not (0 <= int(seed) < 2**31):
@@ -234,6 +241,7 @@ class ToyProblem:
         values = wp.empty((chunk, k), dtype=float, device=dev)
         sample_buf = wp.empty((chunk, k), dtype=float, device=dev) if return_samples else None
         samples = np.empty((trials, k), dtype=np.float32) if return_samples else None
+        trial_values = np.empty((trials, k), dtype=np.float32) if return_values else None
         counter_names = tuple(self.counter_names(method, resolved))
         counter_buf = wp.zeros((chunk, len(counter_names)), dtype=float, device=dev) if counter_names else None
         counter_totals = np.zeros(len(counter_names))
@@ -264,6 +272,8 @@ class ToyProblem:
             total = new_total
             if samples is not None:
                 samples[done : done + n] = batch.samples.numpy()
+            if trial_values is not None:
+                trial_values[done : done + n] = v
             if counter_buf is not None:
                 counter_totals += batch.counters.numpy().astype(np.float64).sum(axis=0)
             done += n
@@ -285,6 +295,7 @@ class ToyProblem:
             seconds=seconds,
             device=str(dev),
             samples=None if samples is None else (samples[:, 0] if scalar else samples),
+            values=None if trial_values is None else (trial_values[:, 0] if scalar else trial_values),
             stats=dict(self.stats(method, resolved, dict(zip(counter_names, counter_totals)), trials))
             if counter_names
             else None,
