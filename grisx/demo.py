@@ -148,32 +148,22 @@ def _tonemap(img: np.ndarray) -> np.ndarray:
     return np.clip(np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055), 0.0, 1.0)
 
 
-def _figure(out: Path, results: list[dict[str, Any]], runs: dict[tuple[str, str, str], Any], ris: dict[int, np.ndarray],
-            scene: dict[str, Any] | None) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+def plot_ris_histograms(ax: Any, samples: dict[int, np.ndarray]) -> None:
+    """Histograms of RIS's kept samples on ``ris-1d`` for several candidate counts M, beside f / ∫f."""
     from grisx.theory.toys.ris_1d import RIS1D
 
-    fig = plt.figure(figsize=(17, 14))
-    grid = fig.add_gridspec(3, 4, height_ratios=[1, 1, 1.05])
-
-    # ---- the estimator core: RIS ----
-    ax = fig.add_subplot(grid[0, 0])
     xs = np.linspace(0, 1, 400)
     f = 0.2 + np.exp(-(((xs - 0.3) / 0.06) ** 2)) + 0.5 * np.exp(-(((xs - 0.72) / 0.1) ** 2))
     exact = float(RIS1D().exact({})[0])
-    for m, s in ris.items():
+    for m, s in samples.items():
         ax.hist(s, bins=80, range=(0, 1), density=True, histtype="step", lw=1.4, label=f"M = {m}")
     ax.plot(xs, f / exact, "k--", lw=1.2, label="f / ∫f")
     ax.set(title="RIS: where the kept sample lands (ris-1d)", xlabel="x", ylabel="density")
     ax.legend(fontsize=8)
 
-    # ---- seed 000: gradient after vs with ReSTIR ----
-    ax = fig.add_subplot(grid[0, 1])
-    after, with_ = runs[("f1-f2", "gradient-after-restir", "defaults")], runs[("f1-f2", "gradient-with-restir", "defaults")]
+
+def plot_gradient_histograms(ax: Any, after: Any, with_: Any) -> None:
+    """Seed 000's Fig. 3: the distribution of one trial's pixel difference, gradient after vs with ReSTIR."""
     lo, hi = np.percentile(np.concatenate([after.values, with_.values]), [0.5, 99.5])
     for est, label in ((after, "gradient after ReSTIR"), (with_, "gradient with ReSTIR")):
         ax.hist(est.values, bins=80, range=(lo, hi), density=True, histtype="step", lw=1.4,
@@ -181,6 +171,24 @@ def _figure(out: Path, results: list[dict[str, Any]], runs: dict[tuple[str, str,
     ax.axvline(float(after.exact), color="k", ls="--", lw=1, label="exact F₁ − F₂")
     ax.set(title="seed 000: one trial's pixel difference (f1-f2, Fig. 3)", xlabel="estimate", ylabel="density")
     ax.legend(fontsize=8)
+
+
+def _figure(out: Path, results: list[dict[str, Any]], runs: dict[tuple[str, str, str], Any], ris: dict[int, np.ndarray],
+            scene: dict[str, Any] | None) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig = plt.figure(figsize=(17, 14))
+    grid = fig.add_gridspec(3, 4, height_ratios=[1, 1, 1.05])
+
+    # ---- the estimator core: RIS ----
+    plot_ris_histograms(fig.add_subplot(grid[0, 0]), ris)
+
+    # ---- seed 000: gradient after vs with ReSTIR ----
+    plot_gradient_histograms(fig.add_subplot(grid[0, 1]), runs[("f1-f2", "gradient-after-restir", "defaults")],
+                             runs[("f1-f2", "gradient-with-restir", "defaults")])
 
     # ---- seed 001: final gather vs marginal MIS ----
     ax = fig.add_subplot(grid[0, 2])

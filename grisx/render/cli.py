@@ -41,6 +41,7 @@ def add_parsers(sub: Any, key_value: Any, count: Any, seed: Any) -> None:
     m = sub.add_parser("methods", help="the render methods (a table), or one method's params")
     m.add_argument("method", nargs="?", default=None, help="a render method: its params with defaults, ranges and help")
     m.add_argument("--json", action="store_true", help="print one JSON object")
+    m.add_argument("--markdown", action="store_true", help="print the table as Markdown (the README's methods table)")
     m.set_defaults(handler=_methods)
 
     r = sub.add_parser(
@@ -218,6 +219,18 @@ def method_help(name: str) -> str:
     return "\n".join(lines)
 
 
+def methods_markdown() -> str:
+    """The registered methods as a Markdown table (the README's, checked by a test)."""
+    from grisx.render.driver import METHODS
+
+    rows = ["| method | kind | what it renders | params |", "| --- | --- | --- | --- |"]
+    for name, m in METHODS.items():
+        params = ", ".join(f"`{p.name}`" for p in m.params) or "—"
+        summary = m.summary.replace("|", "\\|")
+        rows.append(f"| `{name}` | {m.kind} | {summary} | {params} |")
+    return "\n".join(rows)
+
+
 def _methods(args: argparse.Namespace) -> int:
     from grisx.render.driver import METHODS
 
@@ -232,6 +245,9 @@ def _methods(args: argparse.Namespace) -> int:
         return 0
     if args.json:
         print(json.dumps({name: {"summary": m.summary, "kind": m.kind, "params": [p.name for p in m.params]} for name, m in METHODS.items()}))
+        return 0
+    if args.markdown:
+        print(methods_markdown())
         return 0
     width = max(len(n) for n in METHODS)
     for name, m in METHODS.items():
