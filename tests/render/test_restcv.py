@@ -21,6 +21,7 @@ from reuse_checks import check
 
 from grisx.errors import InvalidParameterError
 from grisx.render.driver import METHODS, RenderContext, load_scene, method_params, render
+from grisx.scene.builtin import BUILTIN_SCENES
 from grisx.testing import BIASED_K
 
 CASES = [
@@ -128,3 +129,11 @@ def test_params_are_checked_and_shared_with_restir_pt():
         render("red-green-lights", "restcv", res=(8, 8), params={"alpha": "two"})
     with pytest.raises(InvalidParameterError, match="candidates"):
         render("red-green-lights", "restcv", res=(8, 8), params={"candidates": 0})
+
+
+def test_every_builtin_scene_renders_finite():
+    for name in BUILTIN_SCENES:
+        r = render(name, "restcv", frames=3, accumulate=True, res=(8, 8), seed=2, params={"radius": 4})
+        assert np.all(np.isfinite(r.image)), name
+        assert r.settings["nonfinite_samples"] == 0, name
+        assert r.image.mean() > 0.0, name
