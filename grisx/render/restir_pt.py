@@ -46,6 +46,12 @@ shifts and the candidate sampler are
 :func:`grisx.render.base.path_shift.make_path_shift`'s. The wrong-Jacobian ablation
 (``jacobian=false``: |J| = 1 in every weight) is biased and the tests show it.
 
+**Variants.** The passes can carry a per-pixel estimate of their own besides the reservoir
+(``PathReservoir.estimate``), formed at each reuse step from the shifts the pass evaluates anyway:
+:class:`PixelEstimateHooks` compiles a variant's Warp funcs into the same kernels
+(:func:`build_restir_pt_kernels`; ReSTCV, :mod:`grisx.render.restcv`, is one). Without hooks the
+kernels are ReSTIR PT's alone.
+
 Temporal reuse evaluates the previous frame's domains with the current
 frame's geometry: exact for static scenes (how accumulation converges),
 an approximation when objects move (as in Lin et al. 2022).
