@@ -48,6 +48,15 @@ one-sample estimate, and ρ_j = ⟨F_j⟩ — so α correlates with the differen
 ``difference_mis=none`` drops Eq. 11 (ω = 1 on both sides: each pair's difference counted twice).
 ``difference_mis=balance`` is Eq. 11 with M = 1 (still unbiased).
 
+**STCV** (``stcv``, Sec. 5.1, the baseline without ReSTIR): the same passes and composites, but every
+pixel keeps its own frame's sample — the canonical reservoir's path y_i, drawn by RIS among the
+traced path's candidates, whose UCW W_i stands in for Eq. 4's 1/p — so each difference comes from
+fresh random samples of the two pixels (the history's sample for a temporal j), and its weights are
+Eq. 5's balance heuristic written on the targets (``difference_mis=balance``: Eq. 11 with M = 1;
+the paper's Eq. 5 weighs by the source pdfs, and any ω with ω_ij(x) + ω_ji(T x) = 1 is unbiased).
+The confidences still count the history (q of the next composite). STCV's passes evaluate GRIS's
+resampling weights and then drop them: cheap next to the shifts they share.
+
 Direct light goes through the same path reservoir as ReSTIR PT's (the paper's separate ReSTIR
 DI auxiliary Ḋ_i of Sec. 5.3 is not part of this renderer). Every formula — ``cv_alpha``,
 ``cv_estimate``, ``reservoir_difference``, ``compositing_weight``, ``cv_composite_*``,
@@ -61,6 +70,7 @@ Real-Time Rendering", SIGGRAPH 2026 (seed 002), Sec. 4–5, Eq. 6–11, Listing 
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import warp as wp
@@ -92,7 +102,7 @@ from grisx.theory.control_variate import (
 
 wp.set_module_options({"enable_backward": False})
 
-__all__ = ["ReSTCV", "create_restcv", "make_restcv_kernels", "ALPHA_CHOICES", "RESTCV_HOOKS"]
+__all__ = ["ReSTCV", "STCV", "create_restcv", "create_stcv", "make_restcv_kernels", "make_stcv_kernels", "ALPHA_CHOICES", "RESTCV_HOOKS", "STCV_HOOKS"]
 
 #: α choices of the renderer: theory's (Eq. 9's heuristic, 1) and the biased ablation ``sample``
 ALPHA_CHOICES = {**ALPHA_MODES, "sample": 2}
@@ -133,6 +143,16 @@ def from_pixel(
     return cv_estimate(other.estimate, alpha, diff)
 
 
+@wp.func
+def canonical_with(can: PathReservoir, estimate: wp.vec3, confidence: float) -> PathReservoir:
+    """STCV's record: the frame's own sample and UCW (no resampling) with the estimate and the confidence
+    (the q of the next composite) that the pass accumulated."""
+    out = can
+    out.estimate = estimate
+    out.res.confidence = confidence
+    return out
+
+
 # ---- temporal reuse ----
 @wp.func
 def temporal_estimate(
@@ -145,6 +165,26 @@ def temporal_estimate(
     from_j = from_pixel(o, alpha, can, prev, c_j, s_cj.path.f, s_cj.jacobian, s_t.path.f, s_t.jacobian)
     c = cv_composite_add(c, from_j, compositing_weight(c_j))  # seed 002, Eq. 6
     return cv_composite_value(c)
+
+
+@wp.func
+def restcv_temporal(
+    o: CVOptions, g: GBufferData, g_prev: GBufferData, x: int, y: int, nb: NeighborPixel,
+    can: PathReservoir, prev: PathReservoir, c_j: float, s_cj: PathShiftResult, s_t: PathShiftResult, res: PathReservoir,
+) -> PathReservoir:
+    """ReSTCV: GRIS's temporal reservoir carrying Eq. 6's estimate (Listing 1 lines 21–22)."""
+    out = res
+    out.estimate = temporal_estimate(o, g, g_prev, x, y, nb, can, prev, c_j, s_cj, s_t)
+    return out
+
+
+@wp.func
+def stcv_temporal(
+    o: CVOptions, g: GBufferData, g_prev: GBufferData, x: int, y: int, nb: NeighborPixel,
+    can: PathReservoir, prev: PathReservoir, c_j: float, s_cj: PathShiftResult, s_t: PathShiftResult, res: PathReservoir,
+) -> PathReservoir:
+    """STCV: the canonical sample carrying Eq. 6's estimate."""
+    return canonical_with(can, temporal_estimate(o, g, g_prev, x, y, nb, can, prev, c_j, s_cj, s_t), res.res.confidence)
 
 
 # ---- spatial reuse ----
@@ -188,9 +228,17 @@ def spatial_add(
 
 
 @wp.func
-def spatial_value(s: SpatialCV) -> wp.vec3:
-    """⟨F_i⟩ = Σ q ⟨F_i⟩_{←j} / Σ q (seed 002, Eq. 8; Listing 1 line 29)."""
-    return cv_composite_value(s.composite)
+def restcv_spatial_end(s: SpatialCV, can: PathReservoir, res: PathReservoir) -> PathReservoir:
+    """ReSTCV: GRIS's spatial reservoir carrying ⟨F_i⟩ = Σ q ⟨F_i⟩_{←j} / Σ q (seed 002, Eq. 8; Listing 1 line 29)."""
+    out = res
+    out.estimate = cv_composite_value(s.composite)
+    return out
+
+
+@wp.func
+def stcv_spatial_end(s: SpatialCV, can: PathReservoir, res: PathReservoir) -> PathReservoir:
+    """STCV: the canonical sample carrying Eq. 8's estimate."""
+    return canonical_with(can, cv_composite_value(s.composite), res.res.confidence)
 
 
 # ---- shading ----
@@ -202,13 +250,14 @@ def shade(direct: wp.vec3, pr: PathReservoir) -> wp.vec3:
 
 RESTCV_HOOKS = PixelEstimateHooks(
     owner=__name__,
-    temporal=temporal_estimate,
+    temporal=restcv_temporal,
     spatial_begin=spatial_begin,
     spatial_keep=spatial_keep,
     spatial_add=spatial_add,
-    spatial_value=spatial_value,
+    spatial_end=restcv_spatial_end,
     shade=shade,
 )
+STCV_HOOKS = dataclasses.replace(RESTCV_HOOKS, owner=__name__ + ".stcv", temporal=stcv_temporal, spatial_end=stcv_spatial_end)
 
 
 @kernel_cache
@@ -217,14 +266,20 @@ def make_restcv_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     return build_restir_pt_kernels(kinds, RESTCV_HOOKS)
 
 
+@kernel_cache
+def make_stcv_kernels(kinds: frozenset[int]) -> dict[str, Any]:
+    """ReSTIR PT's passes with STCV's estimate compiled in (canonical samples kept), for ``kinds`` (cached)."""
+    return build_restir_pt_kernels(kinds, STCV_HOOKS)
+
+
 class ReSTCV(ReSTIRPT):
     """ReSTCV over a built scene: ReSTIR PT's passes carrying the control-variate estimate (module docstring)."""
 
     def __init__(self, built: Any, width: int, height: int, *, alpha: str = "heuristic", difference_mis: str = "confidence", **restir_pt: Any) -> None:
         if alpha not in ALPHA_CHOICES or difference_mis not in DIFFERENCE_MIS:
-            raise InvalidParameterError(f"restcv: alpha must be one of {sorted(ALPHA_CHOICES)}, difference_mis one of {sorted(DIFFERENCE_MIS)}")
+            raise InvalidParameterError(f"alpha must be one of {sorted(ALPHA_CHOICES)}, difference_mis one of {sorted(DIFFERENCE_MIS)}")
         if restir_pt.get("neighbors", 3) > CV_NEIGHBORS_MAX:
-            raise InvalidParameterError(f"restcv takes at most {CV_NEIGHBORS_MAX} neighbours")
+            raise InvalidParameterError(f"the control variates take at most {CV_NEIGHBORS_MAX} neighbours")
         super().__init__(built, width, height, **restir_pt)
         self.alpha = alpha
         self.difference_mis = difference_mis
@@ -234,22 +289,48 @@ class ReSTCV(ReSTIRPT):
         return make_restcv_kernels(kinds)
 
 
+class STCV(ReSTCV):
+    """The STCV baseline: the same control variates, differences from each frame's own samples (module docstring)."""
+
+    def __init__(self, built: Any, width: int, height: int, *, alpha: str = "heuristic", difference_mis: str = "balance", **restir_pt: Any) -> None:
+        super().__init__(built, width, height, alpha=alpha, difference_mis=difference_mis, **restir_pt)
+
+    def make_kernels(self, kinds: frozenset[int]) -> dict[str, Any]:
+        return make_stcv_kernels(kinds)
+
+
 def create_restcv(ctx: Any) -> ReSTCV:
     return create_renderer(ReSTCV, ctx)
 
 
-# ---- registration (grisx.render.base.registry): restir-pt's params and defaults, plus the CV's ----
+def create_stcv(ctx: Any) -> STCV:
+    return create_renderer(STCV, ctx)
+
+
+def _cv_params(cls: type) -> tuple[Param, ...]:
+    """restir-pt's params and defaults (the same shifts, reuse and depth), plus the control variates' own."""
+    return METHODS["restir-pt"].params + renderer_params(
+        cls,
+        Param("alpha", ..., "CV coefficient: heuristic (Eq. 9's min(rho_i/rho_j, 2) per channel), one, or sample (biased: rho from the samples)", kind="choice", choices=tuple(ALPHA_CHOICES)),
+        Param("difference_mis", ..., "weights of Eq. 10: confidence (Eq. 11), balance (Eq. 11 with M = 1) or none (biased: omega = 1)", kind="choice", choices=tuple(DIFFERENCE_MIS)),
+    )
+
+
+# ---- registration (grisx.render.base.registry) ----
 
 register(
     RenderMethod(
         "restcv",
         "ReSTCV (Shi et al. 2026): ReSTIR PT shading an accumulated colour estimate with spatio-temporal control variates",
         create_restcv,
-        params=METHODS["restir-pt"].params
-        + renderer_params(
-            ReSTCV,
-            Param("alpha", ..., "CV coefficient: heuristic (Eq. 9's min(rho_i/rho_j, 2) per channel), one, or sample (biased: rho from the samples)", kind="choice", choices=tuple(ALPHA_CHOICES)),
-            Param("difference_mis", ..., "weights of Eq. 10: confidence (Eq. 11), balance (Eq. 11 with M = 1) or none (biased: omega = 1)", kind="choice", choices=tuple(DIFFERENCE_MIS)),
-        ),
+        params=_cv_params(ReSTCV),
+    )
+)
+register(
+    RenderMethod(
+        "stcv",
+        "STCV (Shi et al. 2026, Sec. 5.1): spatio-temporal control variates with differences from each frame's own samples, no resampling",
+        create_stcv,
+        params=_cv_params(STCV),
     )
 )

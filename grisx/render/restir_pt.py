@@ -147,12 +147,13 @@ class PixelEstimateHooks:
     shifts the pass evaluates for GRIS anyway (ReSTCV, :mod:`grisx.render.restcv`: seed 002, Listing 1).
     The passes call, with ``o`` the run's :class:`~grisx.theory.control_variate.CVOptions`:
 
-    * ``temporal(o, g, g_prev, x, y, nb, can, prev, c_j, s_cj, s_t) -> vec3``: the temporal pass's
-      estimate from the canonical reservoir, the history ``prev`` (confidence c_j after the cap),
-      T_{i→j}(y_c) = ``s_cj`` and T_{j→i}(y_prev) = ``s_t``;
+    * ``temporal(o, g, g_prev, x, y, nb, can, prev, c_j, s_cj, s_t, res) -> PathReservoir``: what the
+      temporal pass stores, from the canonical reservoir, the history ``prev`` (confidence c_j after
+      the cap), T_{i→j}(y_c) = ``s_cj``, T_{j→i}(y_prev) = ``s_t`` and GRIS's result ``res``;
     * ``spatial_begin(o, can) -> state``, ``spatial_keep(state, j, s_cq) -> state`` (T_{i→q}(y_c),
       from the canonical MIS loop), ``spatial_add(o, state, g, x, y, nb, can, other, j, s_qi) -> state``
-      (neighbour j's reservoir and T_{q→i}(y_q), from the merge loop) and ``spatial_value(state) -> vec3``;
+      (neighbour j's reservoir and T_{q→i}(y_q), from the merge loop) and
+      ``spatial_end(state, can, res) -> PathReservoir``: what the spatial pass stores;
     * ``shade(direct, pr) -> vec3``: the pixel value.
 
     ``owner`` names the Warp modules of the variant's kernels.
@@ -163,7 +164,7 @@ class PixelEstimateHooks:
     spatial_begin: Any
     spatial_keep: Any
     spatial_add: Any
-    spatial_value: Any
+    spatial_end: Any
     shade: Any
 
 
@@ -184,7 +185,7 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
     est_spatial_begin = None if hooks is None else hooks.spatial_begin
     est_spatial_keep = None if hooks is None else hooks.spatial_keep
     est_spatial_add = None if hooks is None else hooks.spatial_add
-    est_spatial_value = None if hooks is None else hooks.spatial_value
+    est_spatial_end = None if hooks is None else hooks.spatial_end
     est_shade = None if hooks is None else hooks.shade
 
     # ---- primary vertices ----
@@ -280,7 +281,7 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
             sel = s_t.path
         res = path_reservoir(r, sel)
         if wp.static(est is not None):
-            res.estimate = est_temporal(cvo, g, g_prev, x, y, nb, can, prev, c_j, s_cj, s_t)
+            res = est_temporal(cvo, g, g_prev, x, y, nb, can, prev, c_j, s_cj, s_t, res)
         out[y, x] = res
 
     # ---- spatial reuse ----
@@ -351,7 +352,7 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
                 sel = s.path
         res = path_reservoir(r, sel)
         if wp.static(est is not None):
-            res.estimate = est_spatial_value(state)
+            res = est_spatial_end(state, can, res)
         out[y, x] = res
 
     # ---- shading ----

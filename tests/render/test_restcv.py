@@ -1,4 +1,4 @@
-"""ReSTCV against the reference path tracer (CPU, 16×16 images, independent runs, fixed seeds).
+"""ReSTCV and the STCV baseline against the reference path tracer (CPU, 16×16 images, independent runs, fixed seeds).
 
 The check is the one every reuse renderer takes (:mod:`reuse_checks`, built on
 :func:`grisx.testing.reuse_unbiasedness_test`): independent runs, each its own seed and history,
@@ -41,9 +41,10 @@ def _frames(camera: str) -> int:
 
 
 @pytest.mark.parametrize("scene,camera,params", CASES, ids=IDS)
-def test_unbiased_against_the_path_tracer(scene, camera, params):
-    result = check("restcv", params, scene=scene, camera=camera, frames=_frames(camera), runs=64)
-    print(scene, camera, "image z", result.image.z, result.blocks)
+@pytest.mark.parametrize("method", ["restcv", "stcv"])
+def test_unbiased_against_the_path_tracer(method, scene, camera, params):
+    result = check(method, params, scene=scene, camera=camera, frames=_frames(camera), runs=64)
+    print(method, scene, camera, "image z", result.image.z, result.blocks)
     assert result.passed, result
 
 
@@ -66,17 +67,18 @@ def test_ablations_stay_unbiased(scene, params):
 
 
 @pytest.mark.parametrize(
-    "scene,params,runs",
+    "method,scene,params,runs",
     [
-        ("red-green-lights", {"alpha": "sample"}, 64),
-        ("closed-room", {"alpha": "sample", "max_depth": 32}, 64),
-        ("red-green-lights", {"difference_mis": "none"}, 128),
+        ("restcv", "red-green-lights", {"alpha": "sample"}, 64),
+        ("restcv", "closed-room", {"alpha": "sample", "max_depth": 32}, 64),
+        ("restcv", "red-green-lights", {"difference_mis": "none"}, 128),
+        ("stcv", "red-green-lights", {"alpha": "sample"}, 64),
     ],
-    ids=["alpha-from-samples-red-green", "alpha-from-samples-closed-room", "no-difference-mis-red-green"],
+    ids=["alpha-from-samples-red-green", "alpha-from-samples-closed-room", "no-difference-mis-red-green", "stcv-alpha-from-samples"],
 )
-def test_biased_siblings_are_caught(scene, params, runs):
-    result = check("restcv", params, scene=scene, camera="static", frames=4, runs=runs, k=BIASED_K)
-    print(scene, params, "image z", result.image.z, result.blocks)
+def test_biased_siblings_are_caught(method, scene, params, runs):
+    result = check(method, params, scene=scene, camera="static", frames=4, runs=runs, k=BIASED_K)
+    print(method, scene, params, "image z", result.image.z, result.blocks)
     assert not result.passed, result
 
 
@@ -103,11 +105,11 @@ def test_colour_noise_is_lower_than_restir_pts():
     # resolution and frames.)
     seeds = range(8)
     noise = {}
-    for method in ("restir-pt", "restcv"):
+    for method in ("restir-pt", "restcv", "stcv"):
         images = _last_frames(method, seeds)[:, 16:]
         noise[method] = float((images[..., 0] - images[..., 1]).var(axis=0, ddof=1).mean())
     print("red-green variance per pixel", noise)
-    assert noise["restcv"] < 0.7 * noise["restir-pt"], noise
+    assert noise["restcv"] < 0.7 * noise["restir-pt"] and noise["stcv"] < 0.7 * noise["restir-pt"], noise
 
 
 # ---- robustness and params ----------------------------------------------------------------------------
@@ -123,8 +125,9 @@ def test_same_seed_same_image_other_seed_other_image():
 
 
 def test_params_are_checked_and_shared_with_restir_pt():
-    names = {p.name for p in METHODS["restcv"].params}
-    assert {p.name for p in METHODS["restir-pt"].params} <= names and {"alpha", "difference_mis"} <= names
+    for method in ("restcv", "stcv"):
+        names = {p.name for p in METHODS[method].params}
+        assert {p.name for p in METHODS["restir-pt"].params} <= names and {"alpha", "difference_mis"} <= names
     with pytest.raises(InvalidParameterError, match="alpha"):
         render("red-green-lights", "restcv", res=(8, 8), params={"alpha": "two"})
     with pytest.raises(InvalidParameterError, match="candidates"):
@@ -133,7 +136,10 @@ def test_params_are_checked_and_shared_with_restir_pt():
 
 def test_every_builtin_scene_renders_finite():
     for name in BUILTIN_SCENES:
-        r = render(name, "restcv", frames=3, accumulate=True, res=(8, 8), seed=2, params={"radius": 4})
-        assert np.all(np.isfinite(r.image)), name
-        assert r.settings["nonfinite_samples"] == 0, name
-        assert r.image.mean() > 0.0, name
+        built = load_scene(name).build("cpu")
+        for method in ("restcv", "stcv"):
+            params = {**method_params(method, {"radius": 4}), "spp": 1}
+            r = METHODS[method].create(RenderContext(built, 8, 8, params, 2, None, method))
+            total = sum(r.render_frame(f).numpy().astype(np.float64) for f in range(3))
+            assert np.all(np.isfinite(total)) and r.nonfinite_samples == 0, (name, method)
+            assert total.mean() > 0.0, (name, method)

@@ -46,6 +46,8 @@ VOCABULARY = {
     "spatial_rounds": ("int", "rounds of spatial reuse per frame"),
     "rough_threshold": ("float", "hybrid shift: vertices rougher than this may be reconnected"),
     "near_field": ("float", "hybrid shift: reconnection segments must be longer than this fraction of the scene radius"),
+    "alpha": ("choice", "control-variate coefficient: heuristic (seed 002, Eq. 9), one, or the biased sample"),
+    "difference_mis": ("choice", "MIS weights of the control variates' difference estimator (seed 002, Eq. 10-11)"),
 }
 #: names that mean one of the above and must not be used for it
 SYNONYMS = {
