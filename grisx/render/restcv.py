@@ -46,7 +46,8 @@ frame after frame, by induction.
 Eq. 9's ρ from the samples themselves — ρ_i = f(y_i) W_i, the current reservoir's own
 one-sample estimate, and ρ_j = ⟨F_j⟩ — so α correlates with the difference it multiplies;
 ``difference_mis=none`` drops Eq. 11 (ω = 1 on both sides: each pair's difference counted twice).
-``difference_mis=balance`` is Eq. 11 with M = 1 (still unbiased).
+``difference_mis=balance`` is Eq. 11 with M = 1 (still unbiased); ``temporal_cv=false`` /
+``spatial_cv=false`` switch one composite off while ReSTIR PT's reuse runs on (still unbiased).
 
 **STCV** (``stcv``, Sec. 5.1, the baseline without ReSTIR): the same passes and composites, but every
 pixel keeps its own frame's sample — the canonical reservoir's path y_i, drawn by RIS among the
@@ -159,7 +160,9 @@ def temporal_estimate(
     o: CVOptions, g: GBufferData, g_prev: GBufferData, x: int, y: int, nb: NeighborPixel,
     can: PathReservoir, prev: PathReservoir, c_j: float, s_cj: PathShiftResult, s_t: PathShiftResult,
 ) -> wp.vec3:
-    """Eq. 6: ⟨F_i⟩_init (q_init = 1) with the previous frame's ⟨F_i⟩_{←j} (q_j = M_j ≤ 20)."""
+    """Eq. 6: ⟨F_i⟩_init (q_init = 1) with the previous frame's ⟨F_i⟩_{←j} (q_j = M_j ≤ 20); ⟨F_i⟩_init alone without temporal CV."""
+    if o.temporal == 0:
+        return can.estimate
     alpha = pair_alpha(o, g.albedo[y, x], g_prev.albedo[nb.y, nb.x], can, prev.estimate)
     c = cv_composite_add(cv_composite_empty(), can.estimate, Q_INIT)
     from_j = from_pixel(o, alpha, can, prev, c_j, s_cj.path.f, s_cj.jacobian, s_t.path.f, s_t.jacobian)
@@ -219,7 +222,7 @@ def spatial_add(
 ) -> SpatialCV:
     """Add q_j ⟨F_i⟩_{←j} of neighbour ``j`` (seed 002, Eq. 7–8) with T_{q→i}(y_q) from the merge loop."""
     out = s
-    if j < _KEPT_MAX:
+    if j < _KEPT_MAX and o.spatial != 0:
         alpha = pair_alpha(o, g.albedo[y, x], g.albedo[nb.y, nb.x], can, other.estimate)
         f_q_yi = wp.vec3(s.f_to[j, 0], s.f_to[j, 1], s.f_to[j, 2])
         from_j = from_pixel(o, alpha, can, other, other.res.confidence, f_q_yi, s.jacobian_to[j], s_qi.path.f, s_qi.jacobian)
@@ -275,7 +278,10 @@ def make_stcv_kernels(kinds: frozenset[int]) -> dict[str, Any]:
 class ReSTCV(ReSTIRPT):
     """ReSTCV over a built scene: ReSTIR PT's passes carrying the control-variate estimate (module docstring)."""
 
-    def __init__(self, built: Any, width: int, height: int, *, alpha: str = "heuristic", difference_mis: str = "confidence", **restir_pt: Any) -> None:
+    def __init__(
+        self, built: Any, width: int, height: int, *, alpha: str = "heuristic", difference_mis: str = "confidence",
+        temporal_cv: bool = True, spatial_cv: bool = True, **restir_pt: Any,
+    ) -> None:
         if alpha not in ALPHA_CHOICES or difference_mis not in DIFFERENCE_MIS:
             raise InvalidParameterError(f"alpha must be one of {sorted(ALPHA_CHOICES)}, difference_mis one of {sorted(DIFFERENCE_MIS)}")
         if restir_pt.get("neighbors", 3) > CV_NEIGHBORS_MAX:
@@ -283,7 +289,7 @@ class ReSTCV(ReSTIRPT):
         super().__init__(built, width, height, **restir_pt)
         self.alpha = alpha
         self.difference_mis = difference_mis
-        self.cv_options = cv_options(ALPHA_CHOICES[alpha], DIFFERENCE_MIS[difference_mis])
+        self.cv_options = cv_options(ALPHA_CHOICES[alpha], DIFFERENCE_MIS[difference_mis], temporal_cv, spatial_cv)
 
     def make_kernels(self, kinds: frozenset[int]) -> dict[str, Any]:
         return make_restcv_kernels(kinds)
@@ -292,8 +298,11 @@ class ReSTCV(ReSTIRPT):
 class STCV(ReSTCV):
     """The STCV baseline: the same control variates, differences from each frame's own samples (module docstring)."""
 
-    def __init__(self, built: Any, width: int, height: int, *, alpha: str = "heuristic", difference_mis: str = "balance", **restir_pt: Any) -> None:
-        super().__init__(built, width, height, alpha=alpha, difference_mis=difference_mis, **restir_pt)
+    def __init__(
+        self, built: Any, width: int, height: int, *, alpha: str = "heuristic", difference_mis: str = "balance",
+        temporal_cv: bool = True, spatial_cv: bool = True, **restir_pt: Any,
+    ) -> None:
+        super().__init__(built, width, height, alpha=alpha, difference_mis=difference_mis, temporal_cv=temporal_cv, spatial_cv=spatial_cv, **restir_pt)
 
     def make_kernels(self, kinds: frozenset[int]) -> dict[str, Any]:
         return make_stcv_kernels(kinds)
@@ -313,6 +322,8 @@ def _cv_params(cls: type) -> tuple[Param, ...]:
         cls,
         Param("alpha", ..., "CV coefficient: heuristic (Eq. 9's min(rho_i/rho_j, 2) per channel), one, or sample (biased: rho from the samples)", kind="choice", choices=tuple(ALPHA_CHOICES)),
         Param("difference_mis", ..., "weights of Eq. 10: confidence (Eq. 11), balance (Eq. 11 with M = 1) or none (biased: omega = 1)", kind="choice", choices=tuple(DIFFERENCE_MIS)),
+        Param("temporal_cv", ..., "temporal control variates (Eq. 6); false: the temporal pass keeps the frame's own estimate", kind="bool"),
+        Param("spatial_cv", ..., "spatial control variates (Eq. 8); false: the spatial pass keeps its input estimate", kind="bool"),
     )
 
 

@@ -55,8 +55,10 @@ def test_unbiased_against_the_path_tracer(method, scene, camera, params):
         ("red-green-lights", {"spatial_rounds": 0}),  # temporal control variates alone (Eq. 6)
         ("red-green-lights", {"difference_mis": "balance", "spatial_rounds": 2, "neighbors": 5}),  # Eq. 11 with M = 1
         ("cornell-box", {"alpha": "one"}),  # Fig. 3's ablation, where albedos differ
+        ("red-green-lights", {"temporal_cv": False}),  # ReSTIR PT's temporal reuse on, its composite off
+        ("red-green-lights", {"spatial_cv": False}),
     ],
-    ids=["spatial-only", "temporal-only", "balance-two-rounds", "alpha-one"],
+    ids=["spatial-only", "temporal-only", "balance-two-rounds", "alpha-one", "no-temporal-cv", "no-spatial-cv"],
 )
 def test_ablations_stay_unbiased(scene, params):
     result = check("restcv", params, scene=scene, camera="static", frames=4, runs=64)

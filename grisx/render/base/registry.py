@@ -48,6 +48,8 @@ VOCABULARY = {
     "near_field": ("float", "hybrid shift: reconnection segments must be longer than this fraction of the scene radius"),
     "alpha": ("choice", "control-variate coefficient: heuristic (seed 002, Eq. 9), one, or the biased sample"),
     "difference_mis": ("choice", "MIS weights of the control variates' difference estimator (seed 002, Eq. 10-11)"),
+    "temporal_cv": ("bool", "temporal control variates (seed 002, Eq. 6) on or off"),
+    "spatial_cv": ("bool", "spatial control variates (seed 002, Eq. 8) on or off"),
 }
 #: names that mean one of the above and must not be used for it
 SYNONYMS = {
