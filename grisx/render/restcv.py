@@ -80,9 +80,8 @@ from grisx.errors import InvalidParameterError
 from grisx.params import Param
 from grisx.render.base.path_shift import PathReservoir, PathShiftResult
 from grisx.render.base.registry import METHODS, RenderMethod, create_renderer, register, renderer_params
-from grisx.render.base.reuse import NeighborPixel
 from grisx.render.base.screen import kernel_cache
-from grisx.render.restir_pt import PixelEstimateHooks, ReSTIRPT, build_restir_pt_kernels
+from grisx.render.restir_pt import PixelEstimateHooks, ReSTIRPT, SpatialStep, TemporalStep, build_restir_pt_kernels, shade_estimate
 from grisx.scene.gbuffer import GBufferData
 from grisx.theory.control_variate import (
     ALPHA_HEURISTIC,
@@ -156,38 +155,29 @@ def canonical_with(can: PathReservoir, estimate: wp.vec3, confidence: float) -> 
 
 # ---- temporal reuse ----
 @wp.func
-def temporal_estimate(
-    o: CVOptions, g: GBufferData, g_prev: GBufferData, x: int, y: int, nb: NeighborPixel,
-    can: PathReservoir, prev: PathReservoir, c_j: float, s_cj: PathShiftResult, s_t: PathShiftResult,
-) -> wp.vec3:
+def temporal_estimate(o: CVOptions, g: GBufferData, g_prev: GBufferData, t: TemporalStep) -> wp.vec3:
     """Eq. 6: ⟨F_i⟩_init (q_init = 1) with the previous frame's ⟨F_i⟩_{←j} (q_j = M_j ≤ 20); ⟨F_i⟩_init alone without temporal CV."""
     if o.temporal == 0:
-        return can.estimate
-    alpha = pair_alpha(o, g.albedo[y, x], g_prev.albedo[nb.y, nb.x], can, prev.estimate)
-    c = cv_composite_add(cv_composite_empty(), can.estimate, Q_INIT)
-    from_j = from_pixel(o, alpha, can, prev, c_j, s_cj.path.f, s_cj.jacobian, s_t.path.f, s_t.jacobian)
-    c = cv_composite_add(c, from_j, compositing_weight(c_j))  # seed 002, Eq. 6
+        return t.can.estimate
+    alpha = pair_alpha(o, g.albedo[t.y, t.x], g_prev.albedo[t.nb.y, t.nb.x], t.can, t.prev.estimate)
+    c = cv_composite_add(cv_composite_empty(), t.can.estimate, Q_INIT)
+    from_j = from_pixel(o, alpha, t.can, t.prev, t.c_j, t.s_cj.path.f, t.s_cj.jacobian, t.s_t.path.f, t.s_t.jacobian)
+    c = cv_composite_add(c, from_j, compositing_weight(t.c_j))  # seed 002, Eq. 6
     return cv_composite_value(c)
 
 
 @wp.func
-def restcv_temporal(
-    o: CVOptions, g: GBufferData, g_prev: GBufferData, x: int, y: int, nb: NeighborPixel,
-    can: PathReservoir, prev: PathReservoir, c_j: float, s_cj: PathShiftResult, s_t: PathShiftResult, res: PathReservoir,
-) -> PathReservoir:
+def restcv_temporal(o: CVOptions, g: GBufferData, g_prev: GBufferData, t: TemporalStep, res: PathReservoir) -> PathReservoir:
     """ReSTCV: GRIS's temporal reservoir carrying Eq. 6's estimate (Listing 1 lines 21–22)."""
     out = res
-    out.estimate = temporal_estimate(o, g, g_prev, x, y, nb, can, prev, c_j, s_cj, s_t)
+    out.estimate = temporal_estimate(o, g, g_prev, t)
     return out
 
 
 @wp.func
-def stcv_temporal(
-    o: CVOptions, g: GBufferData, g_prev: GBufferData, x: int, y: int, nb: NeighborPixel,
-    can: PathReservoir, prev: PathReservoir, c_j: float, s_cj: PathShiftResult, s_t: PathShiftResult, res: PathReservoir,
-) -> PathReservoir:
+def stcv_temporal(o: CVOptions, g: GBufferData, g_prev: GBufferData, t: TemporalStep, res: PathReservoir) -> PathReservoir:
     """STCV: the canonical sample carrying Eq. 6's estimate."""
-    return canonical_with(can, temporal_estimate(o, g, g_prev, x, y, nb, can, prev, c_j, s_cj, s_t), res.res.confidence)
+    return canonical_with(t.can, temporal_estimate(o, g, g_prev, t), res.res.confidence)
 
 
 # ---- spatial reuse ----
@@ -216,22 +206,21 @@ def spatial_keep(s: SpatialCV, j: int, s_cq: PathShiftResult) -> SpatialCV:
 
 
 @wp.func
-def spatial_add(
-    o: CVOptions, s: SpatialCV, g: GBufferData, x: int, y: int, nb: NeighborPixel,
-    can: PathReservoir, other: PathReservoir, j: int, s_qi: PathShiftResult,
-) -> SpatialCV:
+def spatial_add(o: CVOptions, s: SpatialCV, g: GBufferData, st: SpatialStep) -> SpatialCV:
     """Add q_j ⟨F_i⟩_{←j} of neighbour ``j`` (seed 002, Eq. 7–8) with T_{q→i}(y_q) from the merge loop."""
     out = s
+    j = st.j
     if j < _KEPT_MAX and o.spatial != 0:
-        alpha = pair_alpha(o, g.albedo[y, x], g.albedo[nb.y, nb.x], can, other.estimate)
+        alpha = pair_alpha(o, g.albedo[st.y, st.x], g.albedo[st.nb.y, st.nb.x], st.can, st.other.estimate)
         f_q_yi = wp.vec3(s.f_to[j, 0], s.f_to[j, 1], s.f_to[j, 2])
-        from_j = from_pixel(o, alpha, can, other, other.res.confidence, f_q_yi, s.jacobian_to[j], s_qi.path.f, s_qi.jacobian)
-        out.composite = cv_composite_add(s.composite, from_j, compositing_weight(other.res.confidence))
+        conf_j = st.other.res.confidence
+        from_j = from_pixel(o, alpha, st.can, st.other, conf_j, f_q_yi, s.jacobian_to[j], st.s_qi.path.f, st.s_qi.jacobian)
+        out.composite = cv_composite_add(s.composite, from_j, compositing_weight(conf_j))
     return out
 
 
 @wp.func
-def restcv_spatial_end(s: SpatialCV, can: PathReservoir, res: PathReservoir) -> PathReservoir:
+def restcv_spatial_end(s: SpatialCV, can: PathReservoir, m_c: float, res: PathReservoir) -> PathReservoir:
     """ReSTCV: GRIS's spatial reservoir carrying ⟨F_i⟩ = Σ q ⟨F_i⟩_{←j} / Σ q (seed 002, Eq. 8; Listing 1 line 29)."""
     out = res
     out.estimate = cv_composite_value(s.composite)
@@ -239,18 +228,12 @@ def restcv_spatial_end(s: SpatialCV, can: PathReservoir, res: PathReservoir) -> 
 
 
 @wp.func
-def stcv_spatial_end(s: SpatialCV, can: PathReservoir, res: PathReservoir) -> PathReservoir:
+def stcv_spatial_end(s: SpatialCV, can: PathReservoir, m_c: float, res: PathReservoir) -> PathReservoir:
     """STCV: the canonical sample carrying Eq. 8's estimate."""
     return canonical_with(can, cv_composite_value(s.composite), res.res.confidence)
 
 
-# ---- shading ----
-@wp.func
-def shade(direct: wp.vec3, pr: PathReservoir) -> wp.vec3:
-    """L_e(x₁) + ⟨F_i⟩ (seed 002, Listing 1 line 44)."""
-    return direct + pr.estimate
-
-
+# ---- shading: L_e(x₁) + ⟨F_i⟩; the hooks into ReSTIR PT's passes ----
 RESTCV_HOOKS = PixelEstimateHooks(
     owner=__name__,
     temporal=restcv_temporal,
@@ -258,7 +241,7 @@ RESTCV_HOOKS = PixelEstimateHooks(
     spatial_keep=spatial_keep,
     spatial_add=spatial_add,
     spatial_end=restcv_spatial_end,
-    shade=shade,
+    shade=shade_estimate,  # L_e(x₁) + ⟨F_i⟩ (seed 002, Listing 1 line 44)
 )
 STCV_HOOKS = dataclasses.replace(RESTCV_HOOKS, owner=__name__ + ".stcv", temporal=stcv_temporal, spatial_end=stcv_spatial_end)
 

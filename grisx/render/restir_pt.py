@@ -77,6 +77,7 @@ from grisx.render.base.path_shift import (
     Domain,
     PathReservoir,
     PathSample,
+    PathShiftResult,
     ShiftParams,
     make_path_shift,
     path_sample_empty,
@@ -107,7 +108,7 @@ from grisx.theory.reservoir import Reservoir, confidence_capped, reservoir_empty
 
 wp.set_module_options({"enable_backward": False})
 
-__all__ = ["PathReservoir", "path_reservoir", "ReSTIRPT", "create_restir_pt", "make_restir_pt_kernels", "build_restir_pt_kernels", "PixelEstimateHooks"]
+__all__ = ["PathReservoir", "path_reservoir", "ReSTIRPT", "create_restir_pt", "make_restir_pt_kernels", "build_restir_pt_kernels", "PixelEstimateHooks", "TemporalStep", "SpatialStep", "shade_estimate"]
 
 # random streams of a pixel (pixel_key_of: the base's one key scheme; the camera sample has its own key)
 _STREAM_RESAMPLE = wp.constant(1)
@@ -139,6 +140,39 @@ def _spatial_candidate(
     return nb
 
 
+@wp.struct
+class TemporalStep:
+    """What the temporal pass evaluated for pixel (x, y) and its history pixel ``nb``: the canonical
+    reservoir, the history ``prev`` (its confidence c_j after the cap), T_{i→j}(y_c) = ``s_cj``,
+    T_{j→i}(y_prev) = ``s_t`` and the two candidates' MIS weights."""
+
+    x: int
+    y: int
+    nb: NeighborPixel
+    can: PathReservoir
+    prev: PathReservoir
+    c_j: float
+    s_cj: PathShiftResult
+    s_t: PathShiftResult
+    m_c: float
+    m_t: float
+
+
+@wp.struct
+class SpatialStep:
+    """What the spatial pass evaluated for pixel (x, y) and its ``j``-th neighbour ``nb``: the canonical
+    reservoir, the neighbour's ``other``, T_{q→i}(y_q) = ``s_qi`` and its MIS weight."""
+
+    x: int
+    y: int
+    nb: NeighborPixel
+    j: int
+    can: PathReservoir
+    other: PathReservoir
+    s_qi: PathShiftResult
+    m_q: float
+
+
 @dataclasses.dataclass(frozen=True)
 class PixelEstimateHooks:
     """Warp funcs with which a variant of ReSTIR PT's passes carries its own pixel estimate.
@@ -147,13 +181,12 @@ class PixelEstimateHooks:
     shifts the pass evaluates for GRIS anyway (ReSTCV, :mod:`grisx.render.restcv`: seed 002, Listing 1).
     The passes call, with ``o`` the run's :class:`~grisx.theory.control_variate.CVOptions`:
 
-    * ``temporal(o, g, g_prev, x, y, nb, can, prev, c_j, s_cj, s_t, res) -> PathReservoir``: what the
-      temporal pass stores, from the canonical reservoir, the history ``prev`` (confidence c_j after
-      the cap), T_{i→j}(y_c) = ``s_cj``, T_{j→i}(y_prev) = ``s_t`` and GRIS's result ``res``;
+    * ``temporal(o, g, g_prev, t: TemporalStep, res) -> PathReservoir``: what the temporal pass
+      stores, given what it evaluated and GRIS's result ``res``;
     * ``spatial_begin(o, can) -> state``, ``spatial_keep(state, j, s_cq) -> state`` (T_{i→q}(y_c),
-      from the canonical MIS loop), ``spatial_add(o, state, g, x, y, nb, can, other, j, s_qi) -> state``
-      (neighbour j's reservoir and T_{q→i}(y_q), from the merge loop) and
-      ``spatial_end(state, can, res) -> PathReservoir``: what the spatial pass stores;
+      from the canonical MIS loop), ``spatial_add(o, state, g, st: SpatialStep) -> state`` (each
+      neighbour, from the merge loop) and ``spatial_end(state, can, m_c, res) -> PathReservoir``:
+      what the spatial pass stores;
     * ``shade(direct, pr) -> vec3``: the pixel value.
 
     ``owner`` names the Warp modules of the variant's kernels.
@@ -166,6 +199,12 @@ class PixelEstimateHooks:
     spatial_add: Any
     spatial_end: Any
     shade: Any
+
+
+@wp.func
+def shade_estimate(direct: wp.vec3, pr: PathReservoir) -> wp.vec3:
+    """A variant's pixel value: L_e(x₁) + the estimate its reservoir carries (a ``shade`` hook)."""
+    return direct + pr.estimate
 
 
 @kernel_cache
@@ -281,7 +320,8 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
             sel = s_t.path
         res = path_reservoir(r, sel)
         if wp.static(est is not None):
-            res = est_temporal(cvo, g, g_prev, x, y, nb, can, prev, c_j, s_cj, s_t, res)
+            step = TemporalStep(x=x, y=y, nb=nb, can=can, prev=prev, c_j=c_j, s_cj=s_cj, s_t=s_t, m_c=m_c, m_t=m_t)
+            res = est_temporal(cvo, g, g_prev, step, res)
         out[y, x] = res
 
     # ---- spatial reuse ----
@@ -346,13 +386,13 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
             t_qq = target_back(other.path, s)
             m_q = pairwise_mis_neighbor(other.res.confidence, t_qq, c_c, t_qi, k, total)
             if wp.static(est is not None):
-                state = est_spatial_add(cvo, state, g, x, y, nb, can, other, j, s)
+                state = est_spatial_add(cvo, state, g, SpatialStep(x=x, y=y, nb=nb, j=j, can=can, other=other, s_qi=s, m_q=m_q))
             r = reservoir_merge(r, other.res, m_q, t_qi, s.jacobian, random_uniform(ukey, 101 + ns.slot[j]))  # seed 000, Eq. 9
             if r.selected:
                 sel = s.path
         res = path_reservoir(r, sel)
         if wp.static(est is not None):
-            res = est_spatial_end(state, can, res)
+            res = est_spatial_end(state, can, m_c, res)
         out[y, x] = res
 
     # ---- shading ----

@@ -1,16 +1,19 @@
-"""ReSTCV and the STCV baseline against the reference path tracer (CPU, 16×16 images, independent runs, fixed seeds).
+"""ReSTCV, the STCV baseline and decoupled shading against the reference path tracer (CPU, 16×16 images,
+independent runs, fixed seeds).
 
 The check is the one every reuse renderer takes (:mod:`reuse_checks`, built on
 :func:`grisx.testing.reuse_unbiasedness_test`): independent runs, each its own seed and history,
 z-tested against the path tracer per image and per 8×8 block (Šidák), k = 4; under the static
 camera the runs average their frames, under the camera path the last frame alone is compared
 with the path tracer at that frame's camera. Scenes: seed 002's Fig. 2 setting (``red-green-lights``:
-a white plane under a red and a green light) and the closed bright room at ``max_depth`` 32.
+a white plane under a red and a green light), the closed bright room at ``max_depth`` 32, and the
+lit wall of ``test_path_shift`` whose shift Jacobians are far from 1 (Eq. 10 carries them).
 
 Known-biased siblings fail the same check beyond 6σ: ``alpha=sample`` (Eq. 9's ρ taken from the
 samples themselves, so α correlates with the difference it multiplies) on both scenes, and
 ``difference_mis=none`` (Eq. 10 without Eq. 11's weights) on the red-green plane, whose pixels
-differ enough for each pair's double-counted difference to show.
+differ enough for each pair's double-counted difference to show; and on the lit wall the
+wrong-Jacobian ablation (``jacobian=false``) of ReSTCV and of decoupled shading.
 """
 
 from __future__ import annotations
@@ -18,11 +21,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from reuse_checks import check
+from test_path_shift import lit_wall  # the scene whose Jacobians are far from 1
 
 from grisx.errors import InvalidParameterError
 from grisx.render.driver import METHODS, RenderContext, load_scene, method_params, render
 from grisx.scene.builtin import BUILTIN_SCENES
-from grisx.testing import BIASED_K
+from grisx.testing import BIASED_K, DEFAULT_K
 
 CASES = [
     ("red-green-lights", "static", {}),
@@ -41,7 +45,7 @@ def _frames(camera: str) -> int:
 
 
 @pytest.mark.parametrize("scene,camera,params", CASES, ids=IDS)
-@pytest.mark.parametrize("method", ["restcv", "stcv"])
+@pytest.mark.parametrize("method", ["restcv", "stcv", "restir-pt-decoupled"])
 def test_unbiased_against_the_path_tracer(method, scene, camera, params):
     result = check(method, params, scene=scene, camera=camera, frames=_frames(camera), runs=64)
     print(method, scene, camera, "image z", result.image.z, result.blocks)
@@ -63,6 +67,24 @@ def test_unbiased_against_the_path_tracer(method, scene, camera, params):
 def test_ablations_stay_unbiased(scene, params):
     result = check("restcv", params, scene=scene, camera="static", frames=4, runs=64)
     assert result.passed, result
+
+
+_WALL = {}
+
+
+def _wall():
+    if "wall" not in _WALL:
+        _WALL["wall"] = lit_wall()
+    return _WALL["wall"]
+
+
+@pytest.mark.parametrize("method", ["restcv", "restir-pt-decoupled"])
+@pytest.mark.parametrize("jacobian", [True, False], ids=["jacobian", "no-jacobian-is-caught"])
+def test_jacobians_far_from_one(method, jacobian):
+    result = check(method, {"jacobian": jacobian, "radius": 6.0, "max_depth": 10}, scene=_wall(), camera="static", frames=6, runs=128,
+                   k=DEFAULT_K if jacobian else BIASED_K)
+    print(method, "jacobian", jacobian, "image z", result.image.z, result.blocks)
+    assert result.passed == jacobian, result
 
 
 # ---- the biased siblings are caught by the same check ---------------------------------------------
@@ -107,11 +129,12 @@ def test_colour_noise_is_lower_than_restir_pts():
     # resolution and frames.)
     seeds = range(8)
     noise = {}
-    for method in ("restir-pt", "restcv", "stcv"):
+    for method in ("restir-pt", "restir-pt-decoupled", "restcv", "stcv"):
         images = _last_frames(method, seeds)[:, 16:]
         noise[method] = float((images[..., 0] - images[..., 1]).var(axis=0, ddof=1).mean())
     print("red-green variance per pixel", noise)
     assert noise["restcv"] < 0.7 * noise["restir-pt"] and noise["stcv"] < 0.7 * noise["restir-pt"], noise
+    assert noise["restcv"] < noise["restir-pt-decoupled"] < noise["restir-pt"], noise  # seed 002, Fig. 2 and 7
 
 
 # ---- robustness and params ----------------------------------------------------------------------------
@@ -139,7 +162,7 @@ def test_params_are_checked_and_shared_with_restir_pt():
 def test_every_builtin_scene_renders_finite():
     for name in BUILTIN_SCENES:
         built = load_scene(name).build("cpu")
-        for method in ("restcv", "stcv"):
+        for method in ("restcv", "stcv", "restir-pt-decoupled"):
             params = {**method_params(method, {"radius": 4}), "spp": 1}
             r = METHODS[method].create(RenderContext(built, 8, 8, params, 2, None, method))
             total = sum(r.render_frame(f).numpy().astype(np.float64) for f in range(3))

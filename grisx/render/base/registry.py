@@ -60,7 +60,7 @@ SYNONYMS = {
 }
 
 #: the renderer modules, each of which registers its methods when imported
-PLUGINS = ("grisx.render.views", "grisx.render.pt", "grisx.render.restir_di", "grisx.render.restir_gi", "grisx.render.restir_pt", "grisx.render.restcv")
+PLUGINS = ("grisx.render.views", "grisx.render.pt", "grisx.render.restir_di", "grisx.render.restir_gi", "grisx.render.restir_pt", "grisx.render.restcv", "grisx.render.decoupled")
 
 
 @dataclasses.dataclass
