@@ -357,7 +357,9 @@ for m in curve_methods:
 # ReSTIR PT evaluates for its MIS anyway, and the pixel shows $\langle
 # F\rangle$. It calls `cv_alpha`, `reservoir_difference`, `cv_estimate`,
 # `compositing_weight` and `cv_composite_*` — the functions the toy above ran.
-# `stcv` is the baseline that keeps each frame's own samples.
+# `stcv` is the baseline that keeps each frame's own samples, and
+# `restir-pt-decoupled` shades with every reuse candidate (the same hooks into
+# ReSTIR PT's passes, `decoupled_contribution` from the same module).
 #
 # Below: the built-in scene `red-green-lights` (seed 002, Fig. 2: a white plane
 # under a red and a green light), one frame after 16 frames of history under a
@@ -374,14 +376,14 @@ ref = render("red-green-lights", "pt", spp=64 if QUICK else 512, res=RES, seed=9
 lit = (ref @ LUMA) > 1e-3 * (ref @ LUMA).max()
 lit[: RES[1] // 3] = False  # the plane only: the lights seen directly (top rows) are the same in every method
 renders, noise = {}, {}
-for m in ("restir-pt", "stcv", "restcv"):
+for m in ("restir-pt", "restir-pt-decoupled", "stcv", "restcv"):
     imgs = np.asarray([render("red-green-lights", m, frames=16, res=RES, seed=s, camera="static").image for s in range(RUNS)], dtype=np.float64)
     renders[m] = imgs[0]
     d = chroma(imgs) - chroma(ref)[None]
     noise[m] = float(np.sqrt(np.mean((d[:, lit] ** 2).sum(axis=-1) / (ref[lit] @ LUMA)[None] ** 2)))
-    print(f"{m:10s} colour noise (relative RMS chroma error) {noise[m]:.3f}")
+    print(f"{m:20s} colour noise (relative RMS chroma error) {noise[m]:.3f}")
 scale = np.percentile(ref[lit] @ LUMA, 95) * 2.0
-fig, axes = plt.subplots(1, 4, figsize=(13, 2.8))
+fig, axes = plt.subplots(1, 5, figsize=(16, 2.8))
 for ax, (name, img) in zip(axes, [*renders.items(), ("pt (reference)", ref)]):
     ax.imshow(show(img, scale), interpolation="nearest")
     ax.set_title(name if name not in noise else f"{name}: chroma err {noise[name]:.2f}")
@@ -389,7 +391,8 @@ for ax, (name, img) in zip(axes, [*renders.items(), ("pt (reference)", ref)]):
 save(fig, "07_renderer_red_green.png")
 
 # %% [markdown]
-# ReSTIR PT's pixels are red or green; ReSTCV's and STCV's are the yellow
+# ReSTIR PT's pixels are red or green; decoupled shading mixes the colours of
+# one pass's few candidates only; ReSTCV's and STCV's are the yellow
 # mixture, with most of the colour noise gone, and the tests
 # (`tests/render/test_restcv.py`) check both unbiased against the path tracer
 # per 8×8 block, on this plane and in a closed room at depth 32, under a still
