@@ -386,7 +386,7 @@ scale = np.percentile(ref[lit] @ LUMA, 95) * 2.0
 fig, axes = plt.subplots(1, 5, figsize=(16, 2.8))
 for ax, (name, img) in zip(axes, [*renders.items(), ("pt (reference)", ref)]):
     ax.imshow(show(img, scale), interpolation="nearest")
-    ax.set_title(name if name not in noise else f"{name}: chroma err {noise[name]:.2f}")
+    ax.set_title(name if name not in noise else f"{name}\nchroma error {noise[name]:.2f}", fontsize=9)
     ax.axis("off")
 save(fig, "07_renderer_red_green.png")
 
