@@ -100,9 +100,9 @@ from grisx.render.base.reuse import (
     temporal_neighbor,
 )
 from grisx.scene.scene import SceneData, finite_or_dropped
+from grisx.theory.control_variate import CVOptions, cv_options
 from grisx.theory.gris import resampling_weight
 from grisx.theory.mis import pairwise_mis_canonical_term, pairwise_mis_neighbor, two_domain_balance
-from grisx.theory.control_variate import CVOptions, cv_options
 from grisx.theory.random import random_subkey, random_uniform
 from grisx.theory.reservoir import Reservoir, confidence_capped, reservoir_empty, reservoir_finalize, reservoir_merge, reservoir_update
 
@@ -219,7 +219,7 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
     shift = shifts.shift
     sample_paths = shifts.stream_candidates
     settle = shifts.settle
-    est = hooks  # compiled in only where it is not None (wp.static)
+    est = hooks  # the variant's code is compiled in only where it is not None (wp.static)
     est_temporal = None if hooks is None else hooks.temporal
     est_spatial_begin = None if hooks is None else hooks.spatial_begin
     est_spatial_keep = None if hooks is None else hooks.spatial_keep
