@@ -46,6 +46,12 @@ shifts and the candidate sampler are
 :func:`grisx.render.base.path_shift.make_path_shift`'s. The wrong-Jacobian ablation
 (``jacobian=false``: |J| = 1 in every weight) is biased and the tests show it.
 
+**Variants.** The passes can carry a per-pixel estimate of their own besides the reservoir
+(``PathReservoir.estimate``), formed at each reuse step from the shifts the pass evaluates anyway:
+:class:`PixelEstimateHooks` compiles a variant's Warp funcs into the same kernels
+(:func:`build_restir_pt_kernels`; ReSTCV, :mod:`grisx.render.restcv`, is one). Without hooks the
+kernels are ReSTIR PT's alone.
+
 Temporal reuse evaluates the previous frame's domains with the current
 frame's geometry: exact for static scenes (how accumulation converges),
 an approximation when objects move (as in Lin et al. 2022).
@@ -56,6 +62,7 @@ foundations of ReSTIR", SIGGRAPH 2022; B. Bitterli, PhD thesis (2022), Ch. 9.
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import numpy as np
@@ -70,6 +77,7 @@ from grisx.render.base.path_shift import (
     Domain,
     PathReservoir,
     PathSample,
+    PathShiftResult,
     ShiftParams,
     make_path_shift,
     path_sample_empty,
@@ -92,6 +100,7 @@ from grisx.render.base.reuse import (
     temporal_neighbor,
 )
 from grisx.scene.scene import SceneData, finite_or_dropped
+from grisx.theory.control_variate import CVOptions, cv_options
 from grisx.theory.gris import resampling_weight
 from grisx.theory.mis import pairwise_mis_canonical_term, pairwise_mis_neighbor, two_domain_balance
 from grisx.theory.random import random_subkey, random_uniform
@@ -99,7 +108,7 @@ from grisx.theory.reservoir import Reservoir, confidence_capped, reservoir_empty
 
 wp.set_module_options({"enable_backward": False})
 
-__all__ = ["PathReservoir", "path_reservoir", "ReSTIRPT", "create_restir_pt", "make_restir_pt_kernels"]
+__all__ = ["PathReservoir", "path_reservoir", "ReSTIRPT", "create_restir_pt", "make_restir_pt_kernels", "build_restir_pt_kernels", "PixelEstimateHooks", "TemporalStep", "SpatialStep", "shade_estimate"]
 
 # random streams of a pixel (pixel_key_of: the base's one key scheme; the camera sample has its own key)
 _STREAM_RESAMPLE = wp.constant(1)
@@ -131,18 +140,95 @@ def _spatial_candidate(
     return nb
 
 
+@wp.struct
+class TemporalStep:
+    """What the temporal pass evaluated for pixel (x, y) and its history pixel ``nb``: the canonical
+    reservoir, the history ``prev`` (its confidence c_j after the cap), T_{i→j}(y_c) = ``s_cj``,
+    T_{j→i}(y_prev) = ``s_t`` and the two candidates' MIS weights."""
+
+    x: int
+    y: int
+    nb: NeighborPixel
+    can: PathReservoir
+    prev: PathReservoir
+    c_j: float
+    s_cj: PathShiftResult
+    s_t: PathShiftResult
+    m_c: float
+    m_t: float
+
+
+@wp.struct
+class SpatialStep:
+    """What the spatial pass evaluated for pixel (x, y) and its ``j``-th neighbour ``nb``: the canonical
+    reservoir, the neighbour's ``other``, T_{q→i}(y_q) = ``s_qi`` and its MIS weight."""
+
+    x: int
+    y: int
+    nb: NeighborPixel
+    j: int
+    can: PathReservoir
+    other: PathReservoir
+    s_qi: PathShiftResult
+    m_q: float
+
+
+@dataclasses.dataclass(frozen=True)
+class PixelEstimateHooks:
+    """Warp funcs with which a variant of ReSTIR PT's passes carries its own pixel estimate.
+
+    The estimate lives in ``PathReservoir.estimate`` and is formed, at every reuse step, from the
+    shifts the pass evaluates for GRIS anyway (ReSTCV, :mod:`grisx.render.restcv`: seed 002, Listing 1).
+    The passes call, with ``o`` the run's :class:`~grisx.theory.control_variate.CVOptions`:
+
+    * ``temporal(o, g, g_prev, t: TemporalStep, res) -> PathReservoir``: what the temporal pass
+      stores, given what it evaluated and GRIS's result ``res``;
+    * ``spatial_begin(o, can) -> state``, ``spatial_keep(state, j, s_cq) -> state`` (T_{i→q}(y_c),
+      from the canonical MIS loop), ``spatial_add(o, state, g, st: SpatialStep) -> state`` (each
+      neighbour, from the merge loop) and ``spatial_end(state, can, m_c, res) -> PathReservoir``:
+      what the spatial pass stores;
+    * ``shade(direct, pr) -> vec3``: the pixel value.
+
+    ``owner`` names the Warp modules of the variant's kernels.
+    """
+
+    owner: str
+    temporal: Any
+    spatial_begin: Any
+    spatial_keep: Any
+    spatial_add: Any
+    spatial_end: Any
+    shade: Any
+
+
+@wp.func
+def shade_estimate(direct: wp.vec3, pr: PathReservoir) -> wp.vec3:
+    """A variant's pixel value: L_e(x₁) + the estimate its reservoir carries (a ``shade`` hook)."""
+    return direct + pr.estimate
 
 
 @kernel_cache
 def make_restir_pt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     """The passes of ReSTIR PT compiled for the material kinds ``kinds`` (cached)."""
+    return build_restir_pt_kernels(kinds)
+
+
+def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | None = None) -> dict[str, Any]:
+    """The passes of ReSTIR PT for the material kinds ``kinds``, with a variant's ``hooks`` compiled in (uncached)."""
     shifts = make_path_shift(kinds)
     shift = shifts.shift
     sample_paths = shifts.stream_candidates
     settle = shifts.settle
+    est = hooks  # the variant's code is compiled in only where it is not None (wp.static)
+    est_temporal = None if hooks is None else hooks.temporal
+    est_spatial_begin = None if hooks is None else hooks.spatial_begin
+    est_spatial_keep = None if hooks is None else hooks.spatial_keep
+    est_spatial_add = None if hooks is None else hooks.spatial_add
+    est_spatial_end = None if hooks is None else hooks.spatial_end
+    est_shade = None if hooks is None else hooks.shade
 
     # ---- primary vertices ----
-    module = specialized_module(__name__, kinds)
+    module = specialized_module(__name__ if hooks is None else hooks.owner, kinds)
 
     @wp.kernel(module=module)
     def primary_pass(g: GBufferData, domains: wp.array2d(dtype=Domain), direct: wp.array2d(dtype=wp.vec3)):
@@ -170,6 +256,7 @@ def make_restir_pt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         pr = PathReservoir()
         pr.res = reservoir_empty()
         pr.path = path_sample_empty()
+        pr.estimate = wp.vec3(0.0)
         inv_n = 1.0 / float(candidates)
         if dom.valid != 0:
             for cand in range(candidates):
@@ -186,6 +273,7 @@ def make_restir_pt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         frame: int,
         sp: ShiftParams,
         history_cap: float,
+        cvo: CVOptions,
         g: GBufferData,
         g_prev: GBufferData,
         domains: wp.array2d(dtype=Domain),
@@ -212,7 +300,8 @@ def make_restir_pt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         c_j = confidence_capped(prev.res.confidence, history_cap)
         # canonical path y_c: p̂_i(y_c) and p̂_{←j}(y_c) through T_{i→j} (seed 001, Eq. 16)
         t_c = path_target(can.path)
-        t_cj = target_to(shift(scene, dom_j, can.path, sp))
+        s_cj = shift(scene, dom_j, can.path, sp)
+        t_cj = target_to(s_cj)
         m_c = two_domain_balance(c_i, t_c, c_j, t_cj)  # seed 001, Eq. 15
         # history path y_t shifted into this pixel: p̂_i(T(y_t)) and p̂_{←j}(T(y_t)) = p̂_j(y_t) / |J|
         s_t = shift(scene, dom_i, prev.path, sp)
@@ -229,7 +318,11 @@ def make_restir_pt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         r = reservoir_merge(r, other, m_t, t_ti, s_t.jacobian, random_uniform(ukey, 1))  # seed 000, Eq. 9
         if r.selected:
             sel = s_t.path
-        out[y, x] = path_reservoir(r, sel)
+        res = path_reservoir(r, sel)
+        if wp.static(est is not None):
+            step = TemporalStep(x=x, y=y, nb=nb, can=can, prev=prev, c_j=c_j, s_cj=s_cj, s_t=s_t, m_c=m_c, m_t=m_t)
+            res = est_temporal(cvo, g, g_prev, step, res)
+        out[y, x] = res
 
     # ---- spatial reuse ----
     @wp.kernel(module=module)
@@ -241,6 +334,7 @@ def make_restir_pt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         neighbors: int,
         radius: float,
         sp: ShiftParams,
+        cvo: CVOptions,
         g: GBufferData,
         domains: wp.array2d(dtype=Domain),
         inp: wp.array2d(dtype=PathReservoir),
@@ -269,9 +363,14 @@ def make_restir_pt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         # the canonical path's pairwise weight m_c = Σ_q (pair q's canonical share)
         t_c = path_target(can.path)
         m_c = float(0.0)
+        if wp.static(est is not None):
+            state = est_spatial_begin(cvo, can)
         for j in range(k):
             nb = neighbor_set_pixel(ns, j)
-            t_cq = target_to(shift(scene, domains[nb.y, nb.x], can.path, sp))  # p̂_{←q}(y_c), seed 001, Eq. 16
+            s_cq = shift(scene, domains[nb.y, nb.x], can.path, sp)
+            t_cq = target_to(s_cq)  # p̂_{←q}(y_c), seed 001, Eq. 16
+            if wp.static(est is not None):
+                state = est_spatial_keep(state, j, s_cq)
             m_c += pairwise_mis_canonical_term(inp[nb.y, nb.x].res.confidence, t_cq, c_c, t_c, k, total)
         r = reservoir_empty()
         r = reservoir_update(r, resampling_weight(m_c, t_c, can.res.ucw, 1.0), t_c, c_c, random_uniform(ukey, 100))
@@ -286,10 +385,15 @@ def make_restir_pt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             t_qi = path_target(s.path)  # 0 where the shift failed
             t_qq = target_back(other.path, s)
             m_q = pairwise_mis_neighbor(other.res.confidence, t_qq, c_c, t_qi, k, total)
+            if wp.static(est is not None):
+                state = est_spatial_add(cvo, state, g, SpatialStep(x=x, y=y, nb=nb, j=j, can=can, other=other, s_qi=s, m_q=m_q))
             r = reservoir_merge(r, other.res, m_q, t_qi, s.jacobian, random_uniform(ukey, 101 + ns.slot[j]))  # seed 000, Eq. 9
             if r.selected:
                 sel = s.path
-        out[y, x] = path_reservoir(r, sel)
+        res = path_reservoir(r, sel)
+        if wp.static(est is not None):
+            res = est_spatial_end(state, can, m_c, res)
+        out[y, x] = res
 
     # ---- shading ----
     @wp.kernel(module=module)
@@ -302,7 +406,9 @@ def make_restir_pt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         y, x = wp.tid()
         pr = reservoirs[y, x]
         L = direct[y, x]
-        if pr.res.ucw > 0.0 and pr.path.length > 0:
+        if wp.static(est is not None):
+            L = est_shade(L, pr)
+        elif pr.res.ucw > 0.0 and pr.path.length > 0:
             L = L + pr.path.f * pr.res.ucw  # f(y) · W_y (seed 000, Eq. 7)
         image[y, x] = finite_or_dropped(L, nonfinite)
 
@@ -364,7 +470,8 @@ class ReSTIRPT(ScreenSpaceRenderer):
             jacobian=jacobian,
             rr_depth=rr_depth,
         )
-        self.k = make_restir_pt_kernels(frozenset(built.features.material_kinds))
+        self.k = self.make_kernels(frozenset(built.features.material_kinds))
+        self.cv_options = cv_options()  # the passes' CV options: unused by ReSTIR PT itself (see PixelEstimateHooks)
         dev = built.device
         shape = (self.height, self.width)
         self.gbuffer = GBuffer(self.width, self.height, dev)
@@ -374,6 +481,10 @@ class ReSTIRPT(ScreenSpaceRenderer):
         self.image = wp.zeros(shape, dtype=wp.vec3, device=dev)
         self.nonfinite = wp.zeros(1, dtype=wp.int32, device=dev)
         self.frames_rendered = 0
+
+    def make_kernels(self, kinds: frozenset[int]) -> dict[str, Any]:
+        """The passes compiled for ``kinds`` (a variant overrides this with its :class:`PixelEstimateHooks`)."""
+        return make_restir_pt_kernels(kinds)
 
     def kernels(self) -> list[Any]:
         return list(self.k.values())
@@ -404,7 +515,7 @@ class ReSTIRPT(ScreenSpaceRenderer):
                 wp.launch(
                     k["temporal"],
                     dim=dim,
-                    inputs=[b.data, self.seed, int(frame), self.shift_params, self.history_cap, self.gbuffer.current, self.gbuffer.previous, dom, dom_prev, cur, history],
+                    inputs=[b.data, self.seed, int(frame), self.shift_params, self.history_cap, self.cv_options, self.gbuffer.current, self.gbuffer.previous, dom, dom_prev, cur, history],
                     outputs=[other],
                     device=dev,
                 )
@@ -414,7 +525,7 @@ class ReSTIRPT(ScreenSpaceRenderer):
                 wp.launch(
                     k["spatial"],
                     dim=dim,
-                    inputs=[b.data, self.seed, int(frame), rnd, self.neighbors, self.radius, self.shift_params, self.gbuffer.current, dom, cur],
+                    inputs=[b.data, self.seed, int(frame), rnd, self.neighbors, self.radius, self.shift_params, self.cv_options, self.gbuffer.current, dom, cur],
                     outputs=[other],
                     device=dev,
                 )

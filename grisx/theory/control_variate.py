@@ -87,6 +87,8 @@ __all__ = [
     "Q_INIT",
     "Q_CAP",
     "CVComposite",
+    "CVOptions",
+    "cv_options",
     "DifferenceSample",
     "luminance",
     "cv_alpha",
@@ -127,6 +129,28 @@ class CVComposite:
 
     total: wp.vec3
     weight: float
+
+
+@wp.struct
+class CVOptions:
+    """A renderer's runtime choices: ``alpha`` (:data:`ALPHA_MODES`), Eq. 10's weights ``difference_mis``
+    (:data:`DIFFERENCE_MIS`), and whether the temporal (Eq. 6) and spatial (Eq. 8) composites run (1) or
+    the pass keeps its input estimate (0)."""
+
+    alpha: int
+    difference_mis: int
+    temporal: int
+    spatial: int
+
+
+def cv_options(alpha: int = 0, difference_mis: int = 0, temporal: bool = True, spatial: bool = True) -> CVOptions:
+    """A :class:`CVOptions` record from the integer codes of :data:`ALPHA_MODES` and :data:`DIFFERENCE_MIS`."""
+    o = CVOptions()
+    o.alpha = int(alpha)
+    o.difference_mis = int(difference_mis)
+    o.temporal = int(bool(temporal))
+    o.spatial = int(bool(spatial))
+    return o
 
 
 @wp.struct

@@ -29,11 +29,16 @@ def _depth(method: str, params: dict[str, Any], scene: Any) -> int:
     return int(params.get("max_depth", scene.defaults.get("max_depth", 16)))
 
 
-def reference(scene_name: str, depth: int, camera: str, frame: int, spp: int = 4096) -> tuple[np.ndarray, np.ndarray]:
+def _load(scene: Any) -> Any:
+    """A built-in scene or file by name, or a :class:`~grisx.scene.scene.Scene` as it is."""
+    return load_scene(scene) if isinstance(scene, str) else scene
+
+
+def reference(scene_name: Any, depth: int, camera: str, frame: int, spp: int = 4096) -> tuple[np.ndarray, np.ndarray]:
     """The path tracer's image (jittered, as the renderers) and its per-pixel variance of the mean."""
-    key = (scene_name, depth, camera, frame, spp)
+    key = (scene_name if isinstance(scene_name, str) else id(scene_name), depth, camera, frame, spp)
     if key not in _REFERENCES:
-        built = load_scene(scene_name).build("cpu")
+        built = _load(scene_name).build("cpu")
         built.animate_camera = camera == "moving"
         built.set_frame(float(frame))
         pt = PathTracer(built, *RES, spp=spp, max_depth=depth, seed=987654)
@@ -42,10 +47,10 @@ def reference(scene_name: str, depth: int, camera: str, frame: int, spp: int = 4
     return _REFERENCES[key]
 
 
-def check(method: str, params: dict[str, Any] | None = None, *, scene: str = "cornell-box", camera: str = "static",
+def check(method: str, params: dict[str, Any] | None = None, *, scene: Any = "cornell-box", camera: str = "static",
           frames: int = 4, runs: int = 64, k: float = DEFAULT_K, device: str = "cpu") -> ReuseTestResult:
     params = dict(params or {})
-    sc = load_scene(scene)
+    sc = _load(scene)
     depth = _depth(method, params, sc)
     if "max_depth" in {p.name for p in METHODS[method].params}:
         params.setdefault("max_depth", depth)

@@ -114,6 +114,7 @@ from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.material import Material
 from grisx.scene.lights import emitter_radiance, environment_eval, environment_pdf, light_pdf_emitter, luminance, sample_light
 from grisx.scene.scene import SceneData, SurfaceInteraction, intersect, light_occluded, occluded, segment_occluded, spawn_origin, surface_material
+from grisx.theory.control_variate import decoupled_contribution
 from grisx.theory.mis import target_from, technique_mis
 from grisx.theory.gris import ris_weight
 from grisx.theory.random import random_uniform
@@ -217,10 +218,17 @@ class PathSample:
 
 @wp.struct
 class PathReservoir:
-    """A path reservoir: the bookkeeping (w_sum, target, confidence, UCW) and the kept path."""
+    """A path reservoir: the bookkeeping (w_sum, target, confidence, UCW), the kept path and a colour estimate.
+
+    ``estimate`` is the pixel's colour estimate carried with the reservoir (seed 002, Listing 1
+    line 6): :func:`stream_candidates` leaves there the MC estimate of the paths it traced,
+    Σ_l f(x̄_l) / (N p(x̄_l)) (Listing 1 line 36); ReSTCV's reuse passes replace it by their control-variate
+    composites; ReSTIR PT shades f(y) W_y and ignores it.
+    """
 
     res: Reservoir
     path: PathSample
+    estimate: wp.vec3
 
 
 @wp.struct
@@ -614,6 +622,7 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
         """
         r = pr.res
         sel = pr.path
+        estimate = pr.estimate  # Σ f/(N p) over the candidates (seed 002, Listing 1 line 36)
         ucount = int(0)
         if dom.valid == 0:
             return pr
@@ -668,6 +677,7 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                                 cand_x.pdf_replay = pdf * ls.pdf * s_nee
                             t = path_target(cand_x)
                             w = ris_weight(weight_scale, t, pdf * ls.pdf * s_nee)  # seed 000, Eq. 6 (m_t is inside t)
+                            estimate += decoupled_contribution(w, t, cand_x.f)  # w f/p̂ = m_t f/(N p)
                             r = reservoir_update(r, w, t, 0.0, random_uniform(ukey, ucount))
                             ucount += 1
                             if r.selected:
@@ -723,6 +733,7 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                     cand_x.pdf_replay = pdf
                 t = path_target(cand_x)
                 w = ris_weight(weight_scale, t, pdf)
+                estimate += decoupled_contribution(w, t, cand_x.f)
                 r = reservoir_update(r, w, t, 0.0, random_uniform(ukey, ucount))
                 ucount += 1
                 if r.selected:
@@ -748,6 +759,7 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
         out = PathReservoir()
         out.res = r
         out.path = sel
+        out.estimate = estimate
         return out
 
     @wp.func
@@ -771,6 +783,7 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
         out = PathReservoir()
         out.res = reservoir_finalize(r)
         out.path = sel
+        out.estimate = pr.estimate
         return out
 
     funcs = PathShiftFuncs(kinds=key, shift=shift, roughness=roughness, stream_candidates=stream_path_candidates, settle=settle)

@@ -43,6 +43,13 @@ VOCABULARY = {
     "max_jacobian": ("float", "reject shifts whose |J| exceeds this bound, counted the same way in the MIS (still unbiased); 0: never"),
     "candidates": ("int", "initial candidates per pixel and frame"),
     "shift": ("choice", "the shift map of path reuse: hybrid, reconnection or replay"),
+    "spatial_rounds": ("int", "rounds of spatial reuse per frame"),
+    "rough_threshold": ("float", "hybrid shift: vertices rougher than this may be reconnected"),
+    "near_field": ("float", "hybrid shift: reconnection segments must be longer than this fraction of the scene radius"),
+    "alpha": ("choice", "control-variate coefficient: heuristic (seed 002, Eq. 9), one, or the biased sample"),
+    "difference_mis": ("choice", "MIS weights of the control variates' difference estimator (seed 002, Eq. 10-11)"),
+    "temporal_cv": ("bool", "temporal control variates (seed 002, Eq. 6) on or off"),
+    "spatial_cv": ("bool", "spatial control variates (seed 002, Eq. 8) on or off"),
 }
 #: names that mean one of the above and must not be used for it
 SYNONYMS = {
@@ -53,7 +60,7 @@ SYNONYMS = {
 }
 
 #: the renderer modules, each of which registers its methods when imported
-PLUGINS = ("grisx.render.views", "grisx.render.pt", "grisx.render.restir_di", "grisx.render.restir_gi", "grisx.render.restir_pt")
+PLUGINS = ("grisx.render.views", "grisx.render.pt", "grisx.render.restir_di", "grisx.render.restir_gi", "grisx.render.restir_pt", "grisx.render.restcv", "grisx.render.decoupled")
 
 
 @dataclasses.dataclass

@@ -1,0 +1,330 @@
+"""ReSTCV: spatio-temporal control variates inside ReSTIR PT (Shi et al. 2026, seed 002).
+
+ReSTIR PT shades a pixel with one kept path, f(y) W_y: its UCW fits the *luminance* of the pixel,
+but its colour is the colour of that one path — the colour noise of seed 002, Sec. 4 (a white
+plane under a red and a green light is red or green per pixel, never yellow). ReSTCV keeps ReSTIR
+PT's resampling as it is and carries, with every reservoir, an accumulated colour estimate ⟨F⟩
+(``PathReservoir.estimate``, Listing 1 line 6). Per frame, with ReSTIR PT's passes
+(:mod:`grisx.render.restir_pt`, whose kernels this renderer shares through
+:class:`~grisx.render.restir_pt.PixelEstimateHooks`):
+
+``# ---- initial candidates ----``
+    ⟨F_i⟩_init is the MC estimate of the traced candidate paths, Σ_l f(x̄_l) / (N p(x̄_l))
+    (Listing 1 line 36), streamed by ``stream_candidates`` next to the reservoir.
+``# ---- temporal reuse ----``
+    with j the reprojected pixel of the previous frame (Eq. 6, q_init = 1)::
+
+        ⟨F_i⟩ = (q_init ⟨F_i⟩_init + q_j ⟨F_i⟩_{←j}) / (q_init + q_j),
+        ⟨F_i⟩_{←j} = α_ij ⟨F_j⟩ + ⟨F_i − α_ij F_j⟩                           (Eq. 7)
+
+``# ---- spatial reuse ----``
+    over N̄_i, the pixel and its accepted neighbours (Eq. 8)::
+
+        ⟨F_i⟩ = Σ_{j ∈ N̄_i} q_j ⟨F_i⟩_{←j} / Σ q_j,   ⟨F_i⟩_{←i} = ⟨F_i⟩.
+
+``# ---- shading ----``
+    L_e(x₁) + ⟨F_i⟩ instead of L_e(x₁) + f(y) W_y (Listing 1 lines 44–45).
+
+**The difference** ⟨F_i − α F_j⟩ comes from the two input reservoirs' kept paths y_i, y_j and
+the two shifts that ReSTIR PT evaluates for its MIS anyway, T_{i→j}(y_i) and T_{j→i}(y_j)::
+
+    ⟨F_i − α F_j⟩ = ω_ij(y_i) W_i (f_i(y_i) − α f_j(T_{i→j} y_i) |J_{i→j}|)
+                  − ω_ji(y_j) W_j (α f_j(y_j) − f_i(T_{j→i} y_j) |J_{j→i}|)        (Eq. 10)
+
+with ω_ij(x) = M_i p̂_i(x) / (M_i p̂_i(x) + M_j p̂_j(T x) |J|) (Eq. 11), f the labelled
+integrand m_t f of :mod:`~grisx.render.base.path_shift` and p̂ its luminance. It is unbiased
+because ω_ij(x) + ω_ji(T_{i→j} x) = 1 wherever either target is positive, the shift being a
+bijection where it succeeds (a failed shift gives ω = 1 and f = 0 on the other side).
+
+**Coefficient and weights.** α_ij = min(ρ_i/ρ_j, 2) per channel from the albedos of the two
+primary hits (Eq. 9; ``alpha=one``: α = 1, Fig. 3's ablation); q_j = M_j capped at 20 and
+q_init = 1 (Sec. 5.3). Neither depends on the light paths sampled (only on the G-buffers), so
+every composite is a fixed affine combination of unbiased estimates and ⟨F_i⟩ stays unbiased,
+frame after frame, by induction.
+
+**Known-biased ablations** (the tests show the check catches them): ``alpha=sample`` takes
+Eq. 9's ρ from the samples themselves — ρ_i = f(y_i) W_i, the current reservoir's own
+one-sample estimate, and ρ_j = ⟨F_j⟩ — so α correlates with the difference it multiplies;
+``difference_mis=none`` drops Eq. 11 (ω = 1 on both sides: each pair's difference counted twice).
+``difference_mis=balance`` is Eq. 11 with M = 1 (still unbiased); ``temporal_cv=false`` /
+``spatial_cv=false`` switch one composite off while ReSTIR PT's reuse runs on (still unbiased).
+
+**STCV** (``stcv``, Sec. 5.1, the baseline without ReSTIR): the same passes and composites, but every
+pixel keeps its own frame's sample — the canonical reservoir's path y_i, drawn by RIS among the
+traced path's candidates, whose UCW W_i stands in for Eq. 4's 1/p — so each difference comes from
+fresh random samples of the two pixels (the history's sample for a temporal j), and its weights are
+Eq. 5's balance heuristic written on the targets (``difference_mis=balance``: Eq. 11 with M = 1;
+the paper's Eq. 5 weighs by the source pdfs, and any ω with ω_ij(x) + ω_ji(T x) = 1 is unbiased).
+The confidences still count the history (q of the next composite). STCV's passes evaluate GRIS's
+resampling weights and then drop them: cheap next to the shifts they share.
+
+Direct light goes through the same path reservoir as ReSTIR PT's (the paper's separate ReSTIR
+DI auxiliary Ḋ_i of Sec. 5.3 is not part of this renderer). Every formula — ``cv_alpha``,
+``cv_estimate``, ``reservoir_difference``, ``compositing_weight``, ``cv_composite_*``,
+``decoupled_contribution`` — is :mod:`grisx.theory.control_variate`'s, the functions the
+``chromatic-cv`` toy is verified with.
+
+References: Z. Shi, C. Wu, L. Wu, K. Xu, "Spatio-Temporal Control Variates with ReSTIR for
+Real-Time Rendering", SIGGRAPH 2026 (seed 002), Sec. 4–5, Eq. 6–11, Listing 1; D. Lin et al.,
+"Generalized resampled importance sampling", SIGGRAPH 2022.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import warp as wp
+
+from grisx.errors import InvalidParameterError
+from grisx.params import Param
+from grisx.render.base.path_shift import PathReservoir, PathShiftResult
+from grisx.render.base.registry import METHODS, RenderMethod, create_renderer, register, renderer_params
+from grisx.render.base.screen import kernel_cache
+from grisx.render.restir_pt import PixelEstimateHooks, ReSTIRPT, SpatialStep, TemporalStep, build_restir_pt_kernels, shade_estimate
+from grisx.scene.gbuffer import GBufferData
+from grisx.theory.control_variate import (
+    ALPHA_HEURISTIC,
+    ALPHA_MODES,
+    DIFFERENCE_MIS,
+    Q_INIT,
+    CVComposite,
+    CVOptions,
+    compositing_weight,
+    cv_alpha,
+    cv_composite_add,
+    cv_composite_empty,
+    cv_composite_value,
+    cv_estimate,
+    cv_options,
+    reservoir_difference,
+)
+
+wp.set_module_options({"enable_backward": False})
+
+__all__ = ["ReSTCV", "STCV", "create_restcv", "create_stcv", "make_restcv_kernels", "make_stcv_kernels", "ALPHA_CHOICES", "RESTCV_HOOKS", "STCV_HOOKS"]
+
+#: α choices of the renderer: theory's (Eq. 9's heuristic, 1) and the biased ablation ``sample``
+ALPHA_CHOICES = {**ALPHA_MODES, "sample": 2}
+_ALPHA_SAMPLE = wp.constant(ALPHA_CHOICES["sample"])
+#: the most neighbours whose shifts a spatial pass keeps for Eq. 10 (the ``neighbors`` param's maximum)
+CV_NEIGHBORS_MAX = 16
+_KEPT_MAX = wp.constant(CV_NEIGHBORS_MAX)
+_ShiftedF = wp.types.matrix(shape=(CV_NEIGHBORS_MAX, 3), dtype=wp.float32)
+_ShiftedJ = wp.types.vector(length=CV_NEIGHBORS_MAX, dtype=wp.float32)
+
+
+@wp.struct
+class SpatialCV:
+    """A spatial pass's Eq. 8 sums and, per neighbour q, f_q(T_{i→q} y_i) and |∂T_{i→q}/∂y_i| (Eq. 10's first side)."""
+
+    composite: CVComposite
+    f_to: _ShiftedF
+    jacobian_to: _ShiftedJ
+
+
+@wp.func
+def pair_alpha(o: CVOptions, rho_i: wp.vec3, rho_j: wp.vec3, can: PathReservoir, estimate_j: wp.vec3) -> wp.vec3:
+    """α_ij from the primary hits' albedos (seed 002, Eq. 9; or 1); ``sample``: ρ from the samples (biased)."""
+    if o.alpha == _ALPHA_SAMPLE:
+        return cv_alpha(ALPHA_HEURISTIC, can.path.f * can.res.ucw, estimate_j)
+    return cv_alpha(o.alpha, rho_i, rho_j)
+
+
+@wp.func
+def from_pixel(
+    o: CVOptions, alpha: wp.vec3, can: PathReservoir, other: PathReservoir, confidence_j: float,
+    f_j_yi: wp.vec3, jacobian_ij: float, f_i_yj: wp.vec3, jacobian_ji: float,
+) -> wp.vec3:
+    """⟨F_i⟩_{←j} = α ⟨F_j⟩ + ⟨F_i − α F_j⟩ (seed 002, Eq. 7), the difference from y_i, y_j and their shifts (Eq. 10–11)."""
+    r_j = other.res
+    r_j.confidence = confidence_j
+    diff = reservoir_difference(can.res, r_j, can.path.f, f_j_yi, other.path.f, f_i_yj, jacobian_ij, jacobian_ji, alpha, o.difference_mis)
+    return cv_estimate(other.estimate, alpha, diff)
+
+
+@wp.func
+def canonical_with(can: PathReservoir, estimate: wp.vec3, confidence: float) -> PathReservoir:
+    """STCV's record: the frame's own sample and UCW (no resampling) with the estimate and the confidence
+    (the q of the next composite) that the pass accumulated."""
+    out = can
+    out.estimate = estimate
+    out.res.confidence = confidence
+    return out
+
+
+# ---- temporal reuse ----
+@wp.func
+def temporal_estimate(o: CVOptions, g: GBufferData, g_prev: GBufferData, t: TemporalStep) -> wp.vec3:
+    """Eq. 6: ⟨F_i⟩_init (q_init = 1) with the previous frame's ⟨F_i⟩_{←j} (q_j = M_j ≤ 20); ⟨F_i⟩_init alone without temporal CV."""
+    if o.temporal == 0:
+        return t.can.estimate
+    alpha = pair_alpha(o, g.albedo[t.y, t.x], g_prev.albedo[t.nb.y, t.nb.x], t.can, t.prev.estimate)
+    c = cv_composite_add(cv_composite_empty(), t.can.estimate, Q_INIT)
+    from_j = from_pixel(o, alpha, t.can, t.prev, t.c_j, t.s_cj.path.f, t.s_cj.jacobian, t.s_t.path.f, t.s_t.jacobian)
+    c = cv_composite_add(c, from_j, compositing_weight(t.c_j))  # seed 002, Eq. 6
+    return cv_composite_value(c)
+
+
+@wp.func
+def restcv_temporal(o: CVOptions, g: GBufferData, g_prev: GBufferData, t: TemporalStep, res: PathReservoir) -> PathReservoir:
+    """ReSTCV: GRIS's temporal reservoir carrying Eq. 6's estimate (Listing 1 lines 21–22)."""
+    out = res
+    out.estimate = temporal_estimate(o, g, g_prev, t)
+    return out
+
+
+@wp.func
+def stcv_temporal(o: CVOptions, g: GBufferData, g_prev: GBufferData, t: TemporalStep, res: PathReservoir) -> PathReservoir:
+    """STCV: the canonical sample carrying Eq. 6's estimate."""
+    return canonical_with(t.can, temporal_estimate(o, g, g_prev, t), res.res.confidence)
+
+
+# ---- spatial reuse ----
+@wp.func
+def spatial_begin(o: CVOptions, can: PathReservoir) -> SpatialCV:
+    """Eq. 8's sums with the pixel's own term, ⟨F_i⟩_{←i} = ⟨F_i⟩ with q_i = M_i ≤ 20."""
+    s = SpatialCV()
+    s.composite = cv_composite_add(cv_composite_empty(), can.estimate, compositing_weight(can.res.confidence))
+    return s
+
+
+@wp.func
+def spatial_keep(s: SpatialCV, j: int, s_cq: PathShiftResult) -> SpatialCV:
+    """Keep T_{i→q}(y_i), the shift the canonical MIS just evaluated, for neighbour ``j``'s difference."""
+    out = s
+    if j < _KEPT_MAX:
+        f = out.f_to
+        f[j, 0] = s_cq.path.f[0]
+        f[j, 1] = s_cq.path.f[1]
+        f[j, 2] = s_cq.path.f[2]
+        out.f_to = f
+        jac = out.jacobian_to
+        jac[j] = s_cq.jacobian
+        out.jacobian_to = jac
+    return out
+
+
+@wp.func
+def spatial_add(o: CVOptions, s: SpatialCV, g: GBufferData, st: SpatialStep) -> SpatialCV:
+    """Add q_j ⟨F_i⟩_{←j} of neighbour ``j`` (seed 002, Eq. 7–8) with T_{q→i}(y_q) from the merge loop."""
+    out = s
+    j = st.j
+    if j < _KEPT_MAX and o.spatial != 0:
+        alpha = pair_alpha(o, g.albedo[st.y, st.x], g.albedo[st.nb.y, st.nb.x], st.can, st.other.estimate)
+        f_q_yi = wp.vec3(s.f_to[j, 0], s.f_to[j, 1], s.f_to[j, 2])
+        conf_j = st.other.res.confidence
+        from_j = from_pixel(o, alpha, st.can, st.other, conf_j, f_q_yi, s.jacobian_to[j], st.s_qi.path.f, st.s_qi.jacobian)
+        out.composite = cv_composite_add(s.composite, from_j, compositing_weight(conf_j))
+    return out
+
+
+@wp.func
+def restcv_spatial_end(s: SpatialCV, can: PathReservoir, m_c: float, res: PathReservoir) -> PathReservoir:
+    """ReSTCV: GRIS's spatial reservoir carrying ⟨F_i⟩ = Σ q ⟨F_i⟩_{←j} / Σ q (seed 002, Eq. 8; Listing 1 line 29)."""
+    out = res
+    out.estimate = cv_composite_value(s.composite)
+    return out
+
+
+@wp.func
+def stcv_spatial_end(s: SpatialCV, can: PathReservoir, m_c: float, res: PathReservoir) -> PathReservoir:
+    """STCV: the canonical sample carrying Eq. 8's estimate."""
+    return canonical_with(can, cv_composite_value(s.composite), res.res.confidence)
+
+
+# ---- shading: L_e(x₁) + ⟨F_i⟩; the hooks into ReSTIR PT's passes ----
+RESTCV_HOOKS = PixelEstimateHooks(
+    owner=__name__,
+    temporal=restcv_temporal,
+    spatial_begin=spatial_begin,
+    spatial_keep=spatial_keep,
+    spatial_add=spatial_add,
+    spatial_end=restcv_spatial_end,
+    shade=shade_estimate,  # L_e(x₁) + ⟨F_i⟩ (seed 002, Listing 1 line 44)
+)
+STCV_HOOKS = dataclasses.replace(RESTCV_HOOKS, owner=__name__ + ".stcv", temporal=stcv_temporal, spatial_end=stcv_spatial_end)
+
+
+@kernel_cache
+def make_restcv_kernels(kinds: frozenset[int]) -> dict[str, Any]:
+    """ReSTIR PT's passes with ReSTCV's estimate compiled in, for the material kinds ``kinds`` (cached)."""
+    return build_restir_pt_kernels(kinds, RESTCV_HOOKS)
+
+
+@kernel_cache
+def make_stcv_kernels(kinds: frozenset[int]) -> dict[str, Any]:
+    """ReSTIR PT's passes with STCV's estimate compiled in (canonical samples kept), for ``kinds`` (cached)."""
+    return build_restir_pt_kernels(kinds, STCV_HOOKS)
+
+
+class ReSTCV(ReSTIRPT):
+    """ReSTCV over a built scene: ReSTIR PT's passes carrying the control-variate estimate (module docstring)."""
+
+    def __init__(
+        self, built: Any, width: int, height: int, *, alpha: str = "heuristic", difference_mis: str = "confidence",
+        temporal_cv: bool = True, spatial_cv: bool = True, **restir_pt: Any,
+    ) -> None:
+        if alpha not in ALPHA_CHOICES or difference_mis not in DIFFERENCE_MIS:
+            raise InvalidParameterError(f"alpha must be one of {sorted(ALPHA_CHOICES)}, difference_mis one of {sorted(DIFFERENCE_MIS)}")
+        if restir_pt.get("neighbors", 3) > CV_NEIGHBORS_MAX:
+            raise InvalidParameterError(f"the control variates take at most {CV_NEIGHBORS_MAX} neighbours")
+        super().__init__(built, width, height, **restir_pt)
+        self.alpha = alpha
+        self.difference_mis = difference_mis
+        self.cv_options = cv_options(ALPHA_CHOICES[alpha], DIFFERENCE_MIS[difference_mis], temporal_cv, spatial_cv)
+
+    def make_kernels(self, kinds: frozenset[int]) -> dict[str, Any]:
+        return make_restcv_kernels(kinds)
+
+
+class STCV(ReSTCV):
+    """The STCV baseline: the same control variates, differences from each frame's own samples (module docstring)."""
+
+    def __init__(
+        self, built: Any, width: int, height: int, *, alpha: str = "heuristic", difference_mis: str = "balance",
+        temporal_cv: bool = True, spatial_cv: bool = True, **restir_pt: Any,
+    ) -> None:
+        super().__init__(built, width, height, alpha=alpha, difference_mis=difference_mis, temporal_cv=temporal_cv, spatial_cv=spatial_cv, **restir_pt)
+
+    def make_kernels(self, kinds: frozenset[int]) -> dict[str, Any]:
+        return make_stcv_kernels(kinds)
+
+
+def create_restcv(ctx: Any) -> ReSTCV:
+    return create_renderer(ReSTCV, ctx)
+
+
+def create_stcv(ctx: Any) -> STCV:
+    return create_renderer(STCV, ctx)
+
+
+def _cv_params(cls: type) -> tuple[Param, ...]:
+    """restir-pt's params and defaults (the same shifts, reuse and depth), plus the control variates' own."""
+    return METHODS["restir-pt"].params + renderer_params(
+        cls,
+        Param("alpha", ..., "CV coefficient: heuristic (Eq. 9's min(rho_i/rho_j, 2) per channel), one, or sample (biased: rho from the samples)", kind="choice", choices=tuple(ALPHA_CHOICES)),
+        Param("difference_mis", ..., "weights of Eq. 10: confidence (Eq. 11), balance (Eq. 11 with M = 1) or none (biased: omega = 1)", kind="choice", choices=tuple(DIFFERENCE_MIS)),
+        Param("temporal_cv", ..., "temporal control variates (Eq. 6); false: the temporal pass keeps the frame's own estimate", kind="bool"),
+        Param("spatial_cv", ..., "spatial control variates (Eq. 8); false: the spatial pass keeps its input estimate", kind="bool"),
+    )
+
+
+# ---- registration (grisx.render.base.registry) ----
+
+register(
+    RenderMethod(
+        "restcv",
+        "ReSTCV (Shi et al. 2026): ReSTIR PT shading an accumulated colour estimate with spatio-temporal control variates",
+        create_restcv,
+        params=_cv_params(ReSTCV),
+    )
+)
+register(
+    RenderMethod(
+        "stcv",
+        "STCV (Shi et al. 2026, Sec. 5.1): spatio-temporal control variates with differences from each frame's own samples, no resampling",
+        create_stcv,
+        params=_cv_params(STCV),
+    )
+)
