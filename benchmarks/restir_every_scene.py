@@ -35,13 +35,16 @@ from typing import Any
 
 import numpy as np
 
-#: (label, method, params) of every renderer the two issues name
+#: (label, method, params) of every reuse renderer (the ReSTIR PT shifts, and the methods built on its passes)
 METHODS = (
     ("restir-di", "restir-di", {}),
     ("restir-gi", "restir-gi", {}),
     ("restir-pt hybrid", "restir-pt", {"shift": "hybrid"}),
     ("restir-pt reconnection", "restir-pt", {"shift": "reconnection"}),
     ("restir-pt replay", "restir-pt", {"shift": "replay"}),
+    ("restcv", "restcv", {}),
+    ("stcv", "stcv", {}),
+    ("restir-pt-decoupled", "restir-pt-decoupled", {}),
 )
 
 
