@@ -9,6 +9,9 @@ For each registered radiance method (a renderer added later joins without edits)
   the reference is reported;
 * **soak, camera path** — the same number of frames along the scene's camera path: NaN/Inf samples
   dropped (must be 0);
+* **reservoir bounds** (renderers with ``reservoirs()``: ReSTIR PT and the methods on its passes) —
+  20 times per soak: every confidence, weight sum and UCW finite, the largest confidence (bounded by
+  the history cap and the spatial merges) and weight sum, and the frame of the largest confidence;
 * **radiance linearity / unit invariance** — the fraction of pixel values that change by more than
   1e-3 (relative) when every emitter is ×10⁶ / ×10⁻⁶, or the scene and camera ×10⁻³ / ×10³
   (``tests/render/test_invariance.py`` at larger size).
@@ -51,12 +54,22 @@ def soak(method: str, scene: str, camera: str, args: argparse.Namespace) -> dict
     r = spec.create(RenderContext(built, *args.res, params, args.seed, None, method))
     frame_means = np.empty((args.frames, 3))
     start = time.perf_counter()
+    bounds = {"max_confidence": 0.0, "max_w_sum": 0.0, "reservoirs_finite": True, "worst_confidence_frame": -1}
     for f in range(args.frames):
         built.set_frame(float(f))
         frame_means[f] = r.render_frame(f).numpy().reshape(-1, 3).mean(axis=0)
+        if hasattr(r, "reservoirs") and (f + 1) % max(1, args.frames // 20) == 0:  # 20 looks at the reservoirs
+            res = r.reservoirs()["res"]
+            conf, w_sum = res["confidence"].astype(np.float64), res["w_sum"].astype(np.float64)
+            bounds["reservoirs_finite"] &= bool(np.all(np.isfinite(conf)) and np.all(np.isfinite(w_sum)) and np.all(np.isfinite(res["ucw"])))
+            if conf.max() > bounds["max_confidence"]:
+                bounds.update(max_confidence=float(conf.max()), worst_confidence_frame=f)
+            bounds["max_w_sum"] = max(bounds["max_w_sum"], float(w_sum.max()))
     seconds = time.perf_counter() - start
     row = {"method": method, "scene": scene, "stress": f"soak-{camera}", "frames": args.frames, "seconds": seconds,
            "nonfinite_samples": int(r.nonfinite_samples), "finite": bool(np.all(np.isfinite(frame_means)))}
+    if hasattr(r, "reservoirs"):
+        row.update(bounds)
     if camera == "static":
         pt = PathTracer(built, *args.res, spp=args.reference_spp, max_depth=depth, seed=args.seed + 1)
         pt.add_samples(0, args.reference_spp)
@@ -97,6 +110,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--device", default="cpu")
     ap.add_argument("--scenes", default="cornell-box,closed-room,glossy-room")
+    ap.add_argument("--methods", default=None, help="comma-separated radiance methods (default: every registered one)")
     ap.add_argument("--res", default=None, help="WxH (default 320x240 on CUDA, 16x16 on CPU)")
     ap.add_argument("--frames", type=int, default=None, help="soak frames (default 10000 on CUDA, 1000 on CPU)")
     ap.add_argument("--batch", type=int, default=100)
@@ -116,7 +130,8 @@ def main(argv: list[str] | None = None) -> int:
     args.frames = args.frames or (10000 if dev.is_cuda else (200 if args.quick else 1000))
     scenes = args.scenes.split(",")[:1] if args.quick else args.scenes.split(",")
     rows = []
-    for method in sorted(n for n, m in METHODS.items() if m.kind == "radiance"):
+    methods = args.methods.split(",") if args.methods else sorted(n for n, m in METHODS.items() if m.kind == "radiance")
+    for method in methods:
         for scene in scenes:
             if not METHODS[method].uses_spp:
                 for camera in ("static", "moving"):
