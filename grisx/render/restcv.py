@@ -291,6 +291,18 @@ class STCV(ReSTCV):
         return make_stcv_kernels(kinds)
 
 
+class ICV(STCV):
+    """Image-space control variates (Rousselle et al. 2016), the offline reference point of seed 002:
+    STCV's spatial composite (Eq. 8) within each frame alone — no history, no temporal composite."""
+
+    def __init__(self, built: Any, width: int, height: int, *, alpha: str = "heuristic", difference_mis: str = "balance",
+                 spatial_cv: bool = True, **restir_pt: Any) -> None:
+        if restir_pt.pop("temporal", False) or restir_pt.pop("temporal_cv", False):
+            raise InvalidParameterError("icv works within one frame: temporal reuse does not apply (use stcv or restcv)")
+        super().__init__(built, width, height, alpha=alpha, difference_mis=difference_mis, temporal_cv=False,
+                         spatial_cv=spatial_cv, temporal=False, **restir_pt)
+
+
 def create_restcv(ctx: Any) -> ReSTCV:
     return create_renderer(ReSTCV, ctx)
 
@@ -299,15 +311,24 @@ def create_stcv(ctx: Any) -> STCV:
     return create_renderer(STCV, ctx)
 
 
-def _cv_params(cls: type) -> tuple[Param, ...]:
-    """restir-pt's params and defaults (the same shifts, reuse and depth), plus the control variates' own."""
-    return METHODS["restir-pt"].params + renderer_params(
-        cls,
+def create_icv(ctx: Any) -> ICV:
+    return create_renderer(ICV, ctx)
+
+
+def _cv_params(cls: type, temporal: bool = True) -> tuple[Param, ...]:
+    """restir-pt's params and defaults (the same shifts, reuse and depth), plus the control variates' own
+    (without the temporal ones for a method that works within one frame)."""
+    own = [
         Param("alpha", ..., "CV coefficient: heuristic (Eq. 9's min(rho_i/rho_j, 2) per channel), one, or sample (biased: rho from the samples)", kind="choice", choices=tuple(ALPHA_CHOICES)),
         Param("difference_mis", ..., "weights of Eq. 10: confidence (Eq. 11), balance (Eq. 11 with M = 1) or none (biased: omega = 1)", kind="choice", choices=tuple(DIFFERENCE_MIS)),
         Param("temporal_cv", ..., "temporal control variates (Eq. 6); false: the temporal pass keeps the frame's own estimate", kind="bool"),
         Param("spatial_cv", ..., "spatial control variates (Eq. 8); false: the spatial pass keeps its input estimate", kind="bool"),
-    )
+    ]
+    base = METHODS["restir-pt"].params
+    if not temporal:
+        own = [p for p in own if p.name != "temporal_cv"]
+        base = tuple(p for p in base if p.name not in ("temporal", "history_cap"))
+    return base + renderer_params(cls, *own)
 
 
 # ---- registration (grisx.render.base.registry) ----
@@ -326,5 +347,13 @@ register(
         "STCV (Shi et al. 2026, Sec. 5.1): spatio-temporal control variates with differences from each frame's own samples, no resampling",
         create_stcv,
         params=_cv_params(STCV),
+    )
+)
+register(
+    RenderMethod(
+        "icv",
+        "image-space control variates (Rousselle et al. 2016; seed 002's offline reference point): STCV's spatial composite within each frame, no history",
+        create_icv,
+        params=_cv_params(ICV, temporal=False),
     )
 )
