@@ -105,18 +105,18 @@ def _values_per_case(case: str) -> int:
 FAMILY = sum(_values_per_case(c) for c in CASES)
 
 
-def render_runs(scene, spp: int, frames: int, seed: int = 7) -> tuple[np.ndarray, np.ndarray]:
+def render_runs(scene, spp: int, frames: int, seed: int = 7, device: str = "cpu") -> tuple[np.ndarray, np.ndarray]:
     """grisx ``pt``: the mean of ``frames`` independent frames and the per-pixel variance of that mean."""
     images = []
-    render(scene, "pt", spp=spp, frames=frames, camera="static", seed=seed,
+    render(scene, "pt", spp=spp, frames=frames, camera="static", seed=seed, device=device,
            on_frame=lambda i, img, s: images.append(np.asarray(img, dtype=np.float64)))
     stack = np.stack(images)
     return stack.mean(axis=0), stack.var(axis=0, ddof=1) / frames
 
 
-def agreement(scene, case: str):
+def agreement(scene, case: str, device: str = "cpu"):
     c = CASES[case]
-    mean, variance = render_runs(scene, c.spp, c.frames)
+    mean, variance = render_runs(scene, c.spp, c.frames, device=device)
     ref, ref_var = _reference(case)
     return image_agreement_test(mean, variance, ref, ref_var, block=c.block, family=FAMILY)
 
@@ -130,8 +130,9 @@ def test_every_scene_file_has_a_case_and_a_reference():
 
 
 @pytest.mark.parametrize("case", sorted(CASES))
-def test_conformance(case):
-    result = agreement(str(SCENES / f"{case}.xml"), case)
+def test_conformance(case, device):
+    """On CPU always; on CUDA too where there is a GPU (its kernels compile with fast math)."""
+    result = agreement(str(SCENES / f"{case}.xml"), case, device)
     assert result.passed, f"{case}: image mean {result.image}; blocks {result.blocks}; z (image mean) = {np.round(result.image.z, 2)}"
 
 
