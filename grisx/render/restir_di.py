@@ -95,6 +95,7 @@ from grisx.scene.lights import (
     environment_pdf,
     light_pdf_emitter,
     luminance,
+    point_light_intensity,
     sample_light,
 )
 from grisx.render.base.reuse import (
@@ -241,7 +242,7 @@ def make_restir_di_kernels(kinds: frozenset[int]) -> Any:
                 e.cos_light = cos_light
                 g = cos_light / dist_sq  # area measure: dω = |cos θ_y| dA / d²
             else:
-                le = scene.lights.point_intensity[lp.index]
+                le = point_light_intensity(scene.lights, lp.index, -wi)
                 g = 1.0 / dist_sq
         m = surface_material(scene, si)
         frame = frame_from_normal(si.ns)

@@ -34,9 +34,13 @@ Emissive triangles (Mitsuba ``area``)
     Triangle areas are read from the live positions, so a rigid motion of the
     scene (which moves ``positions`` in place) keeps pdfs exact.
 
-Point lights (Mitsuba ``point``)
-    Intensity I in W/sr; a delta light: ``delta = 1``, ``radiance`` = I / d²,
+Point lights (Mitsuba ``point`` and ``spot``)
+    Intensity I in W/sr; a delta light: ``delta = 1``, ``radiance`` = I·s(ω) / d²,
     ``pdf`` = its selection probability (a discrete, not a solid-angle, density).
+    A spot light emits into a cone around its axis with Mitsuba's falloff
+    s(ω) = 1 inside the beam (θ ≤ beam_width), (cutoff − θ)/(cutoff − beam_width)
+    between beam and cutoff, 0 beyond (``point_light_intensity``); a point light
+    has s = 1 everywhere.
 
 Constant environment (Mitsuba ``constant``)
     Radiance L from every direction, sampled uniformly on the sphere
@@ -104,6 +108,7 @@ wp.set_module_options({"enable_backward": False})
 
 __all__ = [
     "PointLight",
+    "point_light_intensity",
     "ConstantEnvironment",
     "EnvMap",
     "ENV_NONE",
@@ -144,10 +149,15 @@ _INV_TWO_PI_SQ = wp.constant(1.0 / (2.0 * math.pi * math.pi))
 
 @dataclasses.dataclass(frozen=True)
 class PointLight:
-    """Mitsuba ``point``: isotropic point light of RGB ``intensity`` (W/sr) at ``position``."""
+    """Mitsuba ``point``: isotropic point light of RGB ``intensity`` (W/sr) at ``position``; with a
+    ``direction``, Mitsuba's ``spot``: a cone of half-angle ``cutoff_angle`` (degrees), full intensity
+    within ``beam_width`` (default ¾ of the cutoff), a linear falloff in angle between them."""
 
     position: tuple[float, float, float] | np.ndarray
     intensity: tuple[float, float, float] | np.ndarray | float
+    direction: tuple[float, float, float] | np.ndarray | None = None
+    cutoff_angle: float = 20.0
+    beam_width: float | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -265,6 +275,8 @@ class LightSet:
     # point lights
     point_position: wp.array(dtype=wp.vec3)
     point_intensity: wp.array(dtype=wp.vec3)
+    point_axis: wp.array(dtype=wp.vec3)  # a spot light's unit axis; 0 for an isotropic point light
+    point_cone: wp.array(dtype=wp.vec4)  # cos cutoff, cos beam width, cutoff (rad), 1 / (cutoff − beam width)
     # environment
     env_kind: int  # ENV_NONE, ENV_CONSTANT, ENV_ENVMAP
     env_radiance: wp.vec3  # constant environment
@@ -478,6 +490,22 @@ def _invalid_sample() -> LightSample:
 
 
 @wp.func
+def point_light_intensity(ls: LightSet, k: int, w: wp.vec3) -> wp.vec3:
+    """Intensity of point light ``k`` toward unit direction ``w`` (from the light): I·s(w), Mitsuba's spot falloff."""
+    i = ls.point_intensity[k]
+    axis = ls.point_axis[k]
+    if wp.dot(axis, axis) == 0.0:
+        return i
+    cone = ls.point_cone[k]
+    cos_theta = wp.dot(axis, w)
+    if cos_theta <= cone[0]:
+        return wp.vec3(0.0, 0.0, 0.0)
+    if cos_theta >= cone[1]:
+        return i
+    return i * ((cone[2] - wp.acos(wp.clamp(cos_theta, -1.0, 1.0))) * cone[3])
+
+
+@wp.func
 def sample_light(ls: LightSet, ref_p: wp.vec3, u_select: float, u: wp.vec2) -> LightSample:
     """Pick a light ∝ power with u_select, then a point/direction on it with u (see the module docstring)."""
     s = _invalid_sample()
@@ -533,7 +561,7 @@ def sample_light(ls: LightSet, ref_p: wp.vec3, u_select: float, u: wp.vec2) -> L
         s.wi = d / dist
         s.n = -s.wi
         s.dist = dist
-        s.radiance = ls.point_intensity[k] / dist_sq
+        s.radiance = point_light_intensity(ls, k, -s.wi) / dist_sq
         s.pdf = pmf
         s.pdf_area = pmf
         s.delta = 1
@@ -666,6 +694,9 @@ def build_light_set(
     points = list(point_lights or ())
     pp = np.zeros((len(points), 3))
     pi_ = np.zeros((len(points), 3))
+    axes = np.zeros((len(points), 3))
+    cones = np.zeros((len(points), 4))
+    cone_solid_angle = np.full(len(points), 4.0 * math.pi)
     for k, light in enumerate(points):
         if not isinstance(light, PointLight):
             raise InvalidParameterError(f"point_lights[{k}] must be a PointLight, got {type(light).__name__}")
@@ -674,7 +705,19 @@ def build_light_set(
             raise InvalidValueError(f"point_lights[{k}].position must be 3 finite numbers, got {position.tolist()}")
         pp[k] = position
         pi_[k] = _rgb(light.intensity, f"point_lights[{k}].intensity")
-    point_power = 4.0 * math.pi * _lum(pi_) if len(points) else np.zeros(0)
+        if light.direction is not None:
+            axis = np.asarray(light.direction, dtype=np.float64)
+            cutoff = float(light.cutoff_angle)
+            beam = 0.75 * cutoff if light.beam_width is None else float(light.beam_width)
+            if axis.shape != (3,) or not np.all(np.isfinite(axis)) or np.linalg.norm(axis) == 0:
+                raise InvalidValueError(f"point_lights[{k}].direction must be 3 finite numbers, not all 0, got {axis.tolist()}")
+            if not (0.0 < cutoff <= 90.0) or not (0.0 <= beam <= cutoff):
+                raise InvalidParameterError(f"point_lights[{k}]: need 0 < cutoff_angle <= 90 and 0 <= beam_width <= cutoff_angle, got {cutoff}, {beam}")
+            axes[k] = axis / np.linalg.norm(axis)
+            c, b = math.radians(cutoff), math.radians(beam)
+            cones[k] = (math.cos(c), math.cos(b), c, 1.0 / (c - b) if c > b else 0.0)
+            cone_solid_angle[k] = 2.0 * math.pi * (1.0 - math.cos(c))  # an upper bound of its power / lum(I)
+    point_power = cone_solid_angle * _lum(pi_) if len(points) else np.zeros(0)
 
     # ---- environment ----
     ls = LightSet()
@@ -735,4 +778,6 @@ def build_light_set(
     ls.emitter_radiance = wp.array(rad.astype(np.float32) if tris.size else np.zeros((1, 3), np.float32), dtype=wp.vec3, device=device)
     ls.point_position = wp.array(pp.astype(np.float32) if len(points) else np.zeros((1, 3), np.float32), dtype=wp.vec3, device=device)
     ls.point_intensity = wp.array(pi_.astype(np.float32) if len(points) else np.zeros((1, 3), np.float32), dtype=wp.vec3, device=device)
+    ls.point_axis = wp.array(axes.astype(np.float32) if len(points) else np.zeros((1, 3), np.float32), dtype=wp.vec3, device=device)
+    ls.point_cone = wp.array(cones.astype(np.float32) if len(points) else np.zeros((1, 4), np.float32), dtype=wp.vec4, device=device)
     return ls

@@ -74,7 +74,9 @@ Transforms ``<transform name="to_world">``
     ``area`` (inside a shape; ``radiance``, required), ``constant``
     (``radiance`` [1]), ``envmap`` (``filename``, ``scale`` [1], ``to_world``;
     ``mis_compensation`` accepted, ignored), ``point`` (``position`` or
-    ``to_world``, ``intensity`` [1]). At most one environment.
+    ``to_world``, ``intensity`` [1]), ``spot`` (``to_world``: the cone points
+    along its local +z; ``intensity`` [1], ``cutoff_angle`` [20°],
+    ``beam_width`` [¾ of the cutoff]). At most one environment.
 ``texture``
     ``bitmap``: ``filename`` (PNG/JPEG via pillow, 8-bit or 16-bit grey, sRGB-decoded
     to linear with the exact sRGB curve as Mitsuba does unless ``raw="true"``;
@@ -802,8 +804,23 @@ class _Loader:
         t = self._type(node)
         if t == "area":
             raise self.ctx.error(node, "an area emitter must be nested inside a <shape>", "type")
-        t = self._require_type(node, ("constant", "envmap", "point"))
+        t = self._require_type(node, ("constant", "envmap", "point", "spot"))
         p = _Props(self, node)
+        if t == "spot":  # a cone along the local +z of to_world (Mitsuba's spotlight)
+            to_world = p.transform("to_world")
+            m = np.eye(4) if to_world is None else to_world
+            intensity = p.color("intensity", 1.0)
+            cutoff = p.float("cutoff_angle", 20.0)
+            beam = p.float("beam_width", cutoff * 0.75)
+            if not (0.0 < cutoff <= 90.0) or not (0.0 <= beam <= cutoff):
+                raise self.ctx.error(node, f"spot needs 0 < cutoff_angle <= 90 and 0 <= beam_width <= cutoff_angle, got {cutoff} and {beam}", "cutoff_angle")
+            p.finish()
+            try:
+                self.scene.add_point_light(tuple(float(x) for x in m[:3, 3]), intensity, direction=tuple(float(x) for x in m[:3, 2]),
+                                           cutoff_angle=cutoff, beam_width=beam)
+            except GrisxError as exc:
+                raise self.ctx.error(node, str(exc)) from None
+            return
         if t == "point":
             to_world = p.transform("to_world")
             if to_world is not None and p.has("position"):

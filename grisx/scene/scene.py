@@ -455,8 +455,12 @@ class Scene:
         self.objects.append(_Object(name, vw, f.astype(np.int64), n, uv, int(material), e, motion))
         return len(self.objects) - 1
 
-    def add_point_light(self, position: Sequence[float], intensity: Any) -> None:
-        self.point_lights.append(PointLight(position=tuple(float(x) for x in position), intensity=tuple(_rgb("point light intensity", intensity))))
+    def add_point_light(self, position: Sequence[float], intensity: Any, direction: Sequence[float] | None = None,
+                        cutoff_angle: float = 20.0, beam_width: float | None = None) -> None:
+        """A point light; with ``direction`` a spot light (Mitsuba's ``spot``: cone half-angle and beam width in degrees)."""
+        self.point_lights.append(PointLight(position=tuple(float(x) for x in position), intensity=tuple(_rgb("point light intensity", intensity)),
+                                            direction=None if direction is None else tuple(float(x) for x in direction),
+                                            cutoff_angle=float(cutoff_angle), beam_width=None if beam_width is None else float(beam_width)))
 
     def set_environment(self, env: ConstantEnvironment | EnvMap | None) -> None:
         self.environment = env

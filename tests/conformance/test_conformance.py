@@ -76,6 +76,7 @@ CASES: dict[str, Case] = {
     "envmap": Case(32, 16),
     "constant": Case(32, 16),
     "point": Case(32, 16),
+    "spot": Case(32, 16),
     "thinlens": Case(32, 16),
     "fov_axis_x": Case(16, 16),
     "fov_axis_y": Case(16, 16),
@@ -166,3 +167,10 @@ def test_ggx_is_caught_where_mitsuba_defaults_to_beckmann():
     scene.materials[:] = [dataclasses.replace(m, distribution="ggx") if hasattr(m, "distribution") else m for m in scene.materials]
     result = agreement(scene, "roughconductor_beckmann")
     assert not result.passed, f"GGX instead of Mitsuba's default Beckmann went unnoticed: {result}"
+
+
+def test_a_spot_without_its_falloff_is_caught():
+    scene = load_mitsuba(SCENES / "spot.xml")
+    scene.point_lights[:] = [dataclasses.replace(p, beam_width=p.cutoff_angle) for p in scene.point_lights]  # hard-edged cones
+    result = agreement(scene, "spot")
+    assert not result.passed, f"spot lights without Mitsuba's falloff went unnoticed: {result}"

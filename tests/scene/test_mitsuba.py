@@ -323,6 +323,7 @@ def test_emitters(tmp_path):
     np.testing.assert_allclose(p0.intensity, [5, 6, 7])
     np.testing.assert_allclose(p1.position, [-1, 0, 0])
     np.testing.assert_allclose(p1.intensity, [1, 1, 1])
+    assert p0.direction is None and p1.direction is None
     env = s.environment
     assert isinstance(env, EnvMap) and env.scale == 0.5
     np.testing.assert_allclose(env.image, 2.0)
@@ -429,6 +430,7 @@ ERRORS = [
     (doc('<shape type="cube">\n<bsdf type="dielectric"><float name="int_ior" value="1"/><float name="ext_ior" value="1"/></bsdf></shape>'),
      3, "bsdf", None, "must differ"),
     (doc('<shape type="cube"><emitter type="area">\n<rgb name="radiance" value="-1"/></emitter></shape>'), 2, "shape", None, "non-negative"),
+    (doc('<emitter type="spot">\n<float name="cutoff_angle" value="120"/></emitter>'), 2, "emitter", "cutoff_angle", "cutoff_angle <= 90"),
     (doc('<emitter type="point">\n<point name="position" x="0" y="0" z="0"/><transform name="to_world"><translate x="1"/></transform></emitter>'),
      2, "emitter", "position", "either 'position' or 'to_world'"),
 ]
@@ -454,3 +456,15 @@ def test_missing_file_and_missing_image(tmp_path):
                                         '<string name="filename" value="none.png"/></texture></bsdf></shape>'))
     with pytest.raises(SceneFileError, match=r"s\.xml:3: <texture type=\"bitmap\" name=\"reflectance\">.*none\.png"):
         load_mitsuba(tmp_path / "s.xml")
+
+
+def test_spot_lights_point_along_local_z_with_mitsubas_cone_defaults():
+    s = load_mitsuba(doc('<emitter type="spot"><transform name="to_world"><lookat origin="0, 2, 0" target="0, 0, 0" up="0, 0, 1"/></transform>'
+                         '<rgb name="intensity" value="3"/></emitter>'
+                         '<emitter type="spot"><float name="cutoff_angle" value="40"/><float name="beam_width" value="5"/></emitter>'))
+    a, b = s.point_lights
+    np.testing.assert_allclose(a.position, [0, 2, 0])
+    np.testing.assert_allclose(a.direction, [0, -1, 0], atol=1e-12)
+    assert a.cutoff_angle == 20.0 and a.beam_width == 15.0  # Mitsuba: cutoff 20°, beam ¾ of it
+    np.testing.assert_allclose(b.direction, [0, 0, 1])
+    assert (b.cutoff_angle, b.beam_width) == (40.0, 5.0)
