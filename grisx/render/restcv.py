@@ -58,8 +58,13 @@ the paper's Eq. 5 weighs by the source pdfs, and any ω with ω_ij(x) + ω_ji(T 
 The confidences still count the history (q of the next composite). STCV's passes evaluate GRIS's
 resampling weights and then drop them: cheap next to the shifts they share.
 
-Direct light goes through the same path reservoir as ReSTIR PT's (the paper's separate ReSTIR
-DI auxiliary Ḋ_i of Sec. 5.3 is not part of this renderer). Every formula — ``cv_alpha``,
+**Direct light** is handled apart, as the paper does after Lin et al. 2022 (``direct=restir-di``, the
+default; ``direct=nee`` keeps it in the path reservoirs): the path candidates start at two segments
+after x₁, and :class:`ReSTCVDI` (``restcv-di``, ReSTIR DI with 32 light candidates and 5 neighbours)
+estimates the **intermediate auxiliary** Ḋ_i — the direct light in colour with the glossy part of the
+BSDF omitted — by the same control variates, then adds the **second-level CV** ⟨D_i − Ḋ_i⟩ =
+(f − ḟ)(y) W_y from its final light sample (Sec. 5.3): ⟨D_i⟩ = ⟨Ḋ_i⟩ + ⟨D_i − Ḋ_i⟩. STCV and ICV,
+which have no ReSTIR, keep direct light in their paths. Every formula — ``cv_alpha``,
 ``cv_estimate``, ``reservoir_difference``, ``compositing_weight``, ``cv_composite_*``,
 ``decoupled_contribution`` — is :mod:`grisx.theory.control_variate`'s, the functions the
 ``chromatic-cv`` toy is verified with.
@@ -81,32 +86,31 @@ from grisx.params import Param
 from grisx.render.base.path_shift import PathReservoir, PathShiftResult
 from grisx.render.base.registry import METHODS, RenderMethod, create_renderer, register, renderer_params
 from grisx.render.base.screen import kernel_cache
+from grisx.render.restir_di import ReSTIRDI, build_restir_di_kernels
 from grisx.render.restir_pt import PixelEstimateHooks, ReSTIRPT, SpatialStep, TemporalStep, build_restir_pt_kernels, shade_estimate
 from grisx.scene.gbuffer import GBufferData
 from grisx.theory.control_variate import (
-    ALPHA_HEURISTIC,
     ALPHA_MODES,
+    ALPHA_SAMPLE,
     DIFFERENCE_MIS,
     Q_INIT,
     CVComposite,
     CVOptions,
     compositing_weight,
-    cv_alpha,
+    cv_alpha_or_sample,
     cv_composite_add,
     cv_composite_empty,
     cv_composite_value,
-    cv_estimate,
+    cv_from_pixel,
     cv_options,
-    reservoir_difference,
 )
 
 wp.set_module_options({"enable_backward": False})
 
-__all__ = ["ReSTCV", "STCV", "create_restcv", "create_stcv", "make_restcv_kernels", "make_stcv_kernels", "ALPHA_CHOICES", "RESTCV_HOOKS", "STCV_HOOKS"]
+__all__ = ["ReSTCV", "ReSTCVDI", "STCV", "create_restcv", "create_stcv", "make_restcv_kernels", "make_stcv_kernels", "ALPHA_CHOICES", "RESTCV_HOOKS", "STCV_HOOKS"]
 
 #: α choices of the renderer: theory's (Eq. 9's heuristic, 1) and the biased ablation ``sample``
-ALPHA_CHOICES = {**ALPHA_MODES, "sample": 2}
-_ALPHA_SAMPLE = wp.constant(ALPHA_CHOICES["sample"])
+ALPHA_CHOICES = {**ALPHA_MODES, "sample": int(ALPHA_SAMPLE)}
 #: the most neighbours whose shifts a spatial pass keeps for Eq. 10 (the ``neighbors`` param's maximum)
 CV_NEIGHBORS_MAX = 16
 _KEPT_MAX = wp.constant(CV_NEIGHBORS_MAX)
@@ -126,9 +130,7 @@ class SpatialCV:
 @wp.func
 def pair_alpha(o: CVOptions, rho_i: wp.vec3, rho_j: wp.vec3, can: PathReservoir, estimate_j: wp.vec3) -> wp.vec3:
     """α_ij from the primary hits' albedos (seed 002, Eq. 9; or 1); ``sample``: ρ from the samples (biased)."""
-    if o.alpha == _ALPHA_SAMPLE:
-        return cv_alpha(ALPHA_HEURISTIC, can.path.f * can.res.ucw, estimate_j)
-    return cv_alpha(o.alpha, rho_i, rho_j)
+    return cv_alpha_or_sample(o.alpha, rho_i, rho_j, can.path.f * can.res.ucw, estimate_j)
 
 
 @wp.func
@@ -139,8 +141,7 @@ def from_pixel(
     """⟨F_i⟩_{←j} = α ⟨F_j⟩ + ⟨F_i − α F_j⟩ (seed 002, Eq. 7), the difference from y_i, y_j and their shifts (Eq. 10–11)."""
     r_j = other.res
     r_j.confidence = confidence_j
-    diff = reservoir_difference(can.res, r_j, can.path.f, f_j_yi, other.path.f, f_i_yj, jacobian_ij, jacobian_ji, alpha, o.difference_mis)
-    return cv_estimate(other.estimate, alpha, diff)
+    return cv_from_pixel(can.res, r_j, other.estimate, can.path.f, f_j_yi, other.path.f, f_i_yj, jacobian_ij, jacobian_ji, alpha, o.difference_mis)
 
 
 @wp.func
@@ -258,34 +259,51 @@ def make_stcv_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     return build_restir_pt_kernels(kinds, STCV_HOOKS)
 
 
+def _checked_cv_options(alpha: str, difference_mis: str, temporal_cv: bool, spatial_cv: bool) -> CVOptions:
+    if alpha not in ALPHA_CHOICES or difference_mis not in DIFFERENCE_MIS:
+        raise InvalidParameterError(f"alpha must be one of {sorted(ALPHA_CHOICES)}, difference_mis one of {sorted(DIFFERENCE_MIS)}")
+    return cv_options(ALPHA_CHOICES[alpha], DIFFERENCE_MIS[difference_mis], temporal_cv, spatial_cv)
+
+
 class ReSTCV(ReSTIRPT):
-    """ReSTCV over a built scene: ReSTIR PT's passes carrying the control-variate estimate (module docstring)."""
+    """ReSTCV over a built scene: ReSTIR PT's passes carrying the control-variate estimate (module docstring);
+    direct light through :class:`ReSTCVDI` (``direct=restir-di``, the paper's) or the path reservoirs (``nee``)."""
+
+    DIRECT_METHOD = "restcv-di"
 
     def __init__(
         self, built: Any, width: int, height: int, *, alpha: str = "heuristic", difference_mis: str = "confidence",
-        temporal_cv: bool = True, spatial_cv: bool = True, **restir_pt: Any,
+        temporal_cv: bool = True, spatial_cv: bool = True, direct: str = "restir-di", **restir_pt: Any,
     ) -> None:
-        if alpha not in ALPHA_CHOICES or difference_mis not in DIFFERENCE_MIS:
-            raise InvalidParameterError(f"alpha must be one of {sorted(ALPHA_CHOICES)}, difference_mis one of {sorted(DIFFERENCE_MIS)}")
         if restir_pt.get("neighbors", 3) > CV_NEIGHBORS_MAX:
             raise InvalidParameterError(f"the control variates take at most {CV_NEIGHBORS_MAX} neighbours")
-        super().__init__(built, width, height, **restir_pt)
+        options = _checked_cv_options(alpha, difference_mis, temporal_cv, spatial_cv)
         self.alpha = alpha
         self.difference_mis = difference_mis
-        self.cv_options = cv_options(ALPHA_CHOICES[alpha], DIFFERENCE_MIS[difference_mis], temporal_cv, spatial_cv)
+        self.cv_choices = {"alpha": alpha, "difference_mis": difference_mis, "temporal_cv": temporal_cv, "spatial_cv": spatial_cv}
+        super().__init__(built, width, height, direct=direct, **restir_pt)
+        self.cv_options = options
+
+    def direct_params(self) -> dict[str, Any]:
+        return dict(self.cv_choices)  # the same control variates on direct light
 
     def make_kernels(self, kinds: frozenset[int]) -> dict[str, Any]:
         return make_restcv_kernels(kinds)
 
 
 class STCV(ReSTCV):
-    """The STCV baseline: the same control variates, differences from each frame's own samples (module docstring)."""
+    """The STCV baseline: the same control variates, differences from each frame's own samples (module docstring);
+    no ReSTIR, so direct light stays in its path estimate."""
 
     def __init__(
         self, built: Any, width: int, height: int, *, alpha: str = "heuristic", difference_mis: str = "balance",
         temporal_cv: bool = True, spatial_cv: bool = True, **restir_pt: Any,
     ) -> None:
-        super().__init__(built, width, height, alpha=alpha, difference_mis=difference_mis, temporal_cv=temporal_cv, spatial_cv=spatial_cv, **restir_pt)
+        if restir_pt.pop("direct", "nee") != "nee":
+            raise InvalidParameterError(f"{type(self).__name__.lower()} has no ReSTIR: direct light stays in its path estimate (direct=nee)")
+        super().__init__(
+            built, width, height, alpha=alpha, difference_mis=difference_mis, temporal_cv=temporal_cv, spatial_cv=spatial_cv, direct="nee", **restir_pt
+        )
 
     def make_kernels(self, kinds: frozenset[int]) -> dict[str, Any]:
         return make_stcv_kernels(kinds)
@@ -303,6 +321,45 @@ class ICV(STCV):
                          spatial_cv=spatial_cv, temporal=False, **restir_pt)
 
 
+# ---- direct light: ReSTIR DI carrying ⟨Ḋ_i⟩ (seed 002, Sec. 5.3) ----
+@kernel_cache
+def make_restcv_di_kernels(kinds: frozenset[int]) -> Any:
+    """ReSTIR DI's passes with ReSTCV's auxiliary estimate compiled in, for ``kinds`` (cached)."""
+    return build_restir_di_kernels(kinds, cv=True)
+
+
+class ReSTCVDI(ReSTIRDI):
+    """ReSTCV on direct light (seed 002, Sec. 5.3): ReSTIR DI's resampling unchanged, and with it
+
+    * the **intermediate auxiliary** Ḋ_i: the direct light with its glossy part omitted — ḟ(y) =
+      f_diffuse L_e G V, in colour (ReSTIR DI's proxy target p̂ is its luminance); grisx's diffuse
+      BSDF is all diffuse lobe and its conductors and dielectrics all glossy, so ḟ = f or 0;
+    * ⟨Ḋ_i⟩ by the control variates of the path version: ⟨Ḋ_i⟩_init = ḟ(y_i) W_i of the visibility-tested
+      canonical sample, Eq. 6–8 with differences (Eq. 10–11) from the light samples and the targets
+      the pairwise MIS evaluates anyway (light samples move by the identity, |J| = 1), q and α as for paths;
+    * the **second-level control variate** ⟨D_i⟩ = ⟨Ḋ_i⟩ + ⟨D_i − Ḋ_i⟩, the difference from the final
+      reservoir's sample: (f − ḟ)(y) W_y — zero on diffuse surfaces, f(y) W_y (ReSTIR DI's own estimate)
+      on glossy ones, whose high-frequency lobe the identity shift would reuse badly.
+
+    ``unbiased=false`` drops visibility from the targets at other pixels, and so from the differences: biased.
+    """
+
+    def __init__(
+        self, built: Any, width: int, height: int, *, alpha: str = "heuristic", difference_mis: str = "confidence",
+        temporal_cv: bool = True, spatial_cv: bool = True, **restir_di: Any,
+    ) -> None:
+        options = _checked_cv_options(alpha, difference_mis, temporal_cv, spatial_cv)
+        super().__init__(built, width, height, **restir_di)
+        self.cv_options = options
+
+    def make_kernels(self, kinds: frozenset[int]) -> Any:
+        return make_restcv_di_kernels(kinds)
+
+
+def create_restcv_di(ctx: Any) -> ReSTCVDI:
+    return create_renderer(ReSTCVDI, ctx)
+
+
 def create_restcv(ctx: Any) -> ReSTCV:
     return create_renderer(ReSTCV, ctx)
 
@@ -315,16 +372,19 @@ def create_icv(ctx: Any) -> ICV:
     return create_renderer(ICV, ctx)
 
 
-def _cv_params(cls: type, temporal: bool = True) -> tuple[Param, ...]:
-    """restir-pt's params and defaults (the same shifts, reuse and depth), plus the control variates' own
-    (without the temporal ones for a method that works within one frame)."""
+def _cv_params(cls: type, temporal: bool = True, base_method: str = "restir-pt") -> tuple[Param, ...]:
+    """``base_method``'s params and defaults (the same shifts, reuse and depth), plus the control variates' own
+    (without the temporal ones for a method that works within one frame); ``direct`` with ``cls``'s default,
+    for ReSTCV only (STCV and ICV have no ReSTIR for direct light)."""
     own = [
         Param("alpha", ..., "CV coefficient: heuristic (Eq. 9's min(rho_i/rho_j, 2) per channel), one, or sample (biased: rho from the samples)", kind="choice", choices=tuple(ALPHA_CHOICES)),
         Param("difference_mis", ..., "weights of Eq. 10: confidence (Eq. 11), balance (Eq. 11 with M = 1) or none (biased: omega = 1)", kind="choice", choices=tuple(DIFFERENCE_MIS)),
         Param("temporal_cv", ..., "temporal control variates (Eq. 6); false: the temporal pass keeps the frame's own estimate", kind="bool"),
         Param("spatial_cv", ..., "spatial control variates (Eq. 8); false: the spatial pass keeps its input estimate", kind="bool"),
     ]
-    base = METHODS["restir-pt"].params
+    base = tuple(p for p in METHODS[base_method].params if p.name != "direct")
+    if cls is ReSTCV:
+        own.append(Param("direct", ..., "direct light: restir-di (ReSTIR DI with the control variates of Sec. 5.3, the paper's) or nee (inside the path reservoirs)", kind="choice", choices=("restir-di", "nee")))
     if not temporal:
         own = [p for p in own if p.name != "temporal_cv"]
         base = tuple(p for p in base if p.name not in ("temporal", "history_cap"))
@@ -339,6 +399,15 @@ register(
         "ReSTCV (Shi et al. 2026): ReSTIR PT shading an accumulated colour estimate with spatio-temporal control variates",
         create_restcv,
         params=_cv_params(ReSTCV),
+    )
+)
+register(
+    RenderMethod(
+        "restcv-di",
+        "ReSTCV on direct light (Shi et al. 2026, Sec. 5.3): ReSTIR DI carrying the auxiliary estimate and a second-level control variate; emitted + direct light",
+        create_restcv_di,
+        reference_max_depth=2,
+        params=_cv_params(ReSTCVDI, base_method="restir-di"),
     )
 )
 register(

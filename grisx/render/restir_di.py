@@ -110,6 +110,18 @@ from grisx.render.base.reuse import (
     temporal_neighbor,
 )
 from grisx.scene.scene import SceneData, SurfaceInteraction, intersect, occluded, segment_occluded, spawn_origin, surface_material
+from grisx.scene.bsdf import MATERIAL_DIFFUSE
+from grisx.theory.control_variate import (
+    Q_INIT,
+    CVOptions,
+    compositing_weight,
+    cv_alpha_or_sample,
+    cv_composite_add,
+    cv_composite_empty,
+    cv_composite_value,
+    cv_from_pixel,
+    cv_options,
+)
 from grisx.theory.gris import ris_weight
 from grisx.theory.mis import balance_mis, balance_term, pairwise_mis_canonical_term, pairwise_mis_neighbor
 from grisx.theory.random import random_uniform
@@ -162,6 +174,7 @@ class LightEval:
     """A light sample seen from a shading point: f L_e G (RGB), its luminance p̂, and the shadow ray."""
 
     rgb: wp.vec3
+    aux: wp.vec3  # ReSTCV's auxiliary ḟ: f L_e G with the BSDF's glossy part omitted (seed 002, Sec. 5.3)
     target: float
     wi: wp.vec3  # unit, shading point → light
     dist: float
@@ -174,6 +187,8 @@ class PairwiseStep:
 
     res: Reservoir
     canonical: float
+    aux_c_of_n: wp.vec3  # ḟ_c(y_n): the neighbour's sample at the canonical point (visibility as the targets)
+    aux_n_of_c: wp.vec3  # ḟ_n(y_c): the canonical sample at the neighbour's point
 
 
 @wp.func
@@ -208,6 +223,12 @@ def light_point_from_sample(ls: LightSample, num_emitters: int) -> LightPoint:
 @kernel_cache
 def make_restir_di_kernels(kinds: frozenset[int]) -> Any:
     """ReSTIR DI's functions and kernels compiled for the material kinds ``kinds`` (cached)."""
+    return build_restir_di_kernels(kinds, cv=False)
+
+
+def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
+    """ReSTIR DI's functions and kernels for ``kinds``; with ``cv``, each pass also carries ReSTCV's
+    estimate ⟨Ḋ_i⟩ of the auxiliary direct light (seed 002, Sec. 5.3; :mod:`grisx.render.restcv`)."""
     bsdf = make_bsdf(kinds)
 
     @wp.func
@@ -215,6 +236,7 @@ def make_restir_di_kernels(kinds: frozenset[int]) -> Any:
         """f L_e G of light sample ``lp`` at visible point ``si`` (area measure on triangles; see the module docstring)."""
         e = LightEval()
         e.rgb = wp.vec3(0.0, 0.0, 0.0)
+        e.aux = wp.vec3(0.0, 0.0, 0.0)
         e.target = 0.0
         e.wi = wp.vec3(0.0, 0.0, 1.0)
         e.dist = 0.0
@@ -252,6 +274,8 @@ def make_restir_di_kernels(kinds: frozenset[int]) -> Any:
         if not (e.target > 0.0):  # also NaN
             e.target = 0.0
             e.rgb = wp.vec3(0.0, 0.0, 0.0)
+        elif m.kind == MATERIAL_DIFFUSE:
+            e.aux = e.rgb  # the diffuse lobe; grisx's other BSDFs are all glossy lobe (ḟ = 0 there)
         e.wi = wi
         e.dist = dist
         return e
@@ -263,13 +287,20 @@ def make_restir_di_kernels(kinds: frozenset[int]) -> Any:
         return not occluded(scene, spawn_origin(scene, si.p, si.ng, e.wi), e.wi, e.dist)
 
     @wp.func
-    def target_at(scene: SceneData, si: SurfaceInteraction, wo: wp.vec3, lp: LightPoint, visibility: int) -> float:
-        """p̂ of ``lp`` at a visible point: unshadowed, or times its visibility when ``visibility`` is set."""
+    def eval_at(scene: SceneData, si: SurfaceInteraction, wo: wp.vec3, lp: LightPoint, visibility: int) -> LightEval:
+        """``lp`` seen from a visible point: unshadowed, or zero where occluded when ``visibility`` is set."""
         e = light_eval(scene, si, wo, lp)
         if e.target > 0.0 and visibility != 0:
             if not light_visible(scene, si, e, lp):
-                return 0.0
-        return e.target
+                e.target = 0.0
+                e.rgb = wp.vec3(0.0, 0.0, 0.0)
+                e.aux = wp.vec3(0.0, 0.0, 0.0)
+        return e
+
+    @wp.func
+    def target_at(scene: SceneData, si: SurfaceInteraction, wo: wp.vec3, lp: LightPoint, visibility: int) -> float:
+        """p̂ of ``lp`` at a visible point: unshadowed, or times its visibility when ``visibility`` is set."""
+        return eval_at(scene, si, wo, lp, visibility).target
 
     @wp.func
     def pairwise_step(
@@ -290,16 +321,28 @@ def make_restir_di_kernels(kinds: frozenset[int]) -> Any:
     ) -> PairwiseStep:
         """Merge neighbour n's reservoir into ``out`` with its pairwise MIS weight (identity shift, J = 1),
         and return its pair's share of the canonical sample's weight (Bitterli 2022, Ch. 9)."""
-        t_c_of_n = target_at(scene, si, wo, y_n, unbiased)  # p̂_c(y_n)
-        t_n_of_c = target_at(scene, si_n, wo_n, y_c, unbiased)  # p̂_n(y_c)
+        e_c_of_n = eval_at(scene, si, wo, y_n, unbiased)
+        e_n_of_c = eval_at(scene, si_n, wo_n, y_c, unbiased)
+        t_c_of_n = e_c_of_n.target  # p̂_c(y_n)
+        t_n_of_c = e_n_of_c.target  # p̂_n(y_c)
         step = PairwiseStep()
+        step.aux_c_of_n = e_c_of_n.aux
+        step.aux_n_of_c = e_n_of_c.aux
         step.res = reservoir_merge(
             out, r_n, pairwise_mis_neighbor(r_n.confidence, r_n.target, r_c.confidence, t_c_of_n, k, total), t_c_of_n, 1.0, u
         )
         step.canonical = pairwise_mis_canonical_term(r_n.confidence, t_n_of_c, r_c.confidence, r_c.target, k, total)
         return step
 
-    module = specialized_module(__name__, kinds)
+    @wp.func
+    def own_aux(scene: SceneData, si: SurfaceInteraction, wo: wp.vec3, r: Reservoir, lp: LightPoint) -> wp.vec3:
+        """ḟ_i(y_i) of a pixel's own reservoir sample: visible from it by construction (visibility before
+        reuse, targets with visibility in the merges, occluded samples dropped when shaded)."""
+        if r.ucw > 0.0:
+            return light_eval(scene, si, wo, lp).aux
+        return wp.vec3(0.0, 0.0, 0.0)
+
+    module = specialized_module(__name__ + (".cv" if cv else ""), kinds)
 
     @wp.kernel(module=module)
     def initial_pass(
@@ -309,10 +352,12 @@ def make_restir_di_kernels(kinds: frozenset[int]) -> Any:
         n_bsdf: int,
         res_out: wp.array2d(dtype=Reservoir),
         lp_out: wp.array2d(dtype=LightPoint),
+        est_out: wp.array2d(dtype=wp.vec3),
         base: wp.array2d(dtype=wp.vec3),
     ):
         y, x = wp.tid()
         key = pixel_key(sf, x, y, _PASS_INITIAL)
+        est_out[y, x] = wp.vec3(0.0, 0.0, 0.0)
         si = sf.si[y, x]
         wo = sf.wo[y, x]
         ls = scene.lights
@@ -407,6 +452,8 @@ def make_restir_di_kernels(kinds: frozenset[int]) -> Any:
         r.confidence = 1.0  # one initial RIS counts as one unit of confidence (M = 1)
         res_out[y, x] = r
         lp_out[y, x] = sel
+        if wp.static(cv):
+            est_out[y, x] = own_aux(scene, si, wo, r, sel) * r.ucw  # ⟨Ḋ_i⟩_init = ḟ(y) W (seed 002, Listing 1 line 36)
 
     @wp.kernel(module=module)
     def temporal_pass(
@@ -416,12 +463,16 @@ def make_restir_di_kernels(kinds: frozenset[int]) -> Any:
         unbiased: int,
         normal_cos: float,
         depth_tol: float,
+        o: CVOptions,
         res_in: wp.array2d(dtype=Reservoir),
         lp_in: wp.array2d(dtype=LightPoint),
+        est_in: wp.array2d(dtype=wp.vec3),
         res_prev: wp.array2d(dtype=Reservoir),
         lp_prev: wp.array2d(dtype=LightPoint),
+        est_prev: wp.array2d(dtype=wp.vec3),
         res_out: wp.array2d(dtype=Reservoir),
         lp_out: wp.array2d(dtype=LightPoint),
+        est_out: wp.array2d(dtype=wp.vec3),
     ):
         y, x = wp.tid()
         key = pixel_key(sf, x, y, _PASS_TEMPORAL)
@@ -430,6 +481,7 @@ def make_restir_di_kernels(kinds: frozenset[int]) -> Any:
         si = sf.si[y, x]
         res_out[y, x] = r_c
         lp_out[y, x] = y_c
+        est_out[y, x] = est_in[y, x]
         if si.valid == 0:
             return
         tn = temporal_neighbor(sf.g, sf.g_prev, x, y, normal_cos, depth_tol)
@@ -453,6 +505,17 @@ def make_restir_di_kernels(kinds: frozenset[int]) -> Any:
             sel = y_c
         res_out[y, x] = reservoir_finalize(out)
         lp_out[y, x] = sel
+        if wp.static(cv):
+            if o.temporal != 0:
+                # ---- ReSTCV: ⟨Ḋ_i⟩ = (q_init ⟨Ḋ_i⟩_init + q_j ⟨Ḋ_i⟩_{←j}) / (q_init + q_j) (seed 002, Eq. 6–7) ----
+                aux_c = own_aux(scene, si, wo, r_c, y_c)
+                est_j = est_prev[tn.y, tn.x]
+                alpha = cv_alpha_or_sample(o.alpha, sf.g.albedo[y, x], sf.g_prev.albedo[tn.y, tn.x], aux_c * r_c.ucw, est_j)
+                from_j = cv_from_pixel(  # light samples move by the identity: |J| = 1 (module docstring, "Measure")
+                    r_c, r_p, est_j, aux_c, step.aux_n_of_c, own_aux(scene, si_p, wo_p, r_p, y_p), step.aux_c_of_n, 1.0, 1.0, alpha, o.difference_mis
+                )
+                c = cv_composite_add(cv_composite_empty(), est_in[y, x], Q_INIT)
+                est_out[y, x] = cv_composite_value(cv_composite_add(c, from_j, compositing_weight(r_p.confidence)))
 
     @wp.kernel(module=module)
     def spatial_pass(
@@ -464,10 +527,13 @@ def make_restir_di_kernels(kinds: frozenset[int]) -> Any:
         unbiased: int,
         normal_cos: float,
         depth_tol: float,
+        o: CVOptions,
         res_in: wp.array2d(dtype=Reservoir),
         lp_in: wp.array2d(dtype=LightPoint),
+        est_in: wp.array2d(dtype=wp.vec3),
         res_out: wp.array2d(dtype=Reservoir),
         lp_out: wp.array2d(dtype=LightPoint),
+        est_out: wp.array2d(dtype=wp.vec3),
     ):
         y, x = wp.tid()
         width = sf.si.shape[1]
@@ -478,6 +544,7 @@ def make_restir_di_kernels(kinds: frozenset[int]) -> Any:
         si = sf.si[y, x]
         res_out[y, x] = r_c
         lp_out[y, x] = y_c
+        est_out[y, x] = est_in[y, x]
         if si.valid == 0:
             return
         wo = sf.wo[y, x]
@@ -496,23 +563,39 @@ def make_restir_di_kernels(kinds: frozenset[int]) -> Any:
         out = reservoir_empty()
         sel = light_point_none()
         m_c = float(0.0)
+        # ReSTCV: Eq. 8's composite starts with ⟨Ḋ_i⟩_{←i} = ⟨Ḋ_i⟩, q_i = M_i ≤ 20 (seed 002)
+        composite = cv_composite_add(cv_composite_empty(), est_in[y, x], compositing_weight(r_c.confidence))
+        aux_c = wp.vec3(0.0, 0.0, 0.0)
+        if wp.static(cv):
+            aux_c = own_aux(scene, si, wo, r_c, y_c)
         for j in range(k):
             nb = neighbor_set_pixel(ns, j)
             r_n = res_in[nb.y, nb.x]
             y_n = lp_in[nb.y, nb.x]
             r_n.confidence = confidence_capped(r_n.confidence, history_cap)
-            step = pairwise_step(
-                scene, out, si, wo, r_c, y_c, sf.si[nb.y, nb.x], sf.wo[nb.y, nb.x], r_n, y_n, k, total, unbiased, random_uniform(key, 4 * ns.slot[j] + 2)
-            )
+            si_n = sf.si[nb.y, nb.x]
+            wo_n = sf.wo[nb.y, nb.x]
+            step = pairwise_step(scene, out, si, wo, r_c, y_c, si_n, wo_n, r_n, y_n, k, total, unbiased, random_uniform(key, 4 * ns.slot[j] + 2))
             out = step.res
             m_c += step.canonical
             if out.selected:
                 sel = y_n
+            if wp.static(cv):
+                if o.spatial != 0:
+                    # ---- ReSTCV: + q_n ⟨Ḋ_i⟩_{←n} from the targets the pairwise MIS just evaluated (Eq. 7–8, 10–11) ----
+                    est_n = est_in[nb.y, nb.x]
+                    alpha = cv_alpha_or_sample(o.alpha, sf.g.albedo[y, x], sf.g.albedo[nb.y, nb.x], aux_c * r_c.ucw, est_n)
+                    from_n = cv_from_pixel(
+                        r_c, r_n, est_n, aux_c, step.aux_n_of_c, own_aux(scene, si_n, wo_n, r_n, y_n), step.aux_c_of_n, 1.0, 1.0, alpha, o.difference_mis
+                    )
+                    composite = cv_composite_add(composite, from_n, compositing_weight(r_n.confidence))
         out = reservoir_merge(out, r_c, m_c, r_c.target, 1.0, random_uniform(key, 4 * neighbors))
         if out.selected:
             sel = y_c
         res_out[y, x] = reservoir_finalize(out)
         lp_out[y, x] = sel
+        if wp.static(cv):
+            est_out[y, x] = cv_composite_value(composite)
 
     @wp.kernel(module=module)
     def shade_pass(
@@ -521,17 +604,23 @@ def make_restir_di_kernels(kinds: frozenset[int]) -> Any:
         base: wp.array2d(dtype=wp.vec3),
         res: wp.array2d(dtype=Reservoir),
         lps: wp.array2d(dtype=LightPoint),
+        est: wp.array2d(dtype=wp.vec3),
         image: wp.array2d(dtype=wp.vec3),
         nonfinite: wp.array(dtype=wp.int32),
     ):
         y, x = wp.tid()
         L = base[y, x]
         r = res[y, x]
+        if wp.static(cv):
+            L += est[y, x]  # ⟨Ḋ_i⟩, ReSTCV's estimate of the auxiliary (seed 002, Sec. 5.3)
         if r.ucw > 0.0:
             si = sf.si[y, x]
             e = light_eval(scene, si, sf.wo[y, x], lps[y, x])
             if e.target > 0.0 and light_visible(scene, si, e, lps[y, x]):
-                L += e.rgb * r.ucw  # seed 004, Eq. 8: f(y) · W
+                if wp.static(cv):
+                    L += (e.rgb - e.aux) * r.ucw  # the second-level CV: ⟨D_i − Ḋ_i⟩ = (f − ḟ)(y) · W
+                else:
+                    L += e.rgb * r.ucw  # seed 004, Eq. 8: f(y) · W
             else:
                 # an occluded sample (possible when unbiased=false) is not handed to the next frame
                 res[y, x] = reservoir_drop(r)
@@ -577,18 +666,26 @@ class ReSTIRDI(ScreenSpaceRenderer):
         self.unbiased = int(bool(unbiased))
         self.jitter = bool(jitter)
         self.timer = timer
-        self.k = make_restir_di_kernels(frozenset(built.features.material_kinds))
+        self.k = self.make_kernels(frozenset(built.features.material_kinds))
+        self.cv_options = cv_options()  # the passes' CV options: unused by ReSTIR DI itself (ReSTCV's, restcv-di)
         dev = self.device = built.device
         shape = (self.height, self.width)
         self.gbuffer = GBuffer(self.width, self.height, dev)
-        pair = lambda: (wp.zeros(shape, dtype=Reservoir, device=dev), wp.zeros(shape, dtype=LightPoint, device=dev))  # noqa: E731
-        self.initial = pair()
-        self.temporal_out = pair()
-        self.final = DoubleBuffer(pair)  # this frame's / last frame's final reservoirs
+        # a pixel's reservoir, its light sample, and the estimate a ReSTCV variant carries with them
+        triple = lambda: (  # noqa: E731
+            wp.zeros(shape, dtype=Reservoir, device=dev), wp.zeros(shape, dtype=LightPoint, device=dev), wp.zeros(shape, dtype=wp.vec3, device=dev)
+        )
+        self.initial = triple()
+        self.temporal_out = triple()
+        self.final = DoubleBuffer(triple)  # this frame's / last frame's final reservoirs
         self.base = wp.zeros(shape, dtype=wp.vec3, device=dev)
         self.image = wp.zeros(shape, dtype=wp.vec3, device=dev)
         self.nonfinite = wp.zeros(1, dtype=wp.int32, device=dev)
         self.frames_rendered = 0
+
+    def make_kernels(self, kinds: frozenset[int]) -> Any:
+        """The passes compiled for ``kinds`` (ReSTCV's variant compiles its estimate in)."""
+        return make_restir_di_kernels(kinds)
 
     def kernels(self) -> list[Any]:
         return [gbuffer_kernel, self.k.initial_pass, self.k.temporal_pass, self.k.spatial_pass, self.k.shade_pass]
@@ -610,7 +707,7 @@ class ReSTIRDI(ScreenSpaceRenderer):
                 self.k.initial_pass,
                 dim=dim,
                 inputs=[data, sf, self.light_candidates, self.bsdf_candidates],
-                outputs=[self.initial[0], self.initial[1], self.base],
+                outputs=[self.initial[0], self.initial[1], self.initial[2], self.base],
                 device=dev,
             )
         src = self.initial
@@ -620,10 +717,10 @@ class ReSTIRDI(ScreenSpaceRenderer):
                     self.k.temporal_pass,
                     dim=dim,
                     inputs=[
-                        data, sf, self.history_cap, self.unbiased, SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH,
-                        src[0], src[1], self.final.previous[0], self.final.previous[1],
+                        data, sf, self.history_cap, self.unbiased, SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH, self.cv_options,
+                        src[0], src[1], src[2], self.final.previous[0], self.final.previous[1], self.final.previous[2],
                     ],
-                    outputs=[self.temporal_out[0], self.temporal_out[1]],
+                    outputs=[self.temporal_out[0], self.temporal_out[1], self.temporal_out[2]],
                     device=dev,
                 )
             src = self.temporal_out
@@ -635,21 +732,21 @@ class ReSTIRDI(ScreenSpaceRenderer):
                     dim=dim,
                     inputs=[
                         data, sf, self.neighbors, self.radius, self.history_cap, self.unbiased, SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH,
-                        src[0], src[1],
+                        self.cv_options, src[0], src[1], src[2],
                     ],
-                    outputs=[dst[0], dst[1]],
+                    outputs=[dst[0], dst[1], dst[2]],
                     device=dev,
                 )
         else:
-            wp.copy(dst[0], src[0])
-            wp.copy(dst[1], src[1])
+            for a, b in zip(dst, src):
+                wp.copy(a, b)
 
     def shade(self) -> wp.array:
         with self._phase("di_shade"):
             wp.launch(
                 self.k.shade_pass,
                 dim=(self.height, self.width),
-                inputs=[self.built.data, screen_frame(self.gbuffer, self.seed, 0), self.base, self.final.current[0], self.final.current[1]],
+                inputs=[self.built.data, screen_frame(self.gbuffer, self.seed, 0), self.base, *self.final.current],
                 outputs=[self.image, self.nonfinite],
                 device=self.device,
             )

@@ -46,6 +46,12 @@ shifts and the candidate sampler are
 :func:`grisx.render.base.path_shift.make_path_shift`'s. The wrong-Jacobian ablation
 (``jacobian=false``: |J| = 1 in every weight) is biased and the tests show it.
 
+**Direct light.** By default the path reservoirs hold direct light too (``direct=nee``: NEE and BSDF
+sampling at x₁ with MIS, like every other vertex). ``direct=restir-di`` hands the paths x₁ → light to
+:mod:`~grisx.render.restir_di` on the same G-buffer, as Lin et al. 2022 do; the candidates then start
+at two segments after x₁ (``ShiftParams.min_bounces``), the walk itself unchanged, so the two
+estimators own disjoint sets of paths and their sum estimates ``pt``'s image.
+
 **Variants.** The passes can carry a per-pixel estimate of their own besides the reservoir
 (``PathReservoir.estimate``), formed at each reuse step from the shifts the pass evaluates anyway:
 :class:`PixelEstimateHooks` compiles a variant's Warp funcs into the same kernels
@@ -110,6 +116,8 @@ wp.set_module_options({"enable_backward": False})
 
 __all__ = ["PathReservoir", "path_reservoir", "ReSTIRPT", "create_restir_pt", "make_restir_pt_kernels", "build_restir_pt_kernels", "PixelEstimateHooks", "TemporalStep", "SpatialStep", "shade_estimate"]
 
+#: where direct light comes from: the path reservoirs' own NEE, or ReSTIR DI (Lin et al. 2022 handle it apart)
+DIRECT_CHOICES = ("nee", "restir-di")
 # random streams of a pixel (pixel_key_of: the base's one key scheme; the camera sample has its own key)
 _STREAM_RESAMPLE = wp.constant(1)
 _STREAM_TEMPORAL = wp.constant(2)
@@ -439,9 +447,12 @@ class ReSTIRPT(ScreenSpaceRenderer):
         jacobian: bool = True,
         max_jacobian: float = 0.0,
         jitter: bool = True,
+        direct: str = "nee",
         seed: int = 0,
         timer: Any = None,
     ) -> None:
+        if direct not in DIRECT_CHOICES:
+            raise InvalidParameterError(f"direct must be one of {', '.join(DIRECT_CHOICES)}, not '{direct}'")
         if candidates < 1 or max_depth == 0 or max_depth < -1 or rr_depth < 1 or spatial_rounds < 0 or neighbors < 0 or radius <= 0.0:
             raise InvalidParameterError(
                 "restir-pt needs candidates >= 1, max_depth -1 or >= 1, rr_depth >= 1, spatial_rounds >= 0, neighbors >= 0, radius > 0"
@@ -469,18 +480,36 @@ class ReSTIRPT(ScreenSpaceRenderer):
             jacobian_max=max_jacobian,
             jacobian=jacobian,
             rr_depth=rr_depth,
+            min_bounces=2 if direct == "restir-di" else 1,  # ReSTIR DI owns the paths x₁ → light
         )
         self.k = self.make_kernels(frozenset(built.features.material_kinds))
         self.cv_options = cv_options()  # the passes' CV options: unused by ReSTIR PT itself (see PixelEstimateHooks)
         dev = built.device
         shape = (self.height, self.width)
-        self.gbuffer = GBuffer(self.width, self.height, dev)
+        self.direct_name = direct
+        self.di = None
+        if direct == "restir-di":
+            # composed through the registry, as ReSTIR GI does: the same G-buffer, its own random streams
+            from grisx.render.base.registry import METHODS, RenderContext
+
+            ctx = RenderContext(built, width, height, {"jitter": jitter, **self.direct_params()}, self.seed + 7919, timer, self.DIRECT_METHOD)
+            self.di = METHODS[self.DIRECT_METHOD].create(ctx)
+            self.gbuffer = self.di.gbuffer
+        else:
+            self.gbuffer = GBuffer(self.width, self.height, dev)
         self.domains = [wp.zeros(shape, dtype=Domain, device=dev) for _ in range(2)]  # current, previous
         self.buffers = [wp.zeros(shape, dtype=PathReservoir, device=dev) for _ in range(3)]  # 0: history, 1–2: scratch
         self.direct = wp.zeros(shape, dtype=wp.vec3, device=dev)
         self.image = wp.zeros(shape, dtype=wp.vec3, device=dev)
         self.nonfinite = wp.zeros(1, dtype=wp.int32, device=dev)
         self.frames_rendered = 0
+
+    #: the render method that shades direct light with ``direct=restir-di`` (ReSTCV's has the control variates)
+    DIRECT_METHOD = "restir-di"
+
+    def direct_params(self) -> dict[str, Any]:
+        """Params of :attr:`DIRECT_METHOD` beyond the shared ``jitter``."""
+        return {}
 
     def make_kernels(self, kinds: frozenset[int]) -> dict[str, Any]:
         """The passes compiled for ``kinds`` (a variant overrides this with its :class:`PixelEstimateHooks`)."""
@@ -530,8 +559,11 @@ class ReSTIRPT(ScreenSpaceRenderer):
                     device=dev,
                 )
             cur, other = other, cur
+        direct = self.direct  # emission seen at x₁; with ReSTIR DI, emission and direct light
+        if self.di is not None:
+            direct = self.di.direct_light(frame)
         with self._phase("shade"):
-            wp.launch(k["shade"], dim=dim, inputs=[self.direct, cur], outputs=[self.image, self.nonfinite], device=dev)
+            wp.launch(k["shade"], dim=dim, inputs=[direct, cur], outputs=[self.image, self.nonfinite], device=dev)
         self.buffers = [cur, history, other]  # this frame's reservoirs are the next frame's history
         self.frames_rendered += 1
         return self.image
@@ -572,6 +604,7 @@ register(
             Param("jacobian", ..., "use shift Jacobians (false: |J| = 1, the biased ablation)", kind="bool"),
             Param("max_jacobian", ..., "reject shifts with |J| outside [1/τ, τ] (still unbiased: T stays a bijection); 0: never", minimum=0.0),
             Param("jitter", ..., "visible point uniform over the pixel each frame (box filter: what pt estimates); false: pixel centres", kind="bool"),
+            Param("direct", ..., "direct light: nee (inside the path reservoirs) or restir-di (ReSTIR DI on the same G-buffer; the paths then start at two bounces)", kind="choice", choices=DIRECT_CHOICES),
         ),
     )
 )

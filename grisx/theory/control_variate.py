@@ -92,7 +92,10 @@ __all__ = [
     "DifferenceSample",
     "luminance",
     "cv_alpha",
+    "cv_alpha_or_sample",
+    "ALPHA_SAMPLE",
     "cv_estimate",
+    "cv_from_pixel",
     "cv_composite_empty",
     "cv_composite_add",
     "cv_composite_value",
@@ -114,6 +117,8 @@ ALPHA_HEURISTIC = wp.constant(0)
 ALPHA_ONE = wp.constant(1)
 #: user-facing names of the α choices, in the order of their constants
 ALPHA_MODES = {"heuristic": 0, "one": 1}
+#: a renderer's known-biased ablation: Eq. 9's ρ taken from the samples (:func:`cv_alpha_or_sample`)
+ALPHA_SAMPLE = wp.constant(2)
 #: the clamp of Eq. 9's reflectance ratio
 ALPHA_CAP = wp.constant(2.0)
 #: weight of the initial estimate in Eq. 6 (Sec. 5.3)
@@ -194,6 +199,16 @@ def cv_alpha(mode: int, rho_i: wp.vec3, rho_j: wp.vec3) -> wp.vec3:
 def cv_estimate(estimate_j: wp.vec3, alpha: wp.vec3, difference: wp.vec3) -> wp.vec3:
     """⟨F_i⟩_{←j} = α_ij ⊙ ⟨F_j⟩ + ⟨F_i − α_ij F_j⟩ (seed 002, Eq. 2, 3, 7)."""
     return wp.cw_mul(alpha, estimate_j) + difference
+
+
+@wp.func
+def cv_alpha_or_sample(mode: int, rho_i: wp.vec3, rho_j: wp.vec3, sample_i: wp.vec3, estimate_j: wp.vec3) -> wp.vec3:
+    """:func:`cv_alpha` for ``mode`` in :data:`ALPHA_MODES`; with :data:`ALPHA_SAMPLE` the known-biased
+    ablation that takes ρ_i from pixel i's current one-sample estimate and ρ_j = ⟨F_j⟩, so α
+    correlates with the difference it multiplies (what the renderers' tests must catch)."""
+    if mode == ALPHA_SAMPLE:
+        return cv_alpha(ALPHA_HEURISTIC, sample_i, estimate_j)
+    return cv_alpha(mode, rho_i, rho_j)
 
 
 @wp.func
@@ -307,3 +322,24 @@ def reservoir_difference(
     s_i = difference_sample(w_ij, r_i.ucw, f_i_yi, f_j_yi, jacobian_ij)
     s_j = difference_sample(w_ji, r_j.ucw, f_j_yj, f_i_yj, jacobian_ji)
     return difference_estimate(s_i, s_j, alpha)
+
+
+@wp.func
+def cv_from_pixel(
+    r_i: Reservoir,
+    r_j: Reservoir,
+    estimate_j: wp.vec3,
+    f_i_yi: wp.vec3,
+    f_j_yi: wp.vec3,
+    f_j_yj: wp.vec3,
+    f_i_yj: wp.vec3,
+    jacobian_ij: float,
+    jacobian_ji: float,
+    alpha: wp.vec3,
+    mis_mode: int,
+) -> wp.vec3:
+    """⟨F_i⟩_{←j} = α ⟨F_j⟩ + ⟨F_i − α F_j⟩ (seed 002, Eq. 7), the difference from the two reservoirs'
+    samples and their shifts (Eq. 10–11, :func:`reservoir_difference`; ``r_j`` with the confidence
+    the pass gives it)."""
+    diff = reservoir_difference(r_i, r_j, f_i_yi, f_j_yi, f_j_yj, f_i_yj, jacobian_ij, jacobian_ji, alpha, mis_mode)
+    return cv_estimate(estimate_j, alpha, diff)

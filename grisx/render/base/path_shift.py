@@ -241,6 +241,7 @@ class ShiftParams:
     jacobian_max: float  # reject shifts with |J| ∉ [1/J_max, J_max]; <= 0: no threshold
     use_jacobian: int  # 0: pretend |J| = 1 (the wrong-Jacobian ablation; biased)
     rr_depth: int  # Russian roulette after BSDF sampling at x_i for i >= rr_depth (Mitsuba's depth; part of the path's sampling)
+    min_bounces: int  # candidates have at least this many segments after x₁ (2: indirect light only, direct light left to ReSTIR DI)
 
 
 @wp.struct
@@ -614,7 +615,8 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
 
         Next-event estimation at every non-delta vertex, BSDF sampling, Russian roulette from
         ``sp.rr_depth`` on (Mitsuba's rule, :func:`~grisx.theory.roulette.roulette_survival`), at
-        most ``max_bounces`` segments after x₁ (< 0: unbounded). Each candidate x̄_l gets the
+        most ``max_bounces`` segments after x₁ (< 0: unbounded), candidates of at least
+        ``sp.min_bounces`` (2: indirect light alone, the walk itself unchanged). Each candidate x̄_l gets the
         RIS weight w_l = ``weight_scale`` · p̂(x̄_l) / p(x̄_l) (seed 000, Eq. 6; m_t is inside p̂,
         so with ``weight_scale`` = 1/N over N traced paths the MIS weights sum to one) and its
         reconnection data under ``sp``'s rule. Reservoir decisions use ``random_uniform(ukey, j)``,
@@ -640,7 +642,7 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
             wo_l = to_local(frame_l, v.wo)
             rough = bsdf.roughness(m)
             # -- next-event estimation: candidate x₁ … x_i → light --
-            if bsdf.is_delta(m) == 0:
+            if bsdf.is_delta(m) == 0 and i >= sp.min_bounces:
                 c = path_dim(i, DIM_NEE)
                 ls = sample_light(scene.lights, v.p, random_uniform(key, c), wp.vec2(random_uniform(key, c + 1), random_uniform(key, c + 2)))
                 if ls.pdf > 0.0 and wp.length_sq(ls.radiance) > 0.0:
@@ -712,7 +714,7 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
             lpdf = eh.light_pdf
             dist = eh.dist
             # -- emitter reached by BSDF sampling: candidate x₁ … x_{i+1} --
-            if wp.length_sq(le) > 0.0:
+            if wp.length_sq(le) > 0.0 and i >= sp.min_bounces:
                 mis = technique_mis(0, 0, bs.delta, lpdf, bs.pdf)
                 cand_x = cur
                 cand_x.length = i
@@ -798,6 +800,7 @@ def shift_params(
     jacobian_max: float = 0.0,
     jacobian: bool = True,
     rr_depth: int = 5,
+    min_bounces: int = 1,
 ) -> ShiftParams:
     """A :class:`ShiftParams` record for the shift ``name`` (replay, reconnection or hybrid)."""
     if name not in SHIFT_MODES:
@@ -811,4 +814,5 @@ def shift_params(
     sp.jacobian_max = float(jacobian_max)
     sp.use_jacobian = int(bool(jacobian))
     sp.rr_depth = int(rr_depth)
+    sp.min_bounces = int(min_bounces)
     return sp

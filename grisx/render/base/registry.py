@@ -50,6 +50,9 @@ VOCABULARY = {
     "difference_mis": ("choice", "MIS weights of the control variates' difference estimator (seed 002, Eq. 10-11)"),
     "temporal_cv": ("bool", "temporal control variates (seed 002, Eq. 6) on or off"),
     "spatial_cv": ("bool", "spatial control variates (seed 002, Eq. 8) on or off"),
+    "light_candidates": ("int", "ReSTIR DI: initial light-sampled candidates per pixel"),
+    "bsdf_candidates": ("int", "ReSTIR DI: initial BSDF-sampled candidates per pixel"),
+    "direct": ("choice", "where direct light comes from: nee (the method's own paths) or restir-di (ReSTIR DI on the same G-buffer)"),
 }
 #: names that mean one of the above and must not be used for it
 SYNONYMS = {
