@@ -29,7 +29,7 @@ import numpy as np
 
 from grisx.errors import InvalidParameterError
 
-__all__ = ["Reference", "reference", "reference_image", "cache_dir"]
+__all__ = ["Reference", "reference", "reference_image", "cache_dir", "render_chunk", "CHUNK_SPP"]
 
 
 def cache_dir() -> Path:
@@ -58,6 +58,68 @@ def _scene_identity(scene: str) -> str:
     return "file:" + hashlib.sha256(path.read_bytes()).hexdigest()
 
 
+#: samples per pixel of one chunk: a reference of more is the float64 sum of chunks merged in chunk order
+CHUNK_SPP = 1024
+
+
+def render_chunk(scene: str, width: int, height: int, max_depth: int, seed: int, first: int, count: int,
+                 device: str = "cpu") -> dict[str, Any]:
+    """Samples ``first`` … ``first + count − 1`` of a reference: their float64 sums and sums of squares.
+
+    A task of :mod:`grisx.executor`: it runs wherever it is sent (``device``) and depends on nothing else,
+    so a chunk is the same image on every worker of one kind of device.
+    """
+    from grisx.device import resolve_device, synchronize
+    from grisx.render.driver import load_scene
+    from grisx.render.pt import PathTracer
+
+    dev = resolve_device(device)
+    built = load_scene(scene).build(dev)
+    pt = PathTracer(built, width, height, spp=count, max_depth=max_depth, seed=seed)
+    start = time.perf_counter()
+    done = 0
+    while done < count:
+        n = min(16, count - done)
+        pt.add_samples(0, n, first_sample=first + done)
+        done += n
+    synchronize(dev)
+    seconds = time.perf_counter() - start
+    return {"first": int(first), "count": int(count), "total": pt.total.numpy().astype(np.float64),
+            "total_sq": pt.total_sq.numpy().astype(np.float64), "nonfinite": pt.nonfinite_samples,
+            "seconds": seconds, "device": str(dev)}
+
+
+def _chunks(spp: int, chunk_spp: int) -> list[tuple[int, int]]:
+    """(first sample, count) of each chunk, in order."""
+    return [(first, min(chunk_spp, spp - first)) for first in range(0, spp, chunk_spp)]
+
+
+def _save_chunk(folder: Path, index: int, chunk: dict[str, Any]) -> None:
+    """One finished chunk on disk (written atomically: a chunk file is whole or absent)."""
+    import io
+
+    from grisx.eval.files import write_atomic
+
+    buf = io.BytesIO()
+    np.savez(buf, **{k: np.asarray(v) for k, v in chunk.items()})
+    write_atomic(folder / f"chunk-{index:05d}.npz", buf.getvalue())
+
+
+def _load_chunks(folder: Path, plan: list[tuple[int, int]]) -> dict[int, dict[str, Any]]:
+    """The chunks of ``plan`` already on disk (an earlier, interrupted run): no chunk is rendered twice."""
+    found = {}
+    for index, (first, count) in enumerate(plan):
+        path = folder / f"chunk-{index:05d}.npz"
+        if not path.is_file():
+            continue
+        with np.load(path) as z:
+            chunk = {k: z[k] for k in z.files}
+        if int(chunk["first"]) == first and int(chunk["count"]) == count:
+            chunk.update(device=str(chunk["device"]), seconds=float(chunk["seconds"]), nonfinite=int(chunk["nonfinite"]))
+            found[index] = chunk
+    return found
+
+
 def reference(
     scene: str,
     *,
@@ -68,47 +130,99 @@ def reference(
     seed: int = 0,
     force: bool = False,
     progress: Callable[[int, int], None] | None = None,
+    executor: Any = None,
+    chunk_spp: int = CHUNK_SPP,
 ) -> Reference:
-    """The cached reference of ``scene`` (rendered now if missing or ``force``)."""
-    from grisx import __version__
-    from grisx.device import resolve_device
-    from grisx.imageio import read_exr, write_exr
-    from grisx.render.pt import PathTracer
-    from grisx.render.driver import load_scene
+    """The cached reference of ``scene`` (rendered now if missing or ``force``).
 
-    if isinstance(spp, bool) or not isinstance(spp, (int, np.integer)) or spp < 1:
-        raise InvalidParameterError(f"spp must be a positive integer, got {spp!r}")
+    The samples are rendered in chunks of ``chunk_spp`` (the last one shorter), each a task of ``executor``
+    (a :class:`grisx.executor.Executor`; default: here, on ``device``). Chunk k holds samples
+    k·chunk_spp, … of the counter RNG's stream, so chunks are disjoint wherever they run; their float64
+    sums and sums of squares are merged in chunk order, which makes the image the same on every executor
+    for the same total spp. Finished chunks are kept beside the cache entry until the image is written, so
+    an interrupted reference resumes without rendering any chunk twice. A reference of one chunk has the
+    key it had before chunking; one of several chunks has ``chunk_spp`` in its key.
+    """
+    from grisx import __version__
+    from grisx.executor import InProcessExecutor, Task
+    from grisx.imageio import read_exr, write_exr
+    from grisx.render.driver import load_scene
+    from grisx.render.pt import variance_of_mean
+
+    for name, value in (("spp", spp), ("chunk_spp", chunk_spp)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+            raise InvalidParameterError(f"{name} must be a positive integer, got {value!r}")
     sc = load_scene(scene)
     width, height = res if res is not None else (sc.film.width, sc.film.height)
     depth = int(sc.defaults.get("max_depth", 16)) if max_depth is None else int(max_depth)
     if depth == 0:
         raise InvalidParameterError("max_depth must be -1 (unbounded) or >= 1, got 0")
-    settings = {"scene": str(scene), "width": int(width), "height": int(height), "spp": int(spp),
-                "max_depth": depth, "seed": int(seed), "grisx_version": __version__}
+    settings: dict[str, Any] = {"scene": str(scene), "width": int(width), "height": int(height), "spp": int(spp),
+                                "max_depth": depth, "seed": int(seed), "grisx_version": __version__}
+    if spp > chunk_spp:  # one chunk: the sums of one stream, as before chunking (the stored references stay valid)
+        settings["chunk_spp"] = int(chunk_spp)
     key = hashlib.sha256(json.dumps({**settings, "identity": _scene_identity(str(scene))}, sort_keys=True).encode()).hexdigest()[:24]
     folder = cache_dir()
     path = folder / f"{key}.exr"
     var_path = folder / f"{key}.variance.exr"
     if path.is_file() and var_path.is_file() and not force:
         return Reference(read_exr(path), read_exr(var_path), path, True, json.loads(path.with_suffix(".json").read_text()))
-    dev = resolve_device(device)
-    built = sc.build(dev)
-    pt = PathTracer(built, width, height, spp=spp, max_depth=depth, seed=seed)
+    if executor is None:
+        executor = InProcessExecutor(device)
+    chunk_dir = folder / f"{key}.chunks"
+    if force and chunk_dir.is_dir():
+        for old in chunk_dir.glob("*.npz"):
+            old.unlink()
+    chunk_dir.mkdir(parents=True, exist_ok=True)
+    plan = _chunks(int(spp), int(chunk_spp))
     start = time.perf_counter()
-    done = 0
-    while done < spp:
-        n = min(16, spp - done)
-        pt.add_samples(0, n)
-        done += n
+    chunks = _load_chunks(chunk_dir, plan)
+    resumed = sorted(chunks)
+    done = sum(c["count"] for c in chunks.values())
+    if progress is not None and done:
+        progress(done, spp)
+    tasks = [Task(f"{scene} chunk {i}", render_chunk, dict(scene=str(scene), width=int(width), height=int(height),
+                                                          max_depth=depth, seed=int(seed), first=first, count=count))
+             for i, (first, count) in enumerate(plan) if i not in chunks]
+    index = {t.key: i for i, t in zip((i for i in range(len(plan)) if i not in chunks), tasks)}
+    for task, chunk, report in executor.run(tasks):
+        i = index[task.key]
+        chunk["device"] = report.worker
+        _save_chunk(chunk_dir, i, chunk)
+        chunks[i] = chunk
+        done += chunk["count"]
         if progress is not None:
             progress(done, spp)
-    image, variance = pt.mean().astype(np.float32), pt.variance_of_mean()
+    # ---- merge: float64 sums in chunk order (the same image whatever ran each chunk) ----
+    total = np.zeros((height, width, 3), dtype=np.float64)
+    total_sq = np.zeros((height, width, 3), dtype=np.float64)
+    for i in range(len(plan)):
+        total += chunks[i]["total"]
+        total_sq += chunks[i]["total_sq"]
+    image, variance = (total / spp).astype(np.float32), variance_of_mean(total, total_sq, spp)
     seconds = time.perf_counter() - start
-    folder.mkdir(parents=True, exist_ok=True)
-    write_exr(path, image)
+    throughput: dict[str, dict[str, float]] = {}
+    for i in range(len(plan)):
+        c = chunks[i]
+        d = throughput.setdefault("resumed" if i in resumed else c["device"], {"chunks": 0, "spp": 0, "seconds": 0.0})
+        d["chunks"] += 1
+        d["spp"] += int(c["count"])
+        d["seconds"] += float(c["seconds"])
+    for d in throughput.values():
+        d["spp_per_second"] = d["spp"] / d["seconds"] if d["seconds"] > 0 else None
+        d["samples_per_second"] = d["spp"] * width * height / d["seconds"] if d["seconds"] > 0 else None
     write_exr(var_path, variance)
-    meta = {**settings, "device": str(dev), "seconds": seconds, "nonfinite_samples": pt.nonfinite_samples, "key": key}
-    path.with_suffix(".json").write_text(json.dumps(meta, indent=2))
+    write_exr(path, image)
+    meta = {**settings, "device": str(chunks[len(plan) - 1]["device"]) if len(throughput) == 1 else ",".join(sorted(throughput)),
+            "seconds": seconds, "nonfinite_samples": int(sum(int(c["nonfinite"]) for c in chunks.values())), "key": key,
+            "chunks": len(plan), "chunk_spp": int(chunk_spp), "resumed_chunks": len(resumed),
+            "executor": executor.describe(), "throughput": throughput, "retried": executor.retried}
+    from grisx.eval.files import write_json
+
+    write_json(path.with_suffix(".json"), meta)
+    for c in chunk_dir.glob("*.npz"):
+        c.unlink()
+    chunk_dir.rmdir()
     return Reference(image, variance, path, False, meta)
 
 
