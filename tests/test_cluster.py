@@ -249,3 +249,16 @@ def test_ray_killed_task_is_retried_and_reported(ray_executor, tmp_path):
     ray_executor.reports.clear()
     got = list(ray_executor.run([Task("k", flaky, dict(value=5, marker=str(tmp_path / "k"), how="kill"))]))
     assert got[0][1] == 5 and got[0][2].attempts == 2 and ray_executor.retried[0]["key"] == "k"
+
+
+def test_toy_study_with_several_seeds_keeps_the_first_seeds_tables():
+    from grisx.eval.runner import toy_study
+
+    one = toy_study("ris-1d", ["mc", "ris"], trials=[1000, 4000], seed=3, progress=False)
+    many = toy_study("ris-1d", ["mc", "ris"], trials=[1000, 4000], seeds=[3, 4], progress=False)
+    assert many["seeds"] == [3, 4] and len(many["rows"]) == 2 * len(one["rows"])
+    drop = {"seconds", "efficiency", "trials_per_second", "rmse_at_equal_time", "efficiency_ratio", "rmse_over_seeds"}
+    assert [{k: v for k, v in r.items() if k not in drop} for r in one["equal_time"]] == \
+           [{k: v for k, v in r.items() if k not in drop} for r in many["equal_time"]]
+    rmse = [[r["rmse"] for r in many["rows"] if r["method"] == "ris" and r["trials"] == 4000 and r["seed"] == s][0] for s in (3, 4)]
+    assert rmse[0] != rmse[1] and many["equal_time"][1]["rmse_over_seeds"] == pytest.approx(float(np.sqrt(np.mean(np.square(rmse)))))

@@ -5,11 +5,12 @@
     grisx compare TEST.exr REF.exr [--metrics mse,relmse,flip] [--per-channel]
                   [--epsilon 0.01] [--exposure EV] [--json]
     grisx bench toys PROBLEM --method SPEC [--method SPEC ...] [--budget S | --trials N,N,...]
-                  [--seed S] [--device cpu|cuda] [--out DIR] [--json]
+                  [--seed S | --seeds S,S,...] [--device cpu|cuda] [--out DIR] [--json]
     grisx bench render SCENE [SCENE ...] --method SPEC [--method SPEC ...]
                   [--budget S | --frames N,N,...] [--spp N] [--res WxH] [--reference-spp N]
                   [--metrics relmse,mse,mape] [--final-metrics flip] [--scanline Y]
-                  [--device cpu|cuda] [--seed S] [--out DIR] [--json]
+                  [--device cpu|cuda] [--seed S | --seeds S,S,...] [--out DIR] [--json] [--no-resume]
+                  [--devices cuda:0,cuda:1 | --executor ray [--address HOST:PORT]] [--retries N]
 
 A method SPEC is ``METHOD`` or ``METHOD:k=v,k=v`` (the method's params, as
 ``--param`` of ``toy run`` / ``render``); the first one is the baseline of the
@@ -149,6 +150,8 @@ def add_parser(subparsers: Any) -> None:
     _study_arguments(t, "seconds: climb 1e3,3e3,1e4,... trials until a run takes this long (default 1)",
                      "--trials", "explicit trial ladder, e.g. 1e4,1e5,1e6", "seed of every run (default 0)")
     t.add_argument("--repeats", type=_pos_int, default=1, help="identical runs per count, fastest kept (default 1)")
+    t.add_argument("--seeds", type=_seeds, default=None,
+                   help="several seeds, e.g. 1,2,3: every ladder once per seed (the tables are the first seed's)")
     t.set_defaults(handler=bench_toys_command)
 
     r = bsub.add_parser(
@@ -231,7 +234,7 @@ def bench_toys_command(args: argparse.Namespace) -> int:
     from grisx.eval.runner import MethodSpec, toy_study
 
     study = toy_study(args.problem, [MethodSpec.parse(s) for s in args.method], trials=args.trials, budget=args.budget,
-                      repeats=args.repeats, seed=args.seed, device=args.device, out=args.out)
+                      repeats=args.repeats, seed=args.seed, device=args.device, out=args.out, seeds=args.seeds)
     if args.json:
         _print_json(study)
         return 0

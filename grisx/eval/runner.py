@@ -61,8 +61,20 @@ Outputs in ``out`` (each written atomically):
   relative-squared-error maps), ``<scene>/xt.png`` ((x, t) plot of one
   scanline over frames — seed 001, Fig. 1);
 
+* ``jobs/<scene>/<method>.seed<S>.json`` and ``.npz`` — each finished
+  (scene, method, seed) job, written as soon as it is done; a later run of the
+  same study (same settings) reads them back instead of rendering again;
+
 and for a toy study ``toy_study.json``, ``toy_study.csv`` and
 ``toy_error_vs_time.png``.
+
+Beyond one process. Each (scene, method, seed) of a render study is one job,
+:func:`study_job`, a task of :mod:`grisx.executor`: in process by default,
+one job per device at a time with ``--devices cuda:0,cuda:1``, or one Ray task
+each (``num_gpus=1``) with ``--executor ray``; the references' sample chunks
+run there too. Jobs depend only on their arguments, so the study's numbers do
+not depend on where they ran (their seconds do: on CPU, jobs running side by
+side share the cores).
 
 Equal time. Every method of a render study has an error curve of its running
 average against seconds; the equal-time table reads each curve at one time T
@@ -236,6 +248,14 @@ def environment(device: str) -> dict[str, Any]:
     }
 
 
+def _seed_list(seed: int, seeds: Sequence[int] | None) -> list[int]:
+    """The seeds of a study: ``seeds``, or ``[seed]``; distinct, at least one."""
+    out = [int(seed)] if seeds is None else [int(x) for x in seeds]
+    if not out or len(set(out)) != len(out):
+        raise InvalidParameterError(f"seeds must be distinct and at least one, got {list(out)}")
+    return out
+
+
 # ---- toy study -----------------------------------------------------------------------------
 def toy_study(
     problem: str,
@@ -249,8 +269,12 @@ def toy_study(
     repeats: int = 1,
     progress: bool | None = None,
     run: Callable[..., Any] | None = None,
+    seeds: Sequence[int] | None = None,
 ) -> dict[str, Any]:
     """Error (RMSE of the mean vs the exact value) against seconds for each method of toy ``problem``.
+
+    ``seeds``: run every ladder once per seed (default ``[seed]``); the tables and the plot are the first
+    seed's, ``rows`` holds every seed's runs and the table each method's RMSE over the seeds.
 
     Give ``trials`` (a ladder of counts) or ``budget`` (seconds: climb
     :data:`TOY_LADDER` until a run takes that long; default 1 s). Each count
@@ -266,6 +290,7 @@ def toy_study(
     if run is None:
         from grisx.theory.toys import run_toy as run
     specs = _specs(methods)
+    seeds = _seed_list(seed, seeds)
     if trials is not None and budget is not None:
         raise InvalidParameterError("give a trial ladder or a time budget, not both")
     if trials is not None:
@@ -284,32 +309,34 @@ def toy_study(
     bar = Progress(len(specs) * (len(ladder) if trials is not None else 1), f"toys {problem}", enabled=progress)
     for spec in specs:
         # warm-up: compiles/loads the kernels and touches the allocator, so the first timed run is not an outlier
-        run(problem, spec.method, trials=min(ladder[0], 1000), seed=seed, params=spec.params, device=device)
-        for n in ladder:
-            est = min((run(problem, spec.method, trials=n, seed=seed, params=spec.params, device=device)
-                       for _ in range(repeats)), key=lambda e: e.seconds)
-            estimate, exact, stderr = (np.atleast_1d(np.asarray(a, dtype=np.float64)) for a in (est.estimate, est.exact, est.stderr))
-            mse_pred = float(np.mean(stderr**2))
-            rows.append({
-                "problem": problem, "method": spec.label, "trials": n, "seconds": est.seconds,
-                "rmse": float(np.sqrt(np.mean((estimate - exact) ** 2))),
-                "rmse_predicted": math.sqrt(mse_pred),
-                "variance_per_trial": mse_pred * n,
-                "efficiency": M.efficiency(mse_pred, est.seconds) if est.seconds > 0 else None,
-                "max_abs_z": est.max_abs_z if math.isfinite(est.max_abs_z) else None,
-                "params": dict(est.params),
-                "estimate": estimate, "stderr": stderr, "exact": exact,
-            })
-            if trials is not None:
-                bar.update(1, spec.label)
-            elif est.seconds >= budget:
-                break
+        run(problem, spec.method, trials=min(ladder[0], 1000), seed=seeds[0], params=spec.params, device=device)
+        for s_ in seeds:
+            for n in ladder:
+                est = min((run(problem, spec.method, trials=n, seed=s_, params=spec.params, device=device)
+                           for _ in range(repeats)), key=lambda e: e.seconds)
+                estimate, exact, stderr = (np.atleast_1d(np.asarray(a, dtype=np.float64)) for a in (est.estimate, est.exact, est.stderr))
+                mse_pred = float(np.mean(stderr**2))
+                rows.append({
+                    "problem": problem, "method": spec.label, "seed": s_, "trials": n, "seconds": est.seconds,
+                    "rmse": float(np.sqrt(np.mean((estimate - exact) ** 2))),
+                    "rmse_predicted": math.sqrt(mse_pred),
+                    "variance_per_trial": mse_pred * n,
+                    "efficiency": M.efficiency(mse_pred, est.seconds) if est.seconds > 0 else None,
+                    "max_abs_z": est.max_abs_z if math.isfinite(est.max_abs_z) else None,
+                    "params": dict(est.params),
+                    "estimate": estimate, "stderr": stderr, "exact": exact,
+                })
+                if trials is not None:
+                    bar.update(1, spec.label)
+                elif est.seconds >= budget:
+                    break
         if trials is None:
             bar.update(1, spec.label)
     bar.close()
+    first_rows = [r for r in rows if r["seed"] == seeds[0]]  # the tables and the plot: the first seed's runs
 
     # equal time, from each method's largest run (the baseline is the first method)
-    final = {spec.label: [r for r in rows if r["method"] == spec.label][-1] for spec in specs}
+    final = {spec.label: [r for r in first_rows if r["method"] == spec.label][-1] for spec in specs}
     base = final[specs[0].label]
     t_eq = base["seconds"]
     table = []
@@ -325,11 +352,15 @@ def toy_study(
             "efficiency_ratio": (r["efficiency"] / base["efficiency"]) if r["efficiency"] and base["efficiency"] else None,
             "max_abs_z": r["max_abs_z"],
         })
+        if len(seeds) > 1:  # the measured RMSE at the largest count, root-mean-squared over the seeds
+            last = [[x for x in rows if x["method"] == spec.label and x["seed"] == s_][-1]["rmse"] for s_ in seeds]
+            table[-1]["rmse_over_seeds"] = math.sqrt(float(np.mean(np.square(last))))
     study = {
         "kind": "toy",
         "problem": problem,
         **env,
-        "seed": seed,
+        "seed": seeds[0],
+        "seeds": seeds,
         "settings": {"methods": [{"label": s.label, "method": s.method, "params": s.params} for s in specs],
                      "ladder": ladder if trials is not None else None, "budget": budget, "repeats": repeats,
                      "baseline": specs[0].label,
@@ -346,11 +377,11 @@ def toy_study(
             "plot": outdir / "toy_error_vs_time.png",
         }
         study["output"] = {k: str(v) for k, v in files.items()}
-        curves = {s.label: ([r["seconds"] for r in rows if r["method"] == s.label],
-                            [r["rmse_predicted"] for r in rows if r["method"] == s.label]) for s in specs}
+        curves = {s.label: ([r["seconds"] for r in first_rows if r["method"] == s.label],
+                            [r["rmse_predicted"] for r in first_rows if r["method"] == s.label]) for s in specs}
         plot_error_vs_time(curves, files["plot"], metric="RMSE of the mean (predicted from stderr)",
                            title=f"{problem} on {env['device']}")
-        write_csv(files["csv"], rows, ["problem", "method", "trials", "seconds", "rmse", "rmse_predicted",
+        write_csv(files["csv"], rows, ["problem", "method", *(["seed"] if len(seeds) > 1 else []), "trials", "seconds", "rmse", "rmse_predicted",
                                        "variance_per_trial", "efficiency", "max_abs_z"])
         write_json(files["json"], study)
     return study
@@ -620,9 +651,7 @@ def render_study(
         checkpoints, total_frames = [], int(max_frames)
     if spp <= 0 or reference_spp <= 0:
         raise InvalidParameterError(f"spp and reference spp must be positive, got {spp} and {reference_spp}")
-    seeds = [int(seed)] if seeds is None else [int(x) for x in seeds]
-    if not seeds or len(set(seeds)) != len(seeds):
-        raise InvalidParameterError(f"seeds must be distinct and at least one, got {list(seeds)}")
+    seeds = _seed_list(seed, seeds)
     if reference_seed in seeds:
         raise InvalidParameterError(f"seed {reference_seed} equals the reference seed: test renders must be independent of the reference")
     seed = seeds[0]

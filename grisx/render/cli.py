@@ -6,6 +6,7 @@
     grisx render SCENE_OR_FILE --method M [--spp N] [--frames F [--accumulate]] [--res WxH]
                  [--device cpu|cuda] [--seed S] [--param k=v ...] [--out PATH.exr|.png|.npy [--exr]] [--json]
     grisx reference SCENE_OR_FILE [--spp N] [--res WxH] [--max-depth D] [--device cpu|cuda] [--force] [--out PATH.exr] [--json]
+                    [--devices cuda:0,cuda:1 | --executor ray [--address HOST:PORT]] [--retries N] [--chunk-spp N]
 
 ``render`` writes the linear EXR, a tonemapped sRGB PNG beside it and a JSON
 sidecar (settings, grisx version, device, seed, timings). ``--method

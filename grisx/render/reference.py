@@ -212,7 +212,6 @@ def reference(
         d["spp_per_second"] = d["spp"] / d["seconds"] if d["seconds"] > 0 else None
         d["samples_per_second"] = d["spp"] * width * height / d["seconds"] if d["seconds"] > 0 else None
     write_exr(var_path, variance)
-    write_exr(path, image)
     meta = {**settings, "device": str(chunks[len(plan) - 1]["device"]) if len(throughput) == 1 else ",".join(sorted(throughput)),
             "seconds": seconds, "nonfinite_samples": int(sum(int(c["nonfinite"]) for c in chunks.values())), "key": key,
             "chunks": len(plan), "chunk_spp": int(chunk_spp), "resumed_chunks": len(resumed),
@@ -220,6 +219,7 @@ def reference(
     from grisx.eval.files import write_json
 
     write_json(path.with_suffix(".json"), meta)
+    write_exr(path, image)  # last: the image marks the cache entry complete
     for c in chunk_dir.glob("*.npz"):
         c.unlink()
     chunk_dir.rmdir()
