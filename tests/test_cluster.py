@@ -115,11 +115,18 @@ def test_overlapping_chunks_are_caught_by_the_same_comparison():
 
 
 class _Interrupt(InProcessExecutor):
-    """Stops (as Ctrl-C would) when it is asked for task number ``stop``; records the tasks it started."""
+    """Stops (as Ctrl-C would) when it is asked for task number ``stop``; records the tasks it started.
 
-    def __init__(self, stop: int | None = None) -> None:
+    ``backwards``: takes the tasks last first, so chunks finish ahead of the merged prefix.
+    """
+
+    def __init__(self, stop: int | None = None, backwards: bool = False) -> None:
         super().__init__("cpu")
-        self.stop, self.started = stop, []
+        self.stop, self.backwards, self.started = stop, backwards, []
+
+    def run(self, tasks):
+        tasks = list(tasks)
+        return super().run(tasks[::-1] if self.backwards else tasks)
 
     def _start(self, task: Task, slot: int):
         if self.stop is not None and len(self.started) == self.stop:
@@ -128,16 +135,20 @@ class _Interrupt(InProcessExecutor):
         return super()._start(task, slot)
 
 
-def test_interrupted_reference_resumes_without_rendering_a_chunk_twice():
+@pytest.mark.parametrize("backwards, left, rendered_after", [
+    (False, ["prefix.npz"], [3, 4]),  # chunks 0-2 merged into the prefix
+    (True, ["chunk-00003.npz", "chunk-00004.npz"], [0, 1, 2]),  # chunks 4, 3 kept until 0-2 arrive
+])
+def test_interrupted_reference_resumes_without_rendering_a_chunk_twice(backwards, left, rendered_after):
     whole = R.reference(SCENE, res=RES, spp=10, chunk_spp=2)
     whole.path.unlink()
     with pytest.raises(KeyboardInterrupt):
-        R.reference(SCENE, res=RES, spp=10, chunk_spp=2, executor=_Interrupt(stop=3))
+        R.reference(SCENE, res=RES, spp=10, chunk_spp=2, executor=_Interrupt(stop=len(left) if backwards else 3, backwards=backwards))
     chunk_dir = whole.path.parent / f"{whole.path.stem}.chunks"
-    assert sorted(p.name for p in chunk_dir.iterdir()) == ["chunk-00000.npz", "chunk-00001.npz", "chunk-00002.npz"]
+    assert sorted(p.name for p in chunk_dir.iterdir()) == left
     rest = _Interrupt()
     resumed = R.reference(SCENE, res=RES, spp=10, chunk_spp=2, executor=rest)
-    assert rest.started == [f"{SCENE} chunk 3", f"{SCENE} chunk 4"] and resumed.settings["resumed_chunks"] == 3
+    assert rest.started == [f"{SCENE} chunk {i}" for i in rendered_after] and resumed.settings["resumed_chunks"] == 5 - len(rendered_after)
     assert np.array_equal(resumed.image, whole.image) and np.array_equal(resumed.variance, whole.variance)
     assert not chunk_dir.exists()  # nothing left beside the finished reference
 

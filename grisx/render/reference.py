@@ -94,30 +94,79 @@ def _chunks(spp: int, chunk_spp: int) -> list[tuple[int, int]]:
     return [(first, min(chunk_spp, spp - first)) for first in range(0, spp, chunk_spp)]
 
 
-def _save_chunk(folder: Path, index: int, chunk: dict[str, Any]) -> None:
-    """One finished chunk on disk (written atomically: a chunk file is whole or absent)."""
+def _save_npz(path: Path, **arrays: Any) -> None:
+    """Arrays on disk, written atomically (a file is whole or absent)."""
     import io
 
     from grisx.eval.files import write_atomic
 
     buf = io.BytesIO()
-    np.savez(buf, **{k: np.asarray(v) for k, v in chunk.items()})
-    write_atomic(folder / f"chunk-{index:05d}.npz", buf.getvalue())
+    np.savez(buf, **{k: np.asarray(v) for k, v in arrays.items()})
+    write_atomic(path, buf.getvalue())
 
 
-def _load_chunks(folder: Path, plan: list[tuple[int, int]]) -> dict[int, dict[str, Any]]:
-    """The chunks of ``plan`` already on disk (an earlier, interrupted run): no chunk is rendered twice."""
-    found = {}
-    for index, (first, count) in enumerate(plan):
-        path = folder / f"chunk-{index:05d}.npz"
-        if not path.is_file():
-            continue
-        with np.load(path) as z:
-            chunk = {k: z[k] for k in z.files}
-        if int(chunk["first"]) == first and int(chunk["count"]) == count:
-            chunk.update(device=str(chunk["device"]), seconds=float(chunk["seconds"]), nonfinite=int(chunk["nonfinite"]))
-            found[index] = chunk
-    return found
+class _ChunkMerge:
+    """The float64 sums of chunks 0 … k−1 (the prefix), folded in chunk order while chunks finish in any order.
+
+    On disk in ``folder``: ``prefix.npz`` (the folded chunks' sums and a log of them) and one
+    ``chunk-NNNNN.npz`` per chunk finished ahead of the prefix, each written atomically, the prefix
+    before the chunk files it folds are deleted. An interrupted reference reloads both, so no chunk is
+    rendered twice, and the disk holds about one image of sums per worker, not one per chunk.
+    """
+
+    def __init__(self, folder: Path, plan: list[tuple[int, int]], shape: tuple[int, int, int]) -> None:
+        self.folder, self.plan = folder, plan
+        self.folded = 0
+        self.total, self.total_sq = np.zeros(shape), np.zeros(shape)
+        self.log: list[dict[str, Any]] = []  # one entry per folded chunk
+        self.pending: dict[int, dict[str, Any]] = {}
+        prefix = folder / "prefix.npz"
+        if prefix.is_file():
+            with np.load(prefix) as z:
+                if np.array_equal(z["plan"], np.array(plan).reshape(-1, 2)) and z["total"].shape == shape:
+                    self.folded, self.total, self.total_sq = int(z["folded"]), z["total"], z["total_sq"]
+                    self.log = [{**e, "resumed": True} for e in json.loads(str(z["log"]))]
+        for index in range(self.folded, len(plan)):
+            path = folder / f"chunk-{index:05d}.npz"
+            if path.is_file():
+                with np.load(path) as z:
+                    chunk = {k: z[k].item() if z[k].ndim == 0 else z[k] for k in z.files}
+                if (chunk["first"], chunk["count"]) == plan[index] and chunk["total"].shape == shape:
+                    self.pending[index] = {**chunk, "resumed": True}
+        self.resumed = len(self.log) + len(self.pending)
+        self._fold()
+
+    def missing(self) -> list[int]:
+        return [i for i in range(self.folded, len(self.plan)) if i not in self.pending]
+
+    def spp_done(self) -> int:
+        return sum(e["count"] for e in self.log) + sum(int(c["count"]) for c in self.pending.values())
+
+    def add(self, index: int, chunk: dict[str, Any]) -> None:
+        _save_npz(self.folder / f"chunk-{index:05d}.npz", **chunk)
+        self.pending[index] = chunk
+        self._fold()
+
+    def _fold(self) -> None:
+        start = self.folded
+        while self.folded in self.pending:  # seed order: ((0 + c0) + c1) + … whatever finished first
+            c = self.pending.pop(self.folded)
+            self.total += c["total"]
+            self.total_sq += c["total_sq"]
+            self.log.append({"chunk": self.folded, "count": int(c["count"]), "seconds": float(c["seconds"]),
+                             "nonfinite": int(c["nonfinite"]), "worker": str(c["device"]), "resumed": bool(c.get("resumed"))})
+            self.folded += 1
+        if self.folded == start:
+            return
+        _save_npz(self.folder / "prefix.npz", folded=self.folded, plan=np.array(self.plan), total=self.total,
+                  total_sq=self.total_sq, log=json.dumps(self.log))
+        for index in range(start, self.folded):
+            (self.folder / f"chunk-{index:05d}.npz").unlink(missing_ok=True)
+
+    def remove(self) -> None:
+        for path in self.folder.glob("*.npz"):
+            path.unlink()
+        self.folder.rmdir()
 
 
 def reference(
@@ -176,53 +225,40 @@ def reference(
     chunk_dir.mkdir(parents=True, exist_ok=True)
     plan = _chunks(int(spp), int(chunk_spp))
     start = time.perf_counter()
-    chunks = _load_chunks(chunk_dir, plan)
-    resumed = sorted(chunks)
-    done = sum(c["count"] for c in chunks.values())
-    if progress is not None and done:
-        progress(done, spp)
-    tasks = [Task(f"{scene} chunk {i}", render_chunk, dict(scene=str(scene), width=int(width), height=int(height),
-                                                          max_depth=depth, seed=int(seed), first=first, count=count))
-             for i, (first, count) in enumerate(plan) if i not in chunks]
-    index = {t.key: i for i, t in zip((i for i in range(len(plan)) if i not in chunks), tasks)}
-    for task, chunk, report in executor.run(tasks):
-        i = index[task.key]
+    merge = _ChunkMerge(chunk_dir, plan, (int(height), int(width), 3))
+    if progress is not None and merge.spp_done():
+        progress(merge.spp_done(), spp)
+    tasks = {f"{scene} chunk {i}": i for i in merge.missing()}
+    for task, chunk, report in executor.run(
+            Task(k, render_chunk, dict(scene=str(scene), width=int(width), height=int(height), max_depth=depth,
+                                       seed=int(seed), first=plan[i][0], count=plan[i][1])) for k, i in tasks.items()):
         chunk["device"] = report.worker
-        _save_chunk(chunk_dir, i, chunk)
-        chunks[i] = chunk
-        done += chunk["count"]
+        merge.add(tasks[task.key], chunk)
         if progress is not None:
-            progress(done, spp)
-    # ---- merge: float64 sums in chunk order (the same image whatever ran each chunk) ----
-    total = np.zeros((height, width, 3), dtype=np.float64)
-    total_sq = np.zeros((height, width, 3), dtype=np.float64)
-    for i in range(len(plan)):
-        total += chunks[i]["total"]
-        total_sq += chunks[i]["total_sq"]
+            progress(merge.spp_done(), spp)
+    # ---- the merged sums: float64, in chunk order (the same image whatever ran each chunk) ----
+    total, total_sq = merge.total, merge.total_sq
     image, variance = (total / spp).astype(np.float32), variance_of_mean(total, total_sq, spp)
     seconds = time.perf_counter() - start
     throughput: dict[str, dict[str, float]] = {}
-    for i in range(len(plan)):
-        c = chunks[i]
-        d = throughput.setdefault("resumed" if i in resumed else c["device"], {"chunks": 0, "spp": 0, "seconds": 0.0})
+    for e in merge.log:
+        d = throughput.setdefault("resumed" if e["resumed"] else e["worker"], {"chunks": 0, "spp": 0, "seconds": 0.0})
         d["chunks"] += 1
-        d["spp"] += int(c["count"])
-        d["seconds"] += float(c["seconds"])
+        d["spp"] += e["count"]
+        d["seconds"] += e["seconds"]
     for d in throughput.values():
         d["spp_per_second"] = d["spp"] / d["seconds"] if d["seconds"] > 0 else None
         d["samples_per_second"] = d["spp"] * width * height / d["seconds"] if d["seconds"] > 0 else None
     write_exr(var_path, variance)
-    meta = {**settings, "device": str(chunks[len(plan) - 1]["device"]) if len(throughput) == 1 else ",".join(sorted(throughput)),
-            "seconds": seconds, "nonfinite_samples": int(sum(int(c["nonfinite"]) for c in chunks.values())), "key": key,
-            "chunks": len(plan), "chunk_spp": int(chunk_spp), "resumed_chunks": len(resumed),
-            "executor": executor.describe(), "throughput": throughput, "retried": executor.retried}
+    meta = {**settings, "device": ",".join(sorted(throughput)), "seconds": seconds,
+            "nonfinite_samples": sum(e["nonfinite"] for e in merge.log), "key": key, "chunks": len(plan),
+            "chunk_spp": int(chunk_spp), "resumed_chunks": merge.resumed, "executor": executor.describe(),
+            "throughput": throughput, "retried": executor.retried}
     from grisx.eval.files import write_json
 
     write_json(path.with_suffix(".json"), meta)
     write_exr(path, image)  # last: the image marks the cache entry complete
-    for c in chunk_dir.glob("*.npz"):
-        c.unlink()
-    chunk_dir.rmdir()
+    merge.remove()
     return Reference(image, variance, path, False, meta)
 
 
