@@ -285,9 +285,11 @@ class RayExecutor(Executor):
 
     ``address``: an existing cluster (``host:port``, ``ray://host:port`` or
     ``auto``), or None for a local Ray instance started here (``num_cpus``
-    of this machine unless given). Every node must be able to import grisx
-    (a local instance gets this checkout on its workers' ``PYTHONPATH``) and
-    read any scene file named by path.
+    of this machine unless given). A local instance gets this checkout on its
+    workers' ``PYTHONPATH``; a cluster gets this grisx package shipped with the
+    job (Ray's ``py_modules``), so its nodes need grisx's dependencies (Warp,
+    numpy, ...) but not grisx, and must be able to read any scene file named
+    by path.
     """
 
     name = "ray"
@@ -313,6 +315,9 @@ class RayExecutor(Executor):
             else:
                 _check_reachable(address)
                 kwargs["address"] = address
+                # this grisx travels with the job (Ray's py_modules): every node runs the driver's code
+                kwargs["runtime_env"] = {"py_modules": [str(Path(__file__).resolve().parent)],
+                                         "excludes": ["__pycache__", "*.pyc"]}
             try:
                 ray.init(**kwargs)
             except Exception as exc:  # noqa: BLE001 - Ray raises ConnectionError, RuntimeError, ...
