@@ -97,6 +97,28 @@ def _call(fn: Callable[..., Any], kwargs: dict[str, Any], device: str) -> tuple[
     return value, where, socket.gethostname(), time.perf_counter() - start
 
 
+def _portable_call(fn: Callable[..., Any], kwargs: dict[str, Any], device: str) -> tuple[Any, str, str, float]:
+    """:func:`_call` in a worker process: an error that would not survive pickling comes back as one that does.
+
+    (An exception crosses back to the caller pickled; one whose constructor takes other arguments than its
+    message, such as :class:`~grisx.errors.UnknownNameError`, would fail to unpickle there.)
+    """
+    import pickle
+
+    try:
+        return _call(fn, kwargs, device)
+    except Exception as exc:
+        try:
+            same = str(pickle.loads(pickle.dumps(exc))) == str(exc)
+        except Exception:  # noqa: BLE001
+            same = False
+        if same:
+            raise
+        if isinstance(exc, GrisxError):
+            raise GrisxError(str(exc)) from None
+        raise RuntimeError(_message(exc)) from None
+
+
 class Executor:
     """Runs tasks and streams their results back; see the module docstring."""
 
@@ -252,7 +274,7 @@ class DeviceExecutor(Executor):
         return self._pools[slot]
 
     def _start(self, task: Task, slot: int) -> Any:
-        return self._pool(slot).submit(_call, task.fn, task.kwargs, self.devices[slot])
+        return self._pool(slot).submit(_portable_call, task.fn, task.kwargs, self.devices[slot])
 
     def _wait(self, running: dict[Any, tuple[Task, int]]) -> tuple[Any, Any]:
         from concurrent.futures import FIRST_COMPLETED, wait
@@ -306,7 +328,7 @@ class RayExecutor(Executor):
         self._ray = ray
         self._started = False
         if not ray.is_initialized():
-            kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False, "configure_logging": False}
+            kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False, "logging_level": "ERROR"}
             if address is None or address == "local":
                 path = os.pathsep.join(p for p in (_grisx_path(), os.environ.get("PYTHONPATH", "")) if p)
                 kwargs["runtime_env"] = {"env_vars": {"PYTHONPATH": path}}
@@ -329,7 +351,7 @@ class RayExecutor(Executor):
             raise DeviceError(f"the Ray cluster at '{address or 'local'}' has no {'GPU' if gpus else 'CPU'} to run tasks on")
         super().__init__([device] * int(total), retries)
         self.address = address
-        self._remote = ray.remote(_call).options(num_gpus=1 if gpus else 0, num_cpus=0 if gpus else 1, max_retries=0)
+        self._remote = ray.remote(_portable_call).options(num_gpus=1 if gpus else 0, num_cpus=0 if gpus else 1, max_retries=0)
 
     def describe(self) -> dict[str, Any]:
         return {**super().describe(), "address": self.address or "local", "devices": [self.devices[0]] if self.devices else []}

@@ -69,6 +69,12 @@ def bad_input(device: str = "cpu") -> None:
     raise GrisxError("unknown thing 'x'")
 
 
+def unknown_name(device: str = "cpu") -> None:
+    from grisx.errors import UnknownNameError
+
+    raise UnknownNameError("render method", "nosuch", ["pt"])  # takes 3 arguments: does not unpickle as it is
+
+
 def _numbers(study: dict) -> dict:
     """What a study measured, without the clocks (which differ between any two runs)."""
     clocks = {"seconds", "renderer_seconds", "seconds_per_frame", "efficiency", "pass_seconds", "renderer_device"}
@@ -162,6 +168,10 @@ def test_failed_and_killed_tasks_are_retried_and_reported(tmp_path):
         got = {t.key: (v, r) for t, v, r in ex.run([Task(f"k{i}", flaky, dict(value=i, marker=str(tmp_path / f"k{i}"), how="kill"))
                                                     for i in range(3)])}
         assert ex.retried and all(r["attempts"] == 2 for r in ex.retried)
+        # bad input raised in a worker comes back as a one-line GrisxError, not a dead worker, and is not retried
+        with pytest.raises(GrisxError, match=r"^unknown render method 'nosuch' \(known: pt\)$"):
+            list(ex.run([Task("u", unknown_name)]))
+        assert ex.reports[-1].attempts == 1
     assert {k: v for k, (v, _) in got.items()} == {"k0": 0, "k1": 1, "k2": 2}
     assert all("died" in r.errors[0] for _, r in got.values())
 
@@ -213,7 +223,8 @@ def test_resumed_study_recomputes_nothing_already_written(tmp_path):
     again = render_study(["a"], **kw)
     assert not [c for c in fake.calls if "render" in c] and len(again["resumed_jobs"]) == 4
     rewritten = json.loads((tmp_path / "render_study.json").read_text())
-    assert {k: v for k, v in rewritten.items() if k != "resumed_jobs"} == {k: v for k, v in written.items() if k != "resumed_jobs"}
+    this_run = ("resumed_jobs", "tasks")  # what this run read back and what it ran
+    assert {k: v for k, v in rewritten.items() if k not in this_run} == {k: v for k, v in written.items() if k not in this_run}
     # an interrupted study: one job was never written; only it is rendered
     next((tmp_path / "jobs" / "a").glob("noisy_sigma=0.2.seed2.json")).unlink()
     fake.calls.clear()
@@ -224,6 +235,17 @@ def test_resumed_study_recomputes_nothing_already_written(tmp_path):
     fake.calls.clear()
     render_study(["a"], **{**kw, "frames": [1, 2]})
     assert len([c for c in fake.calls if "render" in c and c["frames"] == 2]) == 4
+
+
+def test_bench_render_cli_on_two_device_workers_then_resumed(tmp_path, capsys):
+    argv = ["bench", "render", SCENE, "--method", "pt", "--frames", "1,2", "--res", "16x12", "--reference-spp", "4",
+            "--final-metrics", "none", "--seeds", "1,2", "--out", str(tmp_path), "--devices", "cpu,cpu"]
+    assert main([*argv, "--json"]) == 0
+    study = json.loads(capsys.readouterr().out)
+    assert study["executor"]["devices"] == ["cpu", "cpu"] and study["resumed_jobs"] == []
+    assert {t["worker"] for t in study["tasks"] if "seed" in t["key"]} <= {"cpu#0", "cpu#1"} and len(study["tasks"]) == 3
+    assert main(argv) == 0
+    assert "resumed 2 job(s)" in capsys.readouterr().out
 
 
 # ---- Ray (local, 2 CPUs) ----

@@ -794,6 +794,7 @@ def render_study(
         "seeds": seeds,
         "executor": executor.describe(),
         "retried": executor.retried,
+        "tasks": [r.to_dict() for r in executor.reports],  # where each job and reference chunk ran, and how long
         "resumed_jobs": sorted(" | ".join(map(str, k)) for k, j in jobs.items() if j["resumed"]),
         "settings": {
             "scenes": scenes,
