@@ -24,7 +24,7 @@ throughputs, speed-up) to ``--out`` and prints a summary.
 Usage::
 
     python benchmarks/multi_gpu_reference.py --devices cuda:0,cuda:1 --out benchmarks/results/multi_gpu   # 1080p, 64k spp
-    python benchmarks/multi_gpu_reference.py --devices cuda:0,cuda:1 --spp 8192 --out DIR              # fits a 10-minute call
+    python benchmarks/multi_gpu_reference.py --devices cuda:0,cuda:1 --spp 4096 --out DIR              # fits a 10-minute call
     python benchmarks/multi_gpu_reference.py --devices cpu,cpu --res 64x36 --spp 8 --chunk-spp 2 --out /tmp/mg   # CPU smoke run
 """
 

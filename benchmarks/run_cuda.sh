@@ -32,7 +32,7 @@ for g in $groups; do
       $py -m grisx bench render cornell-box door-ajar --method pt --method restir-di --method restir-gi --method restir-pt \
           --budget 5 --res 640x360 --device cuda --out "$out/study" ;;
     multigpu)
-      $py benchmarks/multi_gpu_reference.py --devices cuda:0,cuda:1 --spp 16384 --out "$out/multi_gpu" ;;
+      $py benchmarks/multi_gpu_reference.py --devices cuda:0,cuda:1 --spp 4096 --out "$out/multi_gpu" ;;
     *) echo "run_cuda.sh: unknown group '$g'" >&2; exit 2 ;;
   esac
 done
