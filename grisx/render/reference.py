@@ -12,6 +12,16 @@ cached under ``$GRISX_CACHE_DIR/references`` (default
 * the film size, sample count, maximum depth, seed and grisx's version.
 
 The device is not part of the key: CPU and CUDA estimate the same image.
+
+A reference is rendered in chunks of :data:`CHUNK_SPP` samples per pixel
+(:func:`render_chunk`: chunk k holds samples k·1024, … of the counter RNG's
+sample stream, so chunks are disjoint wherever they run), each a task of a
+:mod:`grisx.executor` executor — here, on several devices (``--devices``) or on
+a Ray cluster — and their float64 sums and sums of squares are merged in chunk
+order: the same image, bit for bit, on every executor for the same total spp.
+A reference of several chunks has ``chunk_spp`` in its key (its float64 sums
+are added in another order than one stream's); one of a single chunk keeps the
+key it had before chunking.
 """
 
 from __future__ import annotations
