@@ -8,6 +8,7 @@
     grisx render SCENE_OR_FILE --method M [--spp N] [--frames F [--accumulate]] [--res WxH]
                  [--device cpu|cuda] [--seed S] [--param k=v ...] [--out PATH.exr] [--json]
     grisx reference SCENE_OR_FILE [--spp N] [--res WxH] [--device cpu|cuda] [--out PATH.exr] [--json]
+                    [--devices cuda:0,cuda:1 | --executor ray [--address HOST:PORT]] [--retries N] [--chunk-spp N]
     grisx compare TEST.exr REF.exr [--metrics mse,relmse,flip] [--json]
     grisx bench toys|render ...       (see grisx bench --help)
 

@@ -5,11 +5,12 @@
     grisx compare TEST.exr REF.exr [--metrics mse,relmse,flip] [--per-channel]
                   [--epsilon 0.01] [--exposure EV] [--json]
     grisx bench toys PROBLEM --method SPEC [--method SPEC ...] [--budget S | --trials N,N,...]
-                  [--seed S] [--device cpu|cuda] [--out DIR] [--json]
+                  [--seed S | --seeds S,S,...] [--device cpu|cuda] [--out DIR] [--json]
     grisx bench render SCENE [SCENE ...] --method SPEC [--method SPEC ...]
                   [--budget S | --frames N,N,...] [--spp N] [--res WxH] [--reference-spp N]
                   [--metrics relmse,mse,mape] [--final-metrics flip] [--scanline Y]
-                  [--device cpu|cuda] [--seed S] [--out DIR] [--json]
+                  [--device cpu|cuda] [--seed S | --seeds S,S,...] [--out DIR] [--json] [--no-resume]
+                  [--devices cuda:0,cuda:1 | --executor ray [--address HOST:PORT]] [--retries N]
 
 A method SPEC is ``METHOD`` or ``METHOD:k=v,k=v`` (the method's params, as
 ``--param`` of ``toy run`` / ``render``); the first one is the baseline of the
@@ -88,6 +89,13 @@ def _seed(text: str) -> int:
 _seed.__name__ = "seed"
 
 
+def _seeds(text: str) -> list[int]:
+    return [_seed(t.strip()) for t in text.split(",") if t.strip()] or [_seed(text)]
+
+
+_seeds.__name__ = "S,S,..."
+
+
 def _res(text: str) -> tuple[int, int]:
     w, sep, h = text.lower().partition("x")
     if not sep:
@@ -142,6 +150,8 @@ def add_parser(subparsers: Any) -> None:
     _study_arguments(t, "seconds: climb 1e3,3e3,1e4,... trials until a run takes this long (default 1)",
                      "--trials", "explicit trial ladder, e.g. 1e4,1e5,1e6", "seed of every run (default 0)")
     t.add_argument("--repeats", type=_pos_int, default=1, help="identical runs per count, fastest kept (default 1)")
+    t.add_argument("--seeds", type=_seeds, default=None,
+                   help="several seeds, e.g. 1,2,3: every ladder once per seed (the tables are the first seed's)")
     t.set_defaults(handler=bench_toys_command)
 
     r = bsub.add_parser(
@@ -166,6 +176,13 @@ def add_parser(subparsers: Any) -> None:
     r.add_argument("--final-metrics", default="flip", help="metrics of the kept frames only (default flip; 'none' for none)")
     r.add_argument("--scanline", type=lambda s: _int(s, "a row index", minimum=0), default=None,
                    help="row of the (x,t) plot (default: the middle row)")
+    r.add_argument("--seeds", type=_seeds, default=None,
+                   help="several seeds, e.g. 1,2,3: every (scene, method) once per seed (the tables are the first seed's)")
+    r.add_argument("--no-resume", action="store_true",
+                   help="render every job again, even those an earlier run of the same study wrote to --out/jobs")
+    from grisx.executor import add_executor_arguments
+
+    add_executor_arguments(r)
     r.set_defaults(handler=bench_render_command)
 
 
@@ -217,7 +234,7 @@ def bench_toys_command(args: argparse.Namespace) -> int:
     from grisx.eval.runner import MethodSpec, toy_study
 
     study = toy_study(args.problem, [MethodSpec.parse(s) for s in args.method], trials=args.trials, budget=args.budget,
-                      repeats=args.repeats, seed=args.seed, device=args.device, out=args.out)
+                      repeats=args.repeats, seed=args.seed, device=args.device, out=args.out, seeds=args.seeds)
     if args.json:
         _print_json(study)
         return 0
@@ -236,11 +253,15 @@ def bench_toys_command(args: argparse.Namespace) -> int:
 def bench_render_command(args: argparse.Namespace) -> int:
     from grisx.eval.runner import MethodSpec, render_study
 
+    from grisx.executor import executor_from_args
+
     finals = [] if args.final_metrics.strip().lower() in ("", "none") else M.parse_metrics(args.final_metrics)
-    study = render_study(args.scenes, [MethodSpec.parse(s) for s in args.method], frames=args.frames,
-                         budget=args.budget, spp=args.spp, res=args.res, device=args.device, seed=args.seed,
-                         reference_spp=args.reference_spp, metrics=M.parse_metrics(args.metrics),
-                         final_metrics=finals, scanline=args.scanline, out=args.out)
+    with executor_from_args(args) as executor:
+        study = render_study(args.scenes, [MethodSpec.parse(s) for s in args.method], frames=args.frames,
+                             budget=args.budget, spp=args.spp, res=args.res, device=executor.devices[0], seed=args.seed,
+                             reference_spp=args.reference_spp, metrics=M.parse_metrics(args.metrics),
+                             final_metrics=finals, scanline=args.scanline, out=args.out, seeds=args.seeds,
+                             executor=executor, resume=not args.no_resume)
     if args.json:
         _print_json(study)
         return 0
@@ -259,5 +280,9 @@ def bench_render_command(args: argparse.Namespace) -> int:
             print(f"  {row['method']:<32} {m['frames']:>7} {m['seconds']:>9.3g} {m['final'][metric]:>14.4g} "
                   f"{(f'{at:.4g}' if at is not None else '-'):>13} {(f'{ratio:.3g}' if ratio else '-'):>7}"
                   + "".join(f" {m['final'].get(f, float('nan')):>9.4g}" for f in study["settings"]["final_metrics"]))
+    for r in study["retried"]:
+        print(f"retried {r['key']}: {r['attempts']} attempts ({'; '.join(r['errors'])})")
+    if study["resumed_jobs"]:
+        print(f"resumed {len(study['resumed_jobs'])} job(s) from {args.out}/jobs (not rendered again)")
     print(f"wrote {study['output']['json']}, {study['output']['csv']} and per-scene plots")
     return 0

@@ -61,8 +61,20 @@ Outputs in ``out`` (each written atomically):
   relative-squared-error maps), ``<scene>/xt.png`` ((x, t) plot of one
   scanline over frames — seed 001, Fig. 1);
 
+* ``jobs/<scene>/<method>.seed<S>.json`` and ``.npz`` — each finished
+  (scene, method, seed) job, written as soon as it is done; a later run of the
+  same study (same settings) reads them back instead of rendering again;
+
 and for a toy study ``toy_study.json``, ``toy_study.csv`` and
 ``toy_error_vs_time.png``.
+
+Beyond one process. Each (scene, method, seed) of a render study is one job,
+:func:`study_job`, a task of :mod:`grisx.executor`: in process by default,
+one job per device at a time with ``--devices cuda:0,cuda:1``, or one Ray task
+each (``num_gpus=1``) with ``--executor ray``; the references' sample chunks
+run there too. Jobs depend only on their arguments, so the study's numbers do
+not depend on where they ran (their seconds do: on CPU, jobs running side by
+side share the cores).
 
 Equal time. Every method of a render study has an error curve of its running
 average against seconds; the equal-time table reads each curve at one time T
@@ -78,6 +90,8 @@ otherwise.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
+import inspect
 import math
 import os
 import platform
@@ -234,6 +248,14 @@ def environment(device: str) -> dict[str, Any]:
     }
 
 
+def _seed_list(seed: int, seeds: Sequence[int] | None) -> list[int]:
+    """The seeds of a study: ``seeds``, or ``[seed]``; distinct, at least one."""
+    out = [int(seed)] if seeds is None else [int(x) for x in seeds]
+    if not out or len(set(out)) != len(out):
+        raise InvalidParameterError(f"seeds must be distinct and at least one, got {list(out)}")
+    return out
+
+
 # ---- toy study -----------------------------------------------------------------------------
 def toy_study(
     problem: str,
@@ -247,8 +269,12 @@ def toy_study(
     repeats: int = 1,
     progress: bool | None = None,
     run: Callable[..., Any] | None = None,
+    seeds: Sequence[int] | None = None,
 ) -> dict[str, Any]:
     """Error (RMSE of the mean vs the exact value) against seconds for each method of toy ``problem``.
+
+    ``seeds``: run every ladder once per seed (default ``[seed]``); the tables and the plot are the first
+    seed's, ``rows`` holds every seed's runs and the table each method's RMSE over the seeds.
 
     Give ``trials`` (a ladder of counts) or ``budget`` (seconds: climb
     :data:`TOY_LADDER` until a run takes that long; default 1 s). Each count
@@ -264,6 +290,7 @@ def toy_study(
     if run is None:
         from grisx.theory.toys import run_toy as run
     specs = _specs(methods)
+    seeds = _seed_list(seed, seeds)
     if trials is not None and budget is not None:
         raise InvalidParameterError("give a trial ladder or a time budget, not both")
     if trials is not None:
@@ -282,32 +309,34 @@ def toy_study(
     bar = Progress(len(specs) * (len(ladder) if trials is not None else 1), f"toys {problem}", enabled=progress)
     for spec in specs:
         # warm-up: compiles/loads the kernels and touches the allocator, so the first timed run is not an outlier
-        run(problem, spec.method, trials=min(ladder[0], 1000), seed=seed, params=spec.params, device=device)
-        for n in ladder:
-            est = min((run(problem, spec.method, trials=n, seed=seed, params=spec.params, device=device)
-                       for _ in range(repeats)), key=lambda e: e.seconds)
-            estimate, exact, stderr = (np.atleast_1d(np.asarray(a, dtype=np.float64)) for a in (est.estimate, est.exact, est.stderr))
-            mse_pred = float(np.mean(stderr**2))
-            rows.append({
-                "problem": problem, "method": spec.label, "trials": n, "seconds": est.seconds,
-                "rmse": float(np.sqrt(np.mean((estimate - exact) ** 2))),
-                "rmse_predicted": math.sqrt(mse_pred),
-                "variance_per_trial": mse_pred * n,
-                "efficiency": M.efficiency(mse_pred, est.seconds) if est.seconds > 0 else None,
-                "max_abs_z": est.max_abs_z if math.isfinite(est.max_abs_z) else None,
-                "params": dict(est.params),
-                "estimate": estimate, "stderr": stderr, "exact": exact,
-            })
-            if trials is not None:
-                bar.update(1, spec.label)
-            elif est.seconds >= budget:
-                break
+        run(problem, spec.method, trials=min(ladder[0], 1000), seed=seeds[0], params=spec.params, device=device)
+        for s_ in seeds:
+            for n in ladder:
+                est = min((run(problem, spec.method, trials=n, seed=s_, params=spec.params, device=device)
+                           for _ in range(repeats)), key=lambda e: e.seconds)
+                estimate, exact, stderr = (np.atleast_1d(np.asarray(a, dtype=np.float64)) for a in (est.estimate, est.exact, est.stderr))
+                mse_pred = float(np.mean(stderr**2))
+                rows.append({
+                    "problem": problem, "method": spec.label, "seed": s_, "trials": n, "seconds": est.seconds,
+                    "rmse": float(np.sqrt(np.mean((estimate - exact) ** 2))),
+                    "rmse_predicted": math.sqrt(mse_pred),
+                    "variance_per_trial": mse_pred * n,
+                    "efficiency": M.efficiency(mse_pred, est.seconds) if est.seconds > 0 else None,
+                    "max_abs_z": est.max_abs_z if math.isfinite(est.max_abs_z) else None,
+                    "params": dict(est.params),
+                    "estimate": estimate, "stderr": stderr, "exact": exact,
+                })
+                if trials is not None:
+                    bar.update(1, spec.label)
+                elif est.seconds >= budget:
+                    break
         if trials is None:
             bar.update(1, spec.label)
     bar.close()
+    first_rows = [r for r in rows if r["seed"] == seeds[0]]  # the tables and the plot: the first seed's runs
 
     # equal time, from each method's largest run (the baseline is the first method)
-    final = {spec.label: [r for r in rows if r["method"] == spec.label][-1] for spec in specs}
+    final = {spec.label: [r for r in first_rows if r["method"] == spec.label][-1] for spec in specs}
     base = final[specs[0].label]
     t_eq = base["seconds"]
     table = []
@@ -323,11 +352,15 @@ def toy_study(
             "efficiency_ratio": (r["efficiency"] / base["efficiency"]) if r["efficiency"] and base["efficiency"] else None,
             "max_abs_z": r["max_abs_z"],
         })
+        if len(seeds) > 1:  # the measured RMSE at the largest count, root-mean-squared over the seeds
+            last = [[x for x in rows if x["method"] == spec.label and x["seed"] == s_][-1]["rmse"] for s_ in seeds]
+            table[-1]["rmse_over_seeds"] = math.sqrt(float(np.mean(np.square(last))))
     study = {
         "kind": "toy",
         "problem": problem,
         **env,
-        "seed": seed,
+        "seed": seeds[0],
+        "seeds": seeds,
         "settings": {"methods": [{"label": s.label, "method": s.method, "params": s.params} for s in specs],
                      "ladder": ladder if trials is not None else None, "budget": budget, "repeats": repeats,
                      "baseline": specs[0].label,
@@ -344,11 +377,11 @@ def toy_study(
             "plot": outdir / "toy_error_vs_time.png",
         }
         study["output"] = {k: str(v) for k, v in files.items()}
-        curves = {s.label: ([r["seconds"] for r in rows if r["method"] == s.label],
-                            [r["rmse_predicted"] for r in rows if r["method"] == s.label]) for s in specs}
+        curves = {s.label: ([r["seconds"] for r in first_rows if r["method"] == s.label],
+                            [r["rmse_predicted"] for r in first_rows if r["method"] == s.label]) for s in specs}
         plot_error_vs_time(curves, files["plot"], metric="RMSE of the mean (predicted from stderr)",
                            title=f"{problem} on {env['device']}")
-        write_csv(files["csv"], rows, ["problem", "method", "trials", "seconds", "rmse", "rmse_predicted",
+        write_csv(files["csv"], rows, ["problem", "method", *(["seed"] if len(seeds) > 1 else []), "trials", "seconds", "rmse", "rmse_predicted",
                                        "variance_per_trial", "efficiency", "max_abs_z"])
         write_json(files["json"], study)
     return study
@@ -415,6 +448,145 @@ def _frame_spp(method: str, spp: int) -> int | None:
     return None if spec is not None and not spec.uses_spp else spp
 
 
+def study_job(
+    *,
+    scene: str,
+    method: str,
+    params: dict[str, Any],
+    label: str,
+    seed: int,
+    reference: np.ndarray,
+    reference_seed: int,
+    spp: int,
+    res: tuple[int, int] | None,
+    names: Sequence[str],
+    finals: Sequence[str],
+    checkpoints: Sequence[int],
+    total_frames: int,
+    budget: float | None,
+    warmup: bool,
+    scanline: int,
+    progress: bool | None,
+    render: Callable[..., Any],
+    device: str = "cpu",
+) -> dict[str, Any]:
+    """One (scene, method, seed) of a render study: its per-frame records, final image and (x, t) rows.
+
+    A task of :mod:`grisx.executor` (``device``: where it runs); it depends on nothing but its arguments,
+    so it gives the same numbers wherever it runs.
+    """
+    from grisx.device import resolve_device, synchronize
+
+    dev = resolve_device(device)
+    spec_ref = reference
+    y_line = scanline
+    # accumulate=True: the renderer averages the frames (and keeps a static camera, which is what
+    # convergence against one reference needs); per-frame images are recovered from the averages
+    kw = dict(spp=_frame_spp(method, spp), accumulate=True, res=res, device=device, params=dict(params))
+    if warmup:  # compiles kernels; another seed so that nothing it draws is reused
+        render(scene, method, frames=1, seed=seed + 1 if seed + 1 != reference_seed else seed + 2, **kw)
+    records: list[dict[str, Any]] = []
+    lines: list[np.ndarray] = []
+    kept: dict[int, np.ndarray] = {}
+    state: dict[str, Any] = {"callback": 0.0, "average": np.zeros_like(spec_ref)}
+    bar = Progress(total_frames if budget is None else 100, f"{scene} {label}", enabled=progress)
+
+    def on_frame(index: int, image: np.ndarray, seconds_elapsed: float) -> None:
+        entered = time.perf_counter()
+        # the renderer's clock runs from before its first frame, device synchronized; take out the
+        # time spent in this study's earlier callbacks (metrics are not rendering)
+        seconds = float(seconds_elapsed) - state["callback"]
+        n = len(records) + 1  # frames count from 1
+        what = f"scene '{scene}' method '{label}' frame {n}"
+        average, _ = M.check_images(image, spec_ref, what, f"reference of scene '{scene}'")
+        frame = n * average - (n - 1) * state["average"]  # this frame alone, from two running averages
+        state["average"] = average
+        rec: dict[str, Any] = {"frame": n, "seconds": seconds, "renderer_seconds": float(seconds_elapsed)}
+        for name in names:
+            rec[name] = float(M.METRICS[name](average, spec_ref))
+            rec[f"frame_{name}"] = float(M.METRICS[name](frame, spec_ref))
+        if n in checkpoints:
+            kept[n] = average  # final metrics (FLIP) after the run: keep callbacks light
+        lines.append(frame[y_line].astype(np.float32))
+        records.append(rec)
+        if budget is not None:  # the bar counts percent of the budget
+            bar.done = min(int(100 * seconds / budget), 100)
+        bar.update(1 if budget is None else 0, f"{names[0]} {rec[names[0]]:.3g}")
+        state["callback"] += time.perf_counter() - entered
+        if budget is not None and seconds >= budget:
+            raise _BudgetSpent
+
+    result = None
+    try:
+        result = render(scene, method, frames=total_frames, seed=seed, on_frame=on_frame, **kw)
+    except _BudgetSpent:
+        pass
+    synchronize(dev)
+    bar.close()
+    if not records:
+        raise InvalidValueError(f"renderer called on_frame no time for scene '{scene}' method '{label}'")
+    last = records[-1]
+    final_image = state["average"]
+    kept[len(records)] = final_image
+    for n, image in kept.items():
+        for name in finals:
+            records[n - 1][name] = float(M.METRICS[name](image, spec_ref))
+    primary = last[names[0]]
+    record = {
+        "method": method,
+        "params": dict(params),
+        "frames": len(records),
+        "seconds": last["seconds"],
+        "seconds_per_frame": last["seconds"] / len(records),
+        "final": {k: last[k] for k in (*names, *finals) if k in last},
+        "efficiency": M.efficiency(primary, last["seconds"]) if last["seconds"] > 0 else None,
+        "pass_seconds": dict(getattr(result, "pass_seconds", {}) or {}),
+        "renderer_settings": plain(dict(getattr(result, "settings", {}) or {})),
+        "renderer_device": getattr(result, "device", None),
+        "stopped_by_budget": result is None,
+        "records": records,
+    }
+    return {"record": record, "image": final_image, "xt": np.stack(lines)}
+
+
+def _job_path(outdir: Path, scene: str, label: str, seed: int) -> Path:
+    return outdir / "jobs" / _safe_name(scene) / f"{_safe_name(label)}.seed{seed}"
+
+
+def _load_job(path: Path, fingerprint: str) -> dict[str, Any] | None:
+    """A job that an earlier run of the same study wrote (None: not written, or with other settings)."""
+    import json
+
+    meta, arrays = path.with_suffix(path.suffix + ".json"), path.with_suffix(path.suffix + ".npz")
+    if not (meta.is_file() and arrays.is_file()):
+        return None
+    got = json.loads(meta.read_text())
+    if got.get("fingerprint") != fingerprint:
+        return None
+    with np.load(arrays) as z:
+        return {"record": got["record"], "image": z["image"], "xt": z["xt"]}
+
+
+def _save_job(path: Path, fingerprint: str, job: dict[str, Any]) -> None:
+    """A finished job on disk (arrays first, then the JSON that marks it done; each written atomically)."""
+    import io
+
+    from grisx.eval.files import write_atomic
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    buf = io.BytesIO()
+    np.savez(buf, image=job["image"], xt=job["xt"])
+    write_atomic(path.with_suffix(path.suffix + ".npz"), buf.getvalue())
+    write_json(path.with_suffix(path.suffix + ".json"), {"fingerprint": fingerprint, "record": job["record"]})
+
+
+def _fingerprint(**settings: Any) -> str:
+    import hashlib
+    import json
+
+    return hashlib.sha256(json.dumps(plain(settings), sort_keys=True, default=str).encode()).hexdigest()
+
+
 def render_study(
     scenes: Sequence[str],
     methods: Sequence[MethodSpec | str | tuple[str, Mapping[str, Any]]],
@@ -436,8 +608,18 @@ def render_study(
     progress: bool | None = None,
     render: Callable[..., Any] | None = None,
     reference: Callable[..., Any] | None = None,
+    seeds: Sequence[int] | None = None,
+    executor: Any = None,
+    resume: bool = True,
 ) -> dict[str, Any]:
     """Render each scene with each method, recording per-frame seconds and errors; see the module doc.
+
+    ``seeds``: run every (scene, method) once per seed (default: ``[seed]``); the per-method table and
+    the equal-time table are the first seed's, ``seeds`` gives every seed's final errors and their mean.
+    ``executor`` (:mod:`grisx.executor`): where the (scene, method, seed) jobs and the reference chunks
+    run (default: here, on ``device``). With ``out``, each finished job is written to ``out/jobs/``
+    at once, and with ``resume`` a job written there by an earlier run with the same settings is read
+    back instead of rendered again (an interrupted study resumes where it stopped).
 
     Give ``frames`` (frame counts at which images are kept and FLIP is
     computed; the run goes to the largest) or ``budget`` (seconds per method;
@@ -469,18 +651,25 @@ def render_study(
         checkpoints, total_frames = [], int(max_frames)
     if spp <= 0 or reference_spp <= 0:
         raise InvalidParameterError(f"spp and reference spp must be positive, got {spp} and {reference_spp}")
-    if seed == reference_seed:
-        raise InvalidParameterError(f"seed {seed} equals the reference seed: test renders must be independent of the reference")
+    seeds = _seed_list(seed, seeds)
+    if reference_seed in seeds:
+        raise InvalidParameterError(f"seed {reference_seed} equals the reference seed: test renders must be independent of the reference")
+    seed = seeds[0]
     outdir = _out_dir(out)
     env = environment(device)
-    from grisx.device import resolve_device, synchronize
+    from grisx.executor import InProcessExecutor, Task
 
-    dev = resolve_device(device)
+    if executor is None:
+        executor = InProcessExecutor(device)
+    ref_kw: dict[str, Any] = {}
+    if "executor" in inspect.signature(reference).parameters:
+        ref_kw["executor"] = executor  # grisx's reference: its chunks run where the jobs run
 
+    # ---- references (cached on disk by the reference renderer) ----
     results: dict[str, Any] = {}
-    csv_rows: list[dict[str, Any]] = []
+    refs: dict[str, dict[str, np.ndarray]] = {}
     for scene in scenes:
-        got = reference(scene, res=res, spp=reference_spp, device=device, seed=reference_seed)
+        got = reference(scene, res=res, spp=reference_spp, device=device, seed=reference_seed, **ref_kw)
         ref = M.check_image(getattr(got, "image", got), f"reference of scene '{scene}'")
         height, width = ref.shape[:2]
         scene_out: dict[str, Any] = {"width": width, "height": height}
@@ -494,90 +683,71 @@ def render_study(
         if not 0 <= y_line < height:
             raise InvalidParameterError(f"scanline {y_line} is outside the image (height {height})")
         scene_out.update(scanline=y_line, methods={})
-        kept_images: dict[str, np.ndarray] = {}
-        xt_rows: dict[str, np.ndarray] = {}
-        method_refs: dict[str, np.ndarray] = {}
+        results[scene] = scene_out
+        refs[scene] = {"": ref}
         for spec in specs:
             # a method that estimates less than the full image (restir-di: emitted + direct light) is judged
             # against the path tracer at the depth it renders
             depth = _reference_max_depth(spec.method)
             if depth is None:
-                spec_ref = ref
+                refs[scene][spec.label] = ref
             else:
-                got_d = reference(scene, res=res, spp=reference_spp, device=device, seed=reference_seed, max_depth=depth)
-                spec_ref = M.check_image(getattr(got_d, "image", got_d), f"max_depth={depth} reference of scene '{scene}'")
-            method_refs[spec.label] = spec_ref
-            # accumulate=True: the renderer averages the frames (and keeps a static camera, which is what
-            # convergence against one reference needs); per-frame images are recovered from the averages
-            kw = dict(spp=_frame_spp(spec.method, spp), accumulate=True, res=res, device=device, params=dict(spec.params))
-            if warmup:  # compiles kernels; another seed so that nothing it draws is reused
-                render(scene, spec.method, frames=1, seed=seed + 1 if seed + 1 != reference_seed else seed + 2, **kw)
-            records: list[dict[str, Any]] = []
-            lines: list[np.ndarray] = []
-            kept: dict[int, np.ndarray] = {}
-            state: dict[str, Any] = {"callback": 0.0, "average": np.zeros_like(ref)}
-            bar = Progress(total_frames if frames is not None else 100, f"{scene} {spec.label}", enabled=progress)
+                got_d = reference(scene, res=res, spp=reference_spp, device=device, seed=reference_seed, max_depth=depth, **ref_kw)
+                refs[scene][spec.label] = M.check_image(getattr(got_d, "image", got_d), f"max_depth={depth} reference of scene '{scene}'")
 
-            def on_frame(index: int, image: np.ndarray, seconds_elapsed: float) -> None:
-                entered = time.perf_counter()
-                # the renderer's clock runs from before its first frame, device synchronized; take out the
-                # time spent in this study's earlier callbacks (metrics are not rendering)
-                seconds = float(seconds_elapsed) - state["callback"]
-                n = len(records) + 1  # frames count from 1
-                what = f"scene '{scene}' method '{spec.label}' frame {n}"
-                average, _ = M.check_images(image, spec_ref, what, f"reference of scene '{scene}'")
-                frame = n * average - (n - 1) * state["average"]  # this frame alone, from two running averages
-                state["average"] = average
-                rec: dict[str, Any] = {"frame": n, "seconds": seconds, "renderer_seconds": float(seconds_elapsed)}
-                for name in names:
-                    rec[name] = float(M.METRICS[name](average, spec_ref))
-                    rec[f"frame_{name}"] = float(M.METRICS[name](frame, spec_ref))
-                if n in checkpoints:
-                    kept[n] = average  # final metrics (FLIP) after the run: keep callbacks light
-                lines.append(frame[y_line].astype(np.float32))
-                records.append(rec)
-                if frames is None:  # the bar counts percent of the budget
-                    bar.done = min(int(100 * seconds / budget), 100)
-                bar.update(1 if frames is not None else 0, f"{names[0]} {rec[names[0]]:.3g}")
-                state["callback"] += time.perf_counter() - entered
-                if budget is not None and seconds >= budget:
-                    raise _BudgetSpent
+    # ---- the jobs: one per (scene, method, seed); those an earlier run wrote are read back ----
+    jobs: dict[tuple[str, str, int], dict[str, Any]] = {}
+    tasks, where = [], {}
+    for scene in scenes:
+        for spec in specs:
+            for s_ in seeds:
+                kwargs = dict(scene=scene, method=spec.method, params=dict(spec.params), label=spec.label, seed=s_,
+                              reference=refs[scene][spec.label], reference_seed=reference_seed, spp=spp, res=res,
+                              names=list(names), finals=list(finals), checkpoints=list(checkpoints),
+                              total_frames=total_frames, budget=budget, warmup=warmup,
+                              scanline=results[scene]["scanline"], progress=progress, render=render)
+                fingerprint = _fingerprint(device=device, reference_sha=hashlib.sha256(kwargs["reference"].tobytes()).hexdigest(),
+                                           **{k: v for k, v in kwargs.items() if k not in ("reference", "render", "progress")})
+                path = _job_path(outdir, scene, spec.label, s_) if outdir is not None else None
+                done = _load_job(path, fingerprint) if path is not None and resume else None
+                if done is not None:
+                    jobs[(scene, spec.label, s_)] = {**done, "resumed": True}
+                    continue
+                task = Task(f"{scene} | {spec.label} | seed {s_}", study_job, kwargs)
+                tasks.append(task)
+                where[task.key] = ((scene, spec.label, s_), path, fingerprint)
+    for task, job, _report in executor.run(tasks):
+        key, path, fingerprint = where[task.key]
+        if path is not None:
+            _save_job(path, fingerprint, job)
+        jobs[key] = {**job, "resumed": False}
 
-            result = None
-            try:
-                result = render(scene, spec.method, frames=total_frames, seed=seed, on_frame=on_frame, **kw)
-            except _BudgetSpent:
-                pass
-            synchronize(dev)
-            bar.close()
-            if not records:
-                raise InvalidValueError(f"renderer called on_frame no time for scene '{scene}' method '{spec.label}'")
-            last = records[-1]
-            final_image = state["average"]
-            kept[len(records)] = final_image
-            for n, image in kept.items():
-                for name in finals:
-                    records[n - 1][name] = float(M.METRICS[name](image, spec_ref))
-            primary = last[names[0]]
-            scene_out["methods"][spec.label] = {
-                "method": spec.method,
-                "params": dict(spec.params),
-                "reference_max_depth": depth,
-                "frames": len(records),
-                "seconds": last["seconds"],
-                "seconds_per_frame": last["seconds"] / len(records),
-                "final": {k: last[k] for k in (*names, *finals) if k in last},
-                "efficiency": M.efficiency(primary, last["seconds"]) if last["seconds"] > 0 else None,
-                "pass_seconds": dict(getattr(result, "pass_seconds", {}) or {}),
-                "renderer_settings": dict(getattr(result, "settings", {}) or {}),
-                "renderer_device": getattr(result, "device", None),
-                "stopped_by_budget": result is None,
-                "records": records,
-            }
-            for rec in records:
-                csv_rows.append({"scene": scene, "method": spec.label, **rec})
-            kept_images[spec.label] = final_image
-            xt_rows[spec.label] = np.stack(lines)
+    csv_rows: list[dict[str, Any]] = []
+    for scene in scenes:
+        scene_out = results[scene]
+        height, width = scene_out["height"], scene_out["width"]
+        ref = refs[scene][""]
+        method_refs = {spec.label: refs[scene][spec.label] for spec in specs}
+        kept_images: dict[str, np.ndarray] = {}
+        xt_rows: dict[str, np.ndarray] = {}
+        for spec in specs:
+            job = jobs[(scene, spec.label, seed)]
+            depth = _reference_max_depth(spec.method)
+            record = dict(job["record"])
+            scene_out["methods"][spec.label] = {"method": record.pop("method"), "params": record.pop("params"),
+                                                "reference_max_depth": depth, **record}
+            for s_ in seeds:
+                for rec in jobs[(scene, spec.label, s_)]["record"]["records"]:
+                    csv_rows.append({"scene": scene, "method": spec.label, "seed": s_, **rec})
+            kept_images[spec.label] = job["image"]
+            xt_rows[spec.label] = job["xt"]
+            if len(seeds) > 1:
+                finals_by_seed = {str(s_): jobs[(scene, spec.label, s_)]["record"]["final"] for s_ in seeds}
+                over = {}
+                for k in finals_by_seed[str(seed)]:
+                    v = np.array([f[k] for f in finals_by_seed.values()], dtype=np.float64)
+                    over[k] = {"mean": float(v.mean()), "stderr": float(v.std(ddof=1) / math.sqrt(len(v)))}
+                scene_out["methods"][spec.label]["seeds"] = {"final": finals_by_seed, "final_over_seeds": over}
 
         # equal time: each curve read at one time T
         curves = {lab: ([r["seconds"] for r in m["records"]], [r[names[0]] for r in m["records"]])
@@ -621,6 +791,11 @@ def render_study(
         "kind": "render",
         **env,
         "seed": seed,
+        "seeds": seeds,
+        "executor": executor.describe(),
+        "retried": executor.retried,
+        "tasks": [r.to_dict() for r in executor.reports],  # where each job and reference chunk ran, and how long
+        "resumed_jobs": sorted(" | ".join(map(str, k)) for k, j in jobs.items() if j["resumed"]),
         "settings": {
             "scenes": scenes,
             "methods": [{"label": s.label, "method": s.method, "params": s.params} for s in specs],
@@ -634,7 +809,7 @@ def render_study(
         "scenes": results,
     }
     if outdir is not None:
-        cols = ["scene", "method", "frame", "seconds", "renderer_seconds", *names,
+        cols = ["scene", "method", *(["seed"] if len(seeds) > 1 else []), "frame", "seconds", "renderer_seconds", *names,
                 *[f"frame_{n}" for n in names], *finals]
         study["output"] = {"json": str(outdir / "render_study.json"), "csv": str(outdir / "render_study.csv")}
         write_csv(outdir / "render_study.csv", csv_rows, cols)

@@ -6,6 +6,7 @@
     grisx render SCENE_OR_FILE --method M [--spp N] [--frames F [--accumulate]] [--res WxH]
                  [--device cpu|cuda] [--seed S] [--param k=v ...] [--out PATH.exr|.png|.npy [--exr]] [--json]
     grisx reference SCENE_OR_FILE [--spp N] [--res WxH] [--max-depth D] [--device cpu|cuda] [--force] [--out PATH.exr] [--json]
+                    [--devices cuda:0,cuda:1 | --executor ray [--address HOST:PORT]] [--retries N] [--chunk-spp N]
 
 ``render`` writes the linear EXR, a tonemapped sRGB PNG beside it and a JSON
 sidecar (settings, grisx version, device, seed, timings). ``--method
@@ -80,6 +81,10 @@ def add_parsers(sub: Any, key_value: Any, count: Any, seed: Any) -> None:
     ref.add_argument("--force", action="store_true", help="render even if cached")
     ref.add_argument("--out", default=None, help="also copy the image (and PATH.variance.exr, PATH.png) here")
     ref.add_argument("--json", action="store_true", help="print one JSON object")
+    ref.add_argument("--chunk-spp", type=count, default=1024, help="samples per pixel of one chunk (one task; default 1024)")
+    from grisx.executor import add_executor_arguments
+
+    add_executor_arguments(ref)
     ref.set_defaults(handler=_reference)
 
 
@@ -263,19 +268,24 @@ def _reference(args: argparse.Namespace) -> int:
     from grisx.render.reference import reference
     from grisx.render.driver import parse_res
 
+    from grisx.executor import executor_from_args
+
     out = Path(args.out) if args.out else None
     if out is not None and (out.suffix.lower() != ".exr" or not out.parent.is_dir()):
         raise InvalidParameterError(f"--out must name an .exr file in an existing directory, got '{out}'")
-    ref = reference(
-        args.scene,
-        res=parse_res(args.res) if args.res else None,
-        spp=args.spp,
-        max_depth=args.max_depth,
-        device=args.device,
-        seed=args.seed,
-        force=args.force,
-        progress=_Progress(f"reference {args.scene}"),
-    )
+    with executor_from_args(args) as executor:
+        ref = reference(
+            args.scene,
+            res=parse_res(args.res) if args.res else None,
+            spp=args.spp,
+            max_depth=args.max_depth,
+            device=args.device,
+            seed=args.seed,
+            force=args.force,
+            progress=_Progress(f"reference {args.scene}"),
+            executor=executor,
+            chunk_spp=args.chunk_spp,
+        )
     written = [str(ref.path), str(ref.path.with_name(ref.path.stem + ".variance.exr"))]
     if out is not None:
         shutil.copyfile(ref.path, out)
@@ -286,6 +296,12 @@ def _reference(args: argparse.Namespace) -> int:
         print(json.dumps({**ref.settings, "cached": ref.cached, "output": written}, default=_plain))
     else:
         state = "cached" if ref.cached else f"rendered in {ref.settings.get('seconds', 0):.1f} s"
+        for worker, d in ({} if ref.cached else ref.settings.get("throughput", {})).items():
+            rate = d.get("spp_per_second")
+            print(f"  {worker}: {d['chunks']} chunk(s), {d['spp']} spp in {d['seconds']:.2f} s"
+                  + (f" ({rate:.3g} spp/s, {d['samples_per_second'] / 1e6:.3g} Msamples/s)" if rate else ""))
+        for r in [] if ref.cached else ref.settings.get("retried", []):
+            print(f"  retried {r['key']}: {r['attempts']} attempts ({'; '.join(r['errors'])})")
         print(f"{args.scene}: reference {ref.settings['width']}x{ref.settings['height']}, {ref.settings['spp']} spp ({state}) -> {ref.path}")
     return 0
 

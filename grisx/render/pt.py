@@ -47,7 +47,7 @@ from grisx.theory.random import random_key, random_subkey
 
 wp.set_module_options({"enable_backward": False})
 
-__all__ = ["PathTracer", "make_path_tracer_kernel", "create_path_tracer"]
+__all__ = ["PathTracer", "make_path_tracer_kernel", "create_path_tracer", "variance_of_mean"]
 
 
 
@@ -142,14 +142,20 @@ class PathTracer:
         self.total_sq.zero_()
         self.samples = 0
 
-    def add_samples(self, frame: int, count: int) -> None:
-        """Trace ``count`` more samples per pixel of frame ``frame`` into the running sums."""
+    def add_samples(self, frame: int, count: int, first_sample: int | None = None) -> None:
+        """Trace ``count`` more samples per pixel of frame ``frame`` into the running sums.
+
+        The samples are numbers ``first_sample``, ``first_sample + 1``, … of the counter RNG's sample stream
+        (default: the count so far, so successive calls continue one stream); a chunk of a reference passes
+        its own first sample, so chunks rendered anywhere are disjoint parts of one stream.
+        """
         cam = self.built.camera_data(float(frame), self.width, self.height)
-        for _ in range(count):
+        start = self.samples if first_sample is None else int(first_sample)
+        for i in range(count):
             wp.launch(
                 self.kernel,
                 dim=(self.height, self.width),
-                inputs=[self.built.data, cam, self.seed, int(frame), self.samples, self.max_depth, self.rr_depth, self.strategy, self.jitter],
+                inputs=[self.built.data, cam, self.seed, int(frame), start + i, self.max_depth, self.rr_depth, self.strategy, self.jitter],
                 outputs=[self.total, self.total_sq, self.nonfinite],
                 device=self.built.device,
             )
@@ -177,10 +183,15 @@ class PathTracer:
 
     def variance_of_mean(self) -> np.ndarray:
         """Per-pixel sample variance divided by the sample count (the squared standard error)."""
-        n = max(self.samples, 1)
-        mean = self.total.numpy().astype(np.float64) / n
-        var = np.maximum(self.total_sq.numpy().astype(np.float64) / n - mean**2, 0.0) * n / max(n - 1, 1)
-        return (var / n).astype(np.float32)
+        return variance_of_mean(self.total.numpy(), self.total_sq.numpy(), self.samples)
+
+
+def variance_of_mean(total: np.ndarray, total_sq: np.ndarray, samples: int) -> np.ndarray:
+    """Per-pixel sample variance / n from the sums of n samples and of their squares (float32)."""
+    n = max(int(samples), 1)
+    mean = np.asarray(total, dtype=np.float64) / n
+    var = np.maximum(np.asarray(total_sq, dtype=np.float64) / n - mean**2, 0.0) * n / max(n - 1, 1)
+    return (var / n).astype(np.float32)
 
 
 def create_path_tracer(ctx: Any) -> PathTracer:
