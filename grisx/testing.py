@@ -276,7 +276,8 @@ def reuse_unbiasedness_test(
     (e.g. the path tracer at many spp) and ``reference_variance`` the per-pixel variance of
     its mean (pixels independent). Both the image mean and every ``block``×``block`` block
     mean are z-tested per channel, the standard error combining the runs' spread with the
-    reference's own; the block test is Šidák-corrected across blocks and channels.
+    reference's own (floored at float32 rounding, :func:`_rounding_floor`); the block test is
+    Šidák-corrected across blocks and channels.
     """
     ref = np.asarray(reference, dtype=np.float64)
     var = np.asarray(reference_variance, dtype=np.float64)
@@ -286,10 +287,23 @@ def reuse_unbiasedness_test(
     c = ref.shape[-1]
     ref_block_se, ref_se = _independent_pixel_errors(var, block)
     run_blocks = np.asarray([block_means(im, block) for im in images])
-    blocks = z_test(run_blocks.mean(axis=0) - block_means(ref, block), np.sqrt(run_blocks.var(axis=0, ddof=1) / runs + ref_block_se**2), 0.0, k=k)
+    mean_blocks, ref_blocks = run_blocks.mean(axis=0), block_means(ref, block)
+    blocks = z_test(mean_blocks - ref_blocks, _rounding_floor(np.sqrt(run_blocks.var(axis=0, ddof=1) / runs + ref_block_se**2), mean_blocks, ref_blocks), 0.0, k=k)
     run_means = images.reshape(runs, -1, c).mean(axis=1)
-    image = z_test(run_means.mean(axis=0) - ref.reshape(-1, c).mean(axis=0), np.sqrt(run_means.var(axis=0, ddof=1) / runs + ref_se**2), 0.0, k=k)
+    mean, ref_mean = run_means.mean(axis=0), ref.reshape(-1, c).mean(axis=0)
+    image = z_test(mean - ref_mean, _rounding_floor(np.sqrt(run_means.var(axis=0, ddof=1) / runs + ref_se**2), mean, ref_mean), 0.0, k=k)
     return ReuseTestResult(image=image, blocks=blocks, runs=runs)
+
+
+def _rounding_floor(se: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """A standard error no smaller than float32 rounding of the two values being compared.
+
+    Where both estimates are noiseless (e.g. a constant environment seen directly), rounding is
+    the only difference (a renderer summing n equal float32 samples is off by up to ~n·2⁻²⁴ of
+    the value; Mitsuba's film at 2048 spp by ~1e-5): differences below 1e-4 of the value are
+    below the resolution of these tests, and a zero standard error must not make them infinite z.
+    """
+    return np.maximum(se, 1e-4 * np.maximum(np.abs(x), np.abs(y)))
 
 
 def _independent_pixel_errors(variance: np.ndarray, block: int) -> tuple[np.ndarray, np.ndarray]:
@@ -323,10 +337,7 @@ def image_agreement_test(
     ``block``×``block`` block mean are z-tested per channel. ``family`` is the number of z-values
     sharing one verdict (a whole suite of scenes: every case's blocks + 1, times channels);
     the threshold is ``sidak_threshold(k, family)``, by default over this image's own count.
-    Where both estimates are noiseless (e.g. a constant environment seen directly), float32
-    rounding is the only difference (a renderer summing n equal float32 samples is off by up
-    to ~n·2⁻²⁴ of the value; Mitsuba's film at 2048 spp by ~1e-5): the standard error has a
-    floor of 1e-4 of the value, so differences below 0.01% are below this test's resolution.
+    The standard error has a floor of 1e-4 of the value (:func:`_rounding_floor`).
     """
     a, va, b, vb = (np.asarray(x, dtype=np.float64) for x in (image, variance, reference, reference_variance))
     if a.ndim != 3 or not (a.shape == va.shape == b.shape == vb.shape):
@@ -337,8 +348,7 @@ def image_agreement_test(
     threshold = sidak_threshold(k, family if family is not None else n_values)
 
     def check(x: np.ndarray, y: np.ndarray, se_x: np.ndarray, se_y: np.ndarray) -> ZTestResult:
-        se = np.maximum(np.hypot(se_x, se_y), 1e-4 * np.maximum(np.abs(x), np.abs(y)))  # float32 rounding
-        return z_test(x - y, se, 0.0, k=threshold, sidak=False)
+        return z_test(x - y, _rounding_floor(np.hypot(se_x, se_y), x, y), 0.0, k=threshold, sidak=False)
 
     blocks = check(block_means(a, block), block_means(b, block), se_a_blocks, se_b_blocks)
     mean = check(a.reshape(-1, c).mean(axis=0), b.reshape(-1, c).mean(axis=0), se_a, se_b)

@@ -112,7 +112,7 @@ from grisx.errors import InvalidParameterError
 from grisx.scene.bsdf import make_bsdf
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.material import Material
-from grisx.scene.lights import emitter_radiance, environment_eval, environment_pdf, light_pdf_emitter, luminance, sample_light
+from grisx.scene.lights import emitter_radiance, environment_eval, environment_pdf, light_pdf_emitter, luminance, point_light_intensity, sample_light
 from grisx.scene.scene import SceneData, SurfaceInteraction, intersect, light_occluded, occluded, segment_occluded, spawn_origin, surface_material
 from grisx.theory.control_variate import decoupled_contribution
 from grisx.theory.mis import target_from, technique_mis
@@ -205,7 +205,7 @@ class PathSample:
     rc_ns: wp.vec3
     rc_uv: wp.vec2
     rc_material: int
-    rc_tri: int
+    rc_tri: int  # the triangle of x_k (surface, area light) or the point light's index (VERTEX_POINT_LIGHT)
     rc_kind: int  # VERTEX_*
     rc_wi: wp.vec3  # direction x_k → x_{k+1} (surface x_k only)
     rc_cos: float  # cos at x_k of the segment to x_{k−1} (geometric normal; Eq. 11's φ₂)
@@ -519,8 +519,9 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                     cos_dst = wp.dot(x.rc_ng, -d)
                     jac_rc = reconnection_jacobian(x.rc_cos, cos_dst, x.rc_dist, dist, 3)
                 elif x.rc_kind == VERTEX_POINT_LIGHT:
+                    # I(−d) / d², the intensity toward the *new* x'_{k−1} (a spot's falloff); a delta position: |J| = 1, m_t = 1
                     f = f * (1.0 / (dist * dist))
-                    f = wp.cw_mul(f, x.suffix)  # intensity / d²; a delta position: |J| = 1, m_t = 1
+                    f = wp.cw_mul(f, point_light_intensity(scene.lights, x.rc_tri, -d))
                     cos_dst = 1.0
                 else:
                     f = wp.cw_mul(f, environment_eval(scene.lights, d))  # same direction: |J| = 1
@@ -667,14 +668,16 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                             elif rc_pair_ok(sp, rough, 1.0, ls.dist, i + 1):
                                 kind = VERTEX_AREA_LIGHT
                                 lp = ls.p
+                                light_id = ls.tri
                                 sfx = wp.vec3(1.0, 1.0, 1.0)
                                 if ls.is_env != 0:
                                     kind = VERTEX_ENV
                                     lp = ls.wi
                                 elif ls.delta != 0:
+                                    # a spot's intensity depends on the direction it is left in: keep which light, not its value
                                     kind = VERTEX_POINT_LIGHT
-                                    sfx = ls.radiance * (ls.dist * ls.dist)
-                                cand_x = _endpoint_light(cand_x, i + 1, kind, lp, ls.n, ls.tri, wp.dot(ls.n, -ls.wi), ls.dist, sfx, pdf)
+                                    light_id = ls.light - scene.lights.num_emitters
+                                cand_x = _endpoint_light(cand_x, i + 1, kind, lp, ls.n, light_id, wp.dot(ls.n, -ls.wi), ls.dist, sfx, pdf)
                             else:
                                 cand_x.pdf_replay = pdf * ls.pdf * s_nee
                             t = path_target(cand_x)
