@@ -153,7 +153,7 @@ import warp as wp
 
 from grisx.device import specialized_module
 from grisx.params import Param
-from grisx.render.base.registry import RenderMethod, create_renderer, register, renderer_params
+from grisx.render.base.registry import RenderMethod, composed_direct, create_renderer, register, renderer_params
 from grisx.scene.bsdf import MATERIAL_ROUGH_DIELECTRIC, cosine_hemisphere_pdf, make_bsdf, sample_cosine_hemisphere
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.gbuffer import GBuffer, GBufferData, gbuffer_kernel
@@ -212,11 +212,11 @@ DIRECT = {"nee": 0, "restir-di": 1}
 AUTO_DI_LIGHTS = 16
 
 
-def resolve_direct(direct: str, built: Any) -> str:
+def resolve_direct(direct: str, built: Any, max_depth: int) -> str:
     """``nee`` or ``restir-di``: ``auto`` by the scene's number of lights (see the module docstring)."""
-    if direct != "auto":
-        return direct
-    return "restir-di" if int(built.data.lights.num_lights) > AUTO_DI_LIGHTS else "nee"
+    if direct == "auto":
+        direct = "restir-di" if int(built.data.lights.num_lights) > AUTO_DI_LIGHTS else "nee"
+    return composed_direct(direct, max_depth)
 
 @wp.struct
 class SourceSample:
@@ -1015,7 +1015,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
         self.mb_fraction = float(mb_fraction)
         self.validation_interval = int(validation_interval)
         self.validation_tolerance = float(validation_tolerance)
-        self.direct_name = resolve_direct(direct, built)
+        self.direct_name = resolve_direct(direct, built, self.max_depth)
         self.direct = DIRECT[self.direct_name]
         self.resolved_params = {"direct": self.direct_name}  # what "auto" became, for render --json
         self.exact_bsdf = int(bool(exact_bsdf))

@@ -76,7 +76,7 @@ import warp as wp
 
 from grisx.device import specialized_module
 from grisx.params import Param
-from grisx.render.base.registry import RenderMethod, create_renderer, register, renderer_params
+from grisx.render.base.registry import RenderMethod, composed_direct, create_renderer, register, renderer_params
 from grisx.errors import InvalidParameterError
 from grisx.scene.gbuffer import GBuffer, GBufferData
 from grisx.render.base.path_shift import (
@@ -457,6 +457,8 @@ class ReSTIRPT(ScreenSpaceRenderer):
             raise InvalidParameterError(
                 "restir-pt needs candidates >= 1, max_depth -1 or >= 1, rr_depth >= 1, spatial_rounds >= 0, neighbors >= 0, radius > 0"
             )
+        direct = composed_direct(direct, int(max_depth))
+        self.resolved_params = {"direct": direct}  # for render --json
         self.built = built
         self.width, self.height = int(width), int(height)
         self.candidates = int(candidates)

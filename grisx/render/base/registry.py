@@ -125,6 +125,13 @@ def create_renderer(cls: type, ctx: RenderContext) -> Any:
     return cls(ctx.built, ctx.width, ctx.height, seed=ctx.seed, timer=ctx.timer, **{k: v for k, v in ctx.params.items() if k in names})
 
 
+def composed_direct(direct: str, max_depth: int) -> str:
+    """The direct-light pass a renderer composes, given its path depth: ``direct`` itself, except that
+    at ``max_depth=1`` (emitters seen directly, no direct light) ReSTIR DI — whose image is the path
+    tracer's at depth 2 — has nothing to add: the renderer's own NEE, which adds nothing there, stands."""
+    return "nee" if max_depth == 1 else direct
+
+
 def load_plugins() -> dict[str, RenderMethod]:
     """Import every module of :data:`PLUGINS` (each registers its methods) and return :data:`METHODS`."""
     for module in PLUGINS:
