@@ -17,6 +17,10 @@ So the protocol measures, per scene, camera and method:
   (relMSE · seconds)_method, pt at 1 spp per frame and the method's depth.
   A path tracer's single-frame relMSE falls as 1/spp, so this is the ratio
   of relMSEs when pt is given the method's frame time;
+* **MAPE and colour noise** of the same frames (``frame_mape``, ``frame_chroma``:
+  :func:`grisx.eval.metrics.mape`, :func:`grisx.eval.metrics.chroma`; seed 002
+  reports MAPE over the full image and argues about colour noise), not
+  corrected for the reference's noise;
 * **FLIP at equal time**: HDR-FLIP of the method's last evaluated frame and
   of a pt frame rendered with spp = round(t_method / t_pt) at the same camera,
   both against the reference.
@@ -114,6 +118,13 @@ def frame_relmse(kept: dict[int, np.ndarray], ref_for: Any, depth: int) -> float
     return float(np.mean([relmse(img, ref_for(f, depth)[0]) - reference_relmse(*ref_for(f, depth), RELMSE_EPSILON) for f, img in kept.items()]))
 
 
+def frame_metric(name: str, kept: dict[int, np.ndarray], ref_for: Any, depth: int) -> float:
+    """Mean of metric ``name`` (:data:`grisx.eval.metrics.METRICS`) over the kept frames against their references."""
+    from grisx.eval.metrics import METRICS
+
+    return float(np.mean([METRICS[name](img, ref_for(f, depth)[0]) for f, img in kept.items()]))
+
+
 def run_scene(scene: str, args: argparse.Namespace) -> list[dict[str, Any]]:
     from grisx.eval.metrics import flip
     from grisx.render.driver import METHODS as REGISTRY
@@ -147,7 +158,9 @@ def run_scene(scene: str, args: argparse.Namespace) -> list[dict[str, Any]]:
             kept, seconds, r = render_frames(scene, method, p, 1 if spec.uses_spp else None, camera, args, eval_frames)
             rec = {"scene": scene, "camera": camera, "method": label, "renderer": method, "params": {k: str(v) for k, v in p.items()},
                    "max_depth": depth, "width": width, "height": height, "frames": frames, "eval_frames": sorted(kept),
-                   "frame_seconds": seconds, "frame_relmse": frame_relmse(kept, ref_for, depth), "nonfinite_samples": r.settings.get("nonfinite_samples", 0)}
+                   "frame_seconds": seconds, "frame_relmse": frame_relmse(kept, ref_for, depth),
+                   "frame_mape": frame_metric("mape", kept, ref_for, depth), "frame_chroma": frame_metric("chroma", kept, ref_for, depth),
+                   "nonfinite_samples": r.settings.get("nonfinite_samples", 0)}
             if method == "pt" and depth not in baseline:
                 baseline[depth] = rec
             last = eval_frames[-1]

@@ -17,6 +17,11 @@ Metrics
              papers report relMSE without stating ε; pass ``epsilon=`` to change it.
 ``mape``     mean absolute percentage error, mean(|test − ref| / (|ref| + ε)), same ε
              and reference (seed 002 reports relMSE and MAPE "over the full image").
+``chroma``   colour noise: relMSE of the chrominance C(x) = x − Y(x)·(1, 1, 1) (Y the
+             Rec. 709 luminance), mean(|C(test) − C(ref)|² / (Y(ref)² + ε)) — the noise a
+             luminance-driven estimator leaves in hue (seed 002, Sec. 4: a white plane
+             under a red and a green light rendered red or green per pixel). Needs 3
+             channels; a grey test of a grey reference has none, whatever its error.
 ``flip``     **HDR-FLIP** (Andersson et al. 2021) through NVIDIA's ``flip-evaluator``
              package: both images are taken as linear sRGB radiance (renders are
              HDR), FLIP chooses its exposure range from the reference and tonemaps
@@ -168,6 +173,25 @@ def mape(test: Any, ref: Any, *, epsilon: float = RELMSE_EPSILON, per_channel: b
     return _reduce(np.abs(t - r) / (np.abs(r) + _epsilon(epsilon)), per_channel)
 
 
+#: Rec. 709 luminance weights: Y = 0.2126 R + 0.7152 G + 0.0722 B
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+
+
+def chroma(test: Any, ref: Any, *, epsilon: float = RELMSE_EPSILON, per_channel: bool = False) -> float | np.ndarray:
+    """Colour noise: relMSE of the chrominance C(x) = x − Y(x)·(1, 1, 1), mean(|C(test) − C(ref)|² / (Y(ref)² + ε)).
+
+    Linear in the images (no division by a test pixel, so negative control-variate estimates are
+    fine); a test image of the reference's hues at another brightness has only the brightness
+    part of its error here, which ``relmse`` counts too."""
+    t, r = check_images(test, ref)
+    if t.ndim != 3 or t.shape[-1] < 3:
+        raise InvalidParameterError(f"chroma needs (H, W, 3) images, got shape {t.shape}")
+    t, r = t[..., :3], r[..., :3]
+    y_t, y_r = (t @ LUMINANCE)[..., None], (r @ LUMINANCE)[..., None]
+    d2 = ((t - y_t) - (r - y_r)) ** 2 / (y_r**2 + _epsilon(epsilon))
+    return _reduce(d2, per_channel)
+
+
 # ---- FLIP ---------------------------------------------------------------------------
 def to_srgb(linear: Any, exposure: float = 0.0) -> np.ndarray:
     """Display encoding: clip(2^exposure · x, 0, 1) through the sRGB transfer function (IEC 61966-2-1)."""
@@ -224,11 +248,12 @@ METRICS: dict[str, Callable[..., Any]] = {
     "rmse": rmse,
     "relmse": relmse,
     "mape": mape,
+    "chroma": chroma,
     "flip": flip,
     "flip_ldr": flip_ldr,
 }
 #: metrics with a per-channel variant
-PER_CHANNEL = ("mse", "rmse", "relmse", "mape")
+PER_CHANNEL = ("mse", "rmse", "relmse", "mape", "chroma")
 
 
 def parse_metrics(names: str | Iterable[str]) -> list[str]:

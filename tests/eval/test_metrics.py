@@ -51,6 +51,21 @@ def test_per_channel_variants():
     assert M.mse(test, ref) == pytest.approx(np.mean([0.5, 2.0, 0.125]))
 
 
+def test_chroma_is_colour_noise_alone():
+    # seed 002, Fig. 2: a yellow plane seen as red or green pixels has colour noise; a grey one of any error has none
+    yellow = np.full((2, 2, 3), [0.5, 0.5, 0.0])
+    red_green = np.array([[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], [[0.0, 1.0, 0.0], [1.0, 0.0, 0.0]]])
+    y = yellow @ M.LUMINANCE
+    c_ref = yellow - y[..., None]
+    c_test = red_green - (red_green @ M.LUMINANCE)[..., None]
+    assert M.chroma(red_green, yellow) == pytest.approx(float(np.mean((c_test - c_ref) ** 2 / (y[..., None] ** 2 + EPS))))
+    assert M.chroma(red_green, yellow) > 1.0
+    assert M.chroma(np.full((2, 2, 3), 3.0), np.ones((2, 2, 3))) == 0.0  # brightness error only
+    assert M.relmse(np.full((2, 2, 3), 3.0), np.ones((2, 2, 3))) > 1.0
+    with pytest.raises(InvalidParameterError, match="chroma needs"):
+        M.chroma(np.ones((2, 2)), np.ones((2, 2)))
+
+
 def test_identical_images_have_zero_error():
     img = np.random.default_rng(1).random((9, 7, 3))
     for name in M.METRICS:
