@@ -31,6 +31,10 @@ Lobes (equations in ``grisx.scene.microfacet``):
 * **Smooth dielectric** (``dielectric``): reflect with probability F,
   otherwise refract (Snell); weight = specular_reflectance, or
   specular_transmittance · η_ti² (radiance).
+* **Thin dielectric** (``thindielectric``): a pane whose internal bounces are
+  summed, R = 2F/(1 + F) with F = F(|cos θ_o|); reflect with probability R,
+  else pass straight through (wi = −wo); weight = specular_reflectance or
+  specular_transmittance; two-sided, no refraction, no η scaling.
 * **Rough dielectric** (``roughdielectric``, GGX; Walter et al. 2007, Eqs. 16–21 with
   Mitsuba's radiance scaling): the half vector m ∝ wo + η wi (η = η_i/η_o of
   the two sides), f_r·|cos θ_i| = F D G2/(4|cos θ_o|),
@@ -89,6 +93,7 @@ from grisx.scene.material import (
     MATERIAL_KINDS,
     MATERIAL_ROUGH_CONDUCTOR,
     MATERIAL_ROUGH_DIELECTRIC,
+    MATERIAL_THIN_DIELECTRIC,
     Material,
 )
 from grisx.scene.microfacet import (
@@ -135,6 +140,7 @@ __all__ = [
     "rough_dielectric_sample",
     "rough_dielectric_eval",
     "rough_dielectric_pdf",
+    "thin_dielectric_sample",
 ]
 
 _INV_PI = wp.constant(1.0 / math.pi)
@@ -344,6 +350,28 @@ def dielectric_sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2) -> Bs
 
 
 @wp.func
+def thin_dielectric_sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2) -> BsdfSample:
+    """A thin pane: reflect with probability R = 2F/(1 + F) (every internal bounce summed), else pass
+    straight through (−wo); both delta, from either side (Mitsuba's ``thindielectric``)."""
+    s = _no_sample()
+    if wo[2] == 0.0:
+        return s
+    f = fresnel_dielectric(wp.abs(wo[2]), m.eta[0]).f
+    r = 2.0 * f / (1.0 + f)
+    s.delta = 1
+    s.valid = 1
+    if u_lobe < r:
+        s.wi = wp.vec3(-wo[0], -wo[1], wo[2])
+        s.pdf = r
+        s.weight = m.reflectance
+    else:
+        s.wi = -wo
+        s.pdf = 1.0 - r
+        s.weight = m.transmittance
+    return s
+
+
+@wp.func
 def _half_vector(m: Material, wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
     # generalized half vector m ∝ wo + η wi (Walter et al. 2007, Eq. 16), oriented to the macro normal
     eta = m.eta[0]
@@ -510,6 +538,7 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
     has_rough_conductor = MATERIAL_ROUGH_CONDUCTOR in key
     has_dielectric = MATERIAL_DIELECTRIC in key
     has_rough_dielectric = MATERIAL_ROUGH_DIELECTRIC in key
+    has_thin_dielectric = MATERIAL_THIN_DIELECTRIC in key
     has_reflective = has_diffuse or has_conductor or has_rough_conductor
 
     @wp.func
@@ -520,6 +549,9 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
         if wp.static(has_rough_dielectric):
             if m.kind == MATERIAL_ROUGH_DIELECTRIC:
                 return rough_dielectric_sample(m, wo, u_lobe, u)
+        if wp.static(has_thin_dielectric):
+            if m.kind == MATERIAL_THIN_DIELECTRIC:
+                return thin_dielectric_sample(m, wo, u_lobe, u)
         s = _no_sample()
         if wp.static(has_reflective):
             # Mitsuba twosided: mirror the frame when seen from the back
@@ -592,6 +624,11 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
             if m.kind == MATERIAL_DIELECTRIC or m.kind == MATERIAL_ROUGH_DIELECTRIC:
                 f = average_fresnel_dielectric(m.eta[0])
                 return m.reflectance * f + m.transmittance * (1.0 - f)
+        if wp.static(has_thin_dielectric):
+            if m.kind == MATERIAL_THIN_DIELECTRIC:
+                f = average_fresnel_dielectric(m.eta[0])
+                r = 2.0 * f / (1.0 + f)  # the pane's R of an average F (an approximation: the albedo guides, it is not estimated)
+                return m.reflectance * r + m.transmittance * (1.0 - r)
         return wp.vec3(0.0, 0.0, 0.0)
 
     @wp.func
@@ -604,7 +641,7 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
 
     @wp.func
     def is_delta(m: Material) -> int:
-        if m.kind == MATERIAL_CONDUCTOR or m.kind == MATERIAL_DIELECTRIC:
+        if m.kind == MATERIAL_CONDUCTOR or m.kind == MATERIAL_DIELECTRIC or m.kind == MATERIAL_THIN_DIELECTRIC:
             return 1
         return 0
 

@@ -65,6 +65,7 @@ __all__ = [
     "MATERIAL_ROUGH_CONDUCTOR",
     "MATERIAL_DIELECTRIC",
     "MATERIAL_ROUGH_DIELECTRIC",
+    "MATERIAL_THIN_DIELECTRIC",
     "MATERIAL_KINDS",
     "MATERIAL_KIND_NAMES",
     "TextureRef",
@@ -73,6 +74,7 @@ __all__ = [
     "RoughConductor",
     "Dielectric",
     "RoughDielectric",
+    "ThinDielectric",
     "MaterialDesc",
     "CONDUCTOR_PRESETS",
     "conductor_material",
@@ -87,6 +89,7 @@ MATERIAL_CONDUCTOR = wp.constant(1)
 MATERIAL_ROUGH_CONDUCTOR = wp.constant(2)
 MATERIAL_DIELECTRIC = wp.constant(3)
 MATERIAL_ROUGH_DIELECTRIC = wp.constant(4)
+MATERIAL_THIN_DIELECTRIC = wp.constant(5)
 
 #: every kind, in id order
 MATERIAL_KINDS: tuple[int, ...] = (
@@ -95,6 +98,7 @@ MATERIAL_KINDS: tuple[int, ...] = (
     MATERIAL_ROUGH_CONDUCTOR,
     MATERIAL_DIELECTRIC,
     MATERIAL_ROUGH_DIELECTRIC,
+    MATERIAL_THIN_DIELECTRIC,
 )
 #: Mitsuba plugin name of each kind
 #: microfacet distributions of the rough records → grisx.scene.microfacet's MICROFACET_* ids
@@ -106,6 +110,7 @@ MATERIAL_KIND_NAMES: dict[int, str] = {
     MATERIAL_ROUGH_CONDUCTOR: "roughconductor",
     MATERIAL_DIELECTRIC: "dielectric",
     MATERIAL_ROUGH_DIELECTRIC: "roughdielectric",
+    MATERIAL_THIN_DIELECTRIC: "thindielectric",
 }
 
 RGB = tuple[float, float, float]
@@ -202,7 +207,24 @@ class RoughDielectric:
     bump_frequency: float = 0.0
 
 
-MaterialDesc = Diffuse | Conductor | RoughConductor | Dielectric | RoughDielectric
+@dataclasses.dataclass(frozen=True)
+class ThinDielectric:
+    """Mitsuba ``thindielectric``: a thin pane of glass (delta reflection + straight transmission).
+
+    The light inside the pane is summed in closed form: with F the Fresnel reflectance at the
+    first interface, R = F + (1 − F)² F / (1 − F²) = 2F / (1 + F) is reflected and T = 1 − R
+    passes through undeflected (Mitsuba's ``thindielectric``)."""
+
+    int_ior: float = 1.5046
+    ext_ior: float = 1.000277
+    specular_reflectance: RGB | float = (1.0, 1.0, 1.0)
+    specular_transmittance: RGB | float = (1.0, 1.0, 1.0)
+    two_sided: bool = False  # ignored: a pane has two sides by nature
+    bump_amplitude: float = 0.0
+    bump_frequency: float = 0.0
+
+
+MaterialDesc = Diffuse | Conductor | RoughConductor | Dielectric | RoughDielectric | ThinDielectric
 
 _KIND_OF: dict[type, int] = {
     Diffuse: MATERIAL_DIFFUSE,
@@ -210,6 +232,7 @@ _KIND_OF: dict[type, int] = {
     RoughConductor: MATERIAL_ROUGH_CONDUCTOR,
     Dielectric: MATERIAL_DIELECTRIC,
     RoughDielectric: MATERIAL_ROUGH_DIELECTRIC,
+    ThinDielectric: MATERIAL_THIN_DIELECTRIC,
 }
 
 

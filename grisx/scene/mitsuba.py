@@ -69,7 +69,9 @@ Transforms ``<transform name="to_world">``
     ``dielectric`` / ``roughdielectric`` (``int_ior`` [bk7], ``ext_ior`` [air]
     as numbers or Mitsuba's named IORs, ``specular_reflectance``,
     ``specular_transmittance``; rough: ``alpha``, ``distribution``,
-    ``sample_visible``); ``twosided`` around one non-transmissive BSDF.
+    ``sample_visible``); ``thindielectric`` (``int_ior``, ``ext_ior``,
+    ``specular_reflectance``, ``specular_transmittance``); ``twosided`` around
+    one non-transmissive BSDF.
 ``emitter``
     ``area`` (inside a shape; ``radiance``, required), ``constant``
     (``radiance`` [1]), ``envmap`` (``filename``, ``scale`` [1], ``to_world``;
@@ -119,6 +121,7 @@ from grisx.scene.material import (
     Diffuse,
     RoughConductor,
     RoughDielectric,
+    ThinDielectric,
     TextureRef,
     conductor_material,
     pack_materials,
@@ -672,7 +675,7 @@ class _Loader:
         node = self._deref(node, "bsdf")
         if id(node) in self.records:
             return self.records[id(node)]
-        t = self._require_type(node, ("diffuse", "conductor", "roughconductor", "dielectric", "roughdielectric", "twosided"))
+        t = self._require_type(node, ("diffuse", "conductor", "roughconductor", "dielectric", "roughdielectric", "thindielectric", "twosided"))
         p = _Props(self, node)
         if t == "twosided":
             inner = p.take_objects(("bsdf",))
@@ -680,7 +683,7 @@ class _Loader:
                 raise self.ctx.error(node, f"twosided needs exactly one nested BSDF, got {len(inner)} "
                                            f"(different front and back BSDFs are not supported)")
             rec = self.bsdf_record(inner[0])
-            if isinstance(rec, (Dielectric, RoughDielectric)):
+            if isinstance(rec, (Dielectric, RoughDielectric, ThinDielectric)):
                 raise self.ctx.error(node, "twosided cannot wrap a transmissive BSDF (as in Mitsuba)")
             rec = dataclasses.replace(rec, two_sided=True)
         elif t == "diffuse":
@@ -700,14 +703,17 @@ class _Loader:
                     raise self.ctx.error(p.values["material"], f"parameter 'material': {exc}", "material") from None
             kw["specular_reflectance"] = p.color("specular_reflectance", 1.0)
             rec = self._smooth_or_rough(p, t == "roughconductor", kw, Conductor, RoughConductor)
-        else:  # dielectric, roughdielectric
+        else:  # dielectric, roughdielectric, thindielectric
             kw = {
                 "int_ior": p.ior("int_ior", "bk7"),
                 "ext_ior": p.ior("ext_ior", "air"),
                 "specular_reflectance": p.color("specular_reflectance", 1.0),
                 "specular_transmittance": p.color("specular_transmittance", 1.0),
             }
-            rec = self._smooth_or_rough(p, t == "roughdielectric", kw, Dielectric, RoughDielectric)
+            if t == "thindielectric":
+                rec = ThinDielectric(**kw)
+            else:
+                rec = self._smooth_or_rough(p, t == "roughdielectric", kw, Dielectric, RoughDielectric)
         p.finish()
         try:  # validate values now (negative colours, alpha <= 0, equal IORs ...) so the error names this line
             pack_materials([rec], device="cpu")

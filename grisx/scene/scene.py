@@ -46,6 +46,7 @@ from grisx.scene.material import (
     MATERIAL_CONDUCTOR,
     MATERIAL_DIELECTRIC,
     MATERIAL_ROUGH_DIELECTRIC,
+    MATERIAL_THIN_DIELECTRIC,
     Material,
     material_kinds,
     pack_materials,
@@ -485,7 +486,7 @@ class Scene:
 
     def features(self) -> SceneFeatures:
         kinds = frozenset(material_kinds(self.materials)) if self.materials else frozenset()
-        delta = {MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC}
+        delta = {MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, MATERIAL_THIN_DIELECTRIC}
         used = {o.material for o in self.objects}
         used_kinds = frozenset(material_kinds([self.materials[i] for i in sorted(used)])) if used else frozenset()
         env = "none" if self.environment is None else ("constant" if isinstance(self.environment, ConstantEnvironment) else "envmap")

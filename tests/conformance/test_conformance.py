@@ -70,6 +70,7 @@ CASES: dict[str, Case] = {
     "dielectric_named": Case(32, 16),
     "roughdielectric": Case(32, 16),
     "roughdielectric_beckmann": Case(32, 16),
+    "thindielectric": Case(32, 16),
     "texture_srgb": Case(32, 16),
     "texture_raw": Case(32, 16),
     "texture_exr": Case(32, 16),
@@ -174,3 +175,12 @@ def test_a_spot_without_its_falloff_is_caught():
     scene.point_lights[:] = [dataclasses.replace(p, beam_width=p.cutoff_angle) for p in scene.point_lights]  # hard-edged cones
     result = agreement(scene, "spot")
     assert not result.passed, f"spot lights without Mitsuba's falloff went unnoticed: {result}"
+
+
+def test_a_thin_pane_reflecting_at_one_interface_only_is_caught():
+    """A pane that reflects F, as a single interface does, instead of 2F/(1 + F) (the internal bounces
+    summed): its reflection about halved, as by specular_reflectance (1 + F)/2 ≈ 0.5."""
+    scene = load_mitsuba(SCENES / "thindielectric.xml")
+    scene.materials[:] = [dataclasses.replace(m, specular_reflectance=0.5) if type(m).__name__ == "ThinDielectric" else m for m in scene.materials]
+    result = agreement(scene, "thindielectric")
+    assert not result.passed, f"a pane reflecting at one interface only went unnoticed: {result}"

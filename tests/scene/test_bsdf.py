@@ -53,13 +53,14 @@ from grisx.scene.material import (
     Material,
     RoughConductor,
     RoughDielectric,
+    ThinDielectric,
     TextureRef,
     conductor_material,
     material_kinds,
     pack_materials,
 )
 from grisx.scene.microfacet import beckmann_d, beckmann_g1, fresnel_conductor, fresnel_dielectric, ggx_d, ggx_g1, ggx_vndf_pdf, sample_ggx_vndf
-from grisx.testing import DEFAULT_K, chi2_test, z_test
+from grisx.testing import BIASED_K, DEFAULT_K, chi2_test, z_test
 
 wp.set_module_options({"enable_backward": False})
 
@@ -695,6 +696,27 @@ def test_smooth_dielectric_splits_by_fresnel_and_conserves_energy(device):
     # beyond the critical angle from inside: total internal reflection
     s = sample(Dielectric(int_ior=1.5, ext_ior=1.0), direction(135.0), 1000, device, seed=1)
     assert np.all(s["wi"][:, 2] < 0) and np.all(s["pdf"] == 1.0)
+
+
+def test_thin_dielectric_sums_its_internal_bounces_and_passes_straight_through(device):
+    n = 200_000
+    eta = 1.5046 / 1.000277
+    tint = (0.8, 0.9, 0.5)
+    for theta in (0.0, 60.0, 150.0, 100.0):  # from either side: a pane has no inside
+        wo = direction(theta, 40.0)
+        s = sample(ThinDielectric(specular_transmittance=tint), wo, n, device, seed=int(theta))
+        assert s["valid"].all() and np.all(s["delta"] == 1)
+        refl = s["wi"][:, 2] * wo[2] > 0
+        F = fresnel_dielectric_oracle([abs(wo[2])], eta)[0]
+        R = F + (1 - F) ** 2 * F / (1 - F**2)  # the series of internal bounces, summed
+        split = z_test(refl.mean(), math.sqrt(R * (1 - R) / n), R)
+        assert split.passed, f"theta {theta}: reflected {refl.mean()} vs R {R}: {split}"
+        assert not z_test(refl.mean(), math.sqrt(F * (1 - F) / n), F, k=BIASED_K).passed  # one interface's F is not the pane's
+        np.testing.assert_array_equal(s["wi"][refl], np.broadcast_to(np.float32(wo * [-1, -1, 1]), (refl.sum(), 3)))
+        np.testing.assert_array_equal(s["wi"][~refl], np.broadcast_to(np.float32(-wo), ((~refl).sum(), 3)))
+        np.testing.assert_allclose(s["weight"], np.where(refl[:, None], 1.0, np.asarray(tint)[None]), rtol=1e-6)
+        np.testing.assert_allclose(s["pdf"], np.where(refl, R, 1 - R), rtol=1e-4, atol=1e-6)
+        np.testing.assert_allclose(s["eta"], 1.0)
 
 
 # ---------------------------------------------------------------- albedo, roughness, specialization, materials
