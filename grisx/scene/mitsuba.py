@@ -57,7 +57,7 @@ Transforms ``<transform name="to_world">``
     [5] → ``scene.defaults["rr_depth"]``; ``hide_emitters`` false only.
 ``shape``
     ``rectangle``, ``cube`` (``face_normals``), ``sphere`` (``center``,
-    ``radius``), ``disk``, ``obj`` (``filename``, ``face_normals``, ``flip_tex_coords`` [true]),
+    ``radius``), ``cylinder`` (``p0``, ``p1``, ``radius``), ``disk``, ``obj`` (``filename``, ``face_normals``, ``flip_tex_coords`` [true]),
     ``ply`` (``filename``, ``face_normals``, ``flip_tex_coords`` [false]); all with ``to_world`` and
     ``flip_normals``; a nested or referenced ``bsdf`` (default: diffuse 0.5 — black
     on a shape with an emitter, as in Mitsuba 3) and a nested ``emitter type="area"``. Geometry: :mod:`grisx.scene.shapes`.
@@ -744,7 +744,7 @@ class _Loader:
 
     # -- shapes
     def shape(self, node: _Node) -> None:
-        t = self._require_type(node, ("obj", "ply", "rectangle", "cube", "sphere", "disk"))
+        t = self._require_type(node, ("obj", "ply", "rectangle", "cube", "sphere", "disk", "cylinder"))
         p = _Props(self, node)
         to_world = p.transform("to_world")
         to_world = np.eye(4) if to_world is None else to_world
@@ -764,6 +764,17 @@ class _Loader:
                 # sphere.cpp: to_world · translate(center) · scale(radius); a negative radius turns it inside out
                 to_world = to_world @ xf.translate(center) @ xf.scale(radius)
                 mesh = shapes.sphere(flip_normals=flip)
+            elif t == "cylinder":
+                p0 = np.asarray(p.point("p0", (0.0, 0.0, 0.0)))
+                p1 = np.asarray(p.point("p1", (0.0, 0.0, 1.0)))
+                radius = p.float("radius", 1.0)
+                length = float(np.linalg.norm(p1 - p0))
+                if not (length > 0.0 and math.isfinite(length)) or not (radius > 0.0 and math.isfinite(radius)):
+                    raise self.ctx.error(node, f"a cylinder needs p0 != p1 and a positive radius, got p0 {p0.tolist()}, "
+                                               f"p1 {p1.tolist()}, radius {radius}")
+                # cylinder.cpp: to_world · translate(p0) · to_frame(Frame3f(d / |d|)) · scale(radius, radius, |d|)
+                to_world = to_world @ xf.translate(p0) @ xf.to_frame((p1 - p0) / length) @ xf.scale((radius, radius, length))
+                mesh = shapes.cylinder(flip_normals=flip)
             else:
                 filename = p.string("filename")
                 face_normals = p.bool("face_normals", False)

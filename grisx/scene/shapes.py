@@ -16,6 +16,9 @@ scene file frames and lights the same in both renderers:
                with θ = acos z, φ = atan2(y, x) ∈ [0, 2π)
 ``disk``       unit disk in the z = 0 plane, normal +z, uv = (r, φ/2π)
                (``disk.cpp``)
+``cylinder``   open tube of radius 1 from z = 0 to z = 1 (no caps; ``p0``,
+               ``p1`` and ``radius`` become part of ``to_world`` as in
+               ``cylinder.cpp``), smooth outward normals, uv = (φ/2π, z)
 =============  ==================================================================
 
 **Orientation.** A triangle's front side is the one its counter-clockwise
@@ -26,7 +29,7 @@ reverses the winding *and* negates vertex normals, which is what Mitsuba's
 ``flip_normals`` does for every shape (analytic shapes flip their frame,
 meshes negate ``n`` and the shading normal).
 
-**Tessellation.** Spheres and disks are inscribed polygons. A disk of ``N``
+**Tessellation.** Spheres, cylinders and disks are inscribed polygons. A disk of ``N``
 segments deviates from the circle by ``r (1 − cos(π/N)) ≈ r π²/(2N²)``; a UV
 sphere's faces (quads split along a diagonal) come closer to the centre, by at
 most ``≈ r π²/N²`` with ``rings = N/2``. The defaults (``segments=256``,
@@ -51,7 +54,7 @@ Every function returns a :class:`MeshData` record in object space.
 References
 ----------
 [Mitsuba3] W. Jakob et al., Mitsuba 3 renderer, plugin reference "Shapes"
-           and ``src/shapes/{rectangle,cube,sphere,disk,obj,ply}.cpp``,
+           and ``src/shapes/{rectangle,cube,sphere,disk,cylinder,obj,ply}.cpp``,
            https://mitsuba.readthedocs.io (2022).
 """
 
@@ -237,6 +240,25 @@ def disk(flip_normals: bool = False, segments: int = 256) -> MeshData:
     j = np.arange(segments)
     f = np.stack([j, segments + j, segments + j + 1], -1).astype(np.int64)
     n = np.tile([0.0, 0.0, 1.0], (len(v), 1))
+    return _finish(MeshData(v, f, n, uv), flip_normals)
+
+
+def cylinder(flip_normals: bool = False, segments: int = 256) -> MeshData:
+    """Mitsuba's ``cylinder``: the open tube x² + y² = 1, 0 ≤ z ≤ 1, normals outward, uv = (φ/2π, z)
+    (``segments`` quads around z, each split along a diagonal; the seam column is duplicated for uv)."""
+    segments = _check_count("cylinder segments", segments, 3)
+    phi = np.linspace(0.0, 2 * math.pi, segments + 1)
+    ring = np.stack([np.cos(phi), np.sin(phi), np.zeros_like(phi)], -1)
+    ring[np.abs(ring) < 1e-15] = 0.0
+    top = ring + [0.0, 0.0, 1.0]
+    v = np.concatenate([ring, top])  # bottom j, top segments + 1 + j
+    n = np.concatenate([ring, ring])
+    u = phi / (2 * math.pi)
+    uv = np.concatenate([np.stack([u, np.zeros_like(u)], -1), np.stack([u, np.ones_like(u)], -1)])
+    j = np.arange(segments)
+    a, b, c, d = j, segments + 1 + j, j + 1, segments + 2 + j  # bottom j, top j, bottom j+1, top j+1
+    # (a, c, b) and (b, c, d): (c − a) × (b − a) points away from the axis
+    f = np.concatenate([np.stack([a, c, b], -1), np.stack([b, c, d], -1)]).astype(np.int64)
     return _finish(MeshData(v, f, n, uv), flip_normals)
 
 

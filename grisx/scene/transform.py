@@ -14,7 +14,7 @@ import numpy as np
 
 from grisx.errors import InvalidParameterError
 
-__all__ = ["translate", "rotate", "scale", "compose"]
+__all__ = ["translate", "rotate", "scale", "compose", "to_frame"]
 
 
 def translate(v: Sequence[float]) -> np.ndarray:
@@ -52,3 +52,18 @@ def compose(*ms: np.ndarray) -> np.ndarray:
     for m in ms:
         out = out @ m
     return out
+
+
+def to_frame(n: Sequence[float]) -> np.ndarray:
+    """Mitsuba 3's ``Transform4f.to_frame(Frame3f(n))``: local (x, y, z) → s x + t y + n z for the unit
+    ``n`` and the tangents s, t of Mitsuba's ``coordinate_system`` (Duff et al. 2017, "Building an
+    Orthonormal Basis, Revisited"), so that a shape's local φ = 0 lies where Mitsuba's does."""
+    n = np.asarray(n, dtype=np.float64).reshape(3)
+    sign = 1.0 if n[2] >= 0.0 else -1.0
+    a = -1.0 / (sign + n[2])
+    b = n[0] * n[1] * a
+    s_ = np.array([n[0] * n[0] * a * sign + 1.0, b * sign, -n[0] * sign])
+    t_ = np.array([b, sign + n[1] * n[1] * a, -n[1]])
+    m = np.eye(4)
+    m[:3, 0], m[:3, 1], m[:3, 2] = s_, t_, n
+    return m

@@ -52,6 +52,7 @@ CASES: dict[str, Case] = {
     "disk": Case(32, 16),
     "cube": Case(32, 16),
     "sphere": Case(32, 16),
+    "cylinder": Case(32, 16),
     "sphere_light": Case(32, 16),
     "obj_normals_uv": Case(32, 16),
     "obj_plain": Case(32, 16),
@@ -184,3 +185,21 @@ def test_a_thin_pane_reflecting_at_one_interface_only_is_caught():
     scene.materials[:] = [dataclasses.replace(m, specular_reflectance=0.5) if type(m).__name__ == "ThinDielectric" else m for m in scene.materials]
     result = agreement(scene, "thindielectric")
     assert not result.passed, f"a pane reflecting at one interface only went unnoticed: {result}"
+
+
+def test_a_cylinder_framed_otherwise_than_mitsuba_is_caught():
+    """The tube's uv seam where Mitsuba's ``to_frame`` puts φ = 0, not a quarter turn away (a gradient texture in u)."""
+    scene = load_mitsuba(SCENES / "cylinder.xml")
+    tube = scene.objects[3]  # the textured tube
+    uvs = tube.uvs + [0.25, 0.0]
+    scene.objects[3] = dataclasses.replace(tube, uvs=uvs)
+    result = agreement(scene, "cylinder")
+    assert not result.passed, f"a cylinder's uv a quarter turn off went unnoticed: {result}"
+
+
+def test_a_cylinder_with_its_normals_unflipped_is_caught():
+    scene = load_mitsuba(SCENES / "cylinder.xml")
+    tube = scene.objects[5]  # flip_normals: seen from outside it shows its black back
+    scene.objects[5] = dataclasses.replace(tube, faces=tube.faces[:, ::-1].copy(), normals=-tube.normals)
+    result = agreement(scene, "cylinder")
+    assert not result.passed, f"a cylinder's flip_normals ignored went unnoticed: {result}"

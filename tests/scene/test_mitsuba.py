@@ -180,6 +180,21 @@ def test_sphere_center_radius_and_to_world():
     assert np.all(np.einsum("ij,ij->i", o.normals, o.vertices) < 0)
 
 
+def test_cylinder_p0_p1_radius_and_mitsubas_frame():
+    s = load_mitsuba(doc('<shape type="cylinder"><point name="p0" x="1" y="2" z="3"/><point name="p1" x="1" y="5" z="3"/>'
+                         '<float name="radius" value="0.5"/></shape>'))
+    o = s.objects[0]
+    v = o.vertices
+    np.testing.assert_allclose(np.hypot(v[:, 0] - 1, v[:, 2] - 3), 0.5, atol=1e-12)  # axis along +y through (1, ·, 3)
+    assert set(np.round(np.unique(v[:, 1]), 12)) == {2.0, 5.0}
+    np.testing.assert_allclose(o.normals, (v - [1, v[0, 1], 3]) * [2, 0, 2], atol=1e-9)  # outward, unit
+    # Mitsuba's coordinate_system for n = +y: s = (1, 0, 0)·… → φ = 0 (u = 0) lies along s = (1, 0, −0) and t = (0, 0, −1)
+    at_u0 = v[(o.uvs[:, 0] == 0.0)]
+    np.testing.assert_allclose(at_u0[:, [0, 2]], [[1.5, 3.0]] * len(at_u0), atol=1e-12)
+    quarter = np.isclose(o.uvs[:, 0], 0.25)
+    np.testing.assert_allclose(v[quarter][:, [0, 2]], [[1.0, 2.5]] * quarter.sum(), atol=1e-12)
+
+
 def test_disk_and_flipped_rectangle():
     s = load_mitsuba(doc('<shape type="disk"><transform name="to_world"><scale value="2"/></transform></shape>\n'
                          '<shape type="rectangle"><boolean name="flip_normals" value="true"/></shape>'))
@@ -431,6 +446,8 @@ ERRORS = [
      3, "bsdf", None, "must differ"),
     (doc('<shape type="cube"><emitter type="area">\n<rgb name="radiance" value="-1"/></emitter></shape>'), 2, "shape", None, "non-negative"),
     (doc('<emitter type="spot">\n<float name="cutoff_angle" value="120"/></emitter>'), 2, "emitter", "cutoff_angle", "cutoff_angle <= 90"),
+    (doc('<shape type="cylinder"><point name="p1" x="0" y="0" z="0"/></shape>'), 2, "shape", None, "p0 != p1"),
+    (doc('<shape type="cylinder"><float name="radius" value="-1"/></shape>'), 2, "shape", None, "positive radius"),
     (doc('<emitter type="point">\n<point name="position" x="0" y="0" z="0"/><transform name="to_world"><translate x="1"/></transform></emitter>'),
      2, "emitter", "position", "either 'position' or 'to_world'"),
 ]

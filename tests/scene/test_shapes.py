@@ -94,13 +94,32 @@ def test_sphere_geometry_normals_and_uvs():
     np.testing.assert_allclose(np.where(u > 1 - 1e-9, 0.0, u), np.where(phi > 2 * math.pi - 1e-9, 0.0, phi) / (2 * math.pi), atol=1e-12)
 
 
+def test_cylinder_geometry_normals_and_uvs():
+    m = shapes.cylinder(segments=32)
+    np.testing.assert_allclose(np.linalg.norm(m.vertices[:, :2], axis=1), 1.0, atol=1e-12)  # inscribed
+    assert set(np.unique(m.vertices[:, 2])) == {0.0, 1.0}  # open: no caps
+    np.testing.assert_allclose(m.normals, m.vertices * [1, 1, 0], atol=1e-12)  # radial, outward
+    fn = unit_face_normals(m)
+    centroids = m.vertices[m.faces].mean(axis=1) * [1, 1, 0]
+    assert np.all(np.einsum("ij,ij->i", fn, centroids) > 0)  # winding faces outward
+    assert_winding_matches_normals(m)
+    # cylinder.cpp: uv = (φ/2π, z), φ = atan2(y, x) in [0, 2π)
+    np.testing.assert_allclose(m.uvs[:, 1], m.vertices[:, 2])
+    phi = np.mod(np.arctan2(m.vertices[:, 1], m.vertices[:, 0]), 2 * math.pi)
+    u = m.uvs[:, 0]
+    np.testing.assert_allclose(np.where(u > 1 - 1e-9, 0.0, u), np.where(phi > 2 * math.pi - 1e-9, 0.0, phi) / (2 * math.pi), atol=1e-12)
+    # inscribed 32-gon prism: area = N·sin(π/N)·2·1
+    assert shapes.mesh_area(m.vertices, m.faces) == pytest.approx(32 * 2 * math.sin(math.pi / 32), rel=1e-12)
+
+
 def test_sphere_center_radius():
     m = shapes.sphere(center=(1.0, -2.0, 0.5), radius=3.0, segments=16, rings=8)
     np.testing.assert_allclose(np.linalg.norm(m.vertices - [1.0, -2.0, 0.5], axis=1), 3.0, atol=1e-12)
     np.testing.assert_allclose(np.linalg.norm(m.normals, axis=1), 1.0)
 
 
-@pytest.mark.parametrize("make", [shapes.rectangle, shapes.cube, shapes.disk, lambda **kw: shapes.sphere(segments=16, rings=8, **kw)])
+@pytest.mark.parametrize("make", [shapes.rectangle, shapes.cube, shapes.disk, lambda **kw: shapes.sphere(segments=16, rings=8, **kw),
+                                  lambda **kw: shapes.cylinder(segments=16, **kw)])
 def test_flip_normals_turns_inside_out(make):
     a, b = make(), make(flip_normals=True)
     np.testing.assert_array_equal(a.vertices, b.vertices)
