@@ -84,7 +84,9 @@ Transforms ``<transform name="to_world">``
     to linear with the exact sRGB curve as Mitsuba does unless ``raw="true"``;
     EXR via :func:`grisx.imageio.read_exr`, linear), ``filter_type`` bilinear,
     ``wrap_mode`` repeat (Mitsuba's defaults; the only modes grisx samples).
-    Textures are supported as diffuse ``reflectance`` only.
+    ``checkerboard``: ``color0`` [0.4], ``color1`` [0.2] (constant colours).
+    Both take ``to_uv`` (a ``<transform>``; its x/y rows and translation make
+    Mitsuba's 2D affine map). Textures are supported as diffuse ``reflectance`` only.
 
 File names are relative to the XML file's directory (the current directory
 for XML given as a string). Elements not listed (``include``, ``medium``,
@@ -113,6 +115,7 @@ from grisx.scene import shapes
 from grisx.scene import transform as xf
 from grisx.scene.camera import Camera, lookat
 from grisx.scene.lights import ConstantEnvironment, EnvMap, load_envmap_image
+from grisx.scene.texture import Bitmap, Checkerboard
 from grisx.imageio import srgb_decode as srgb_to_linear
 from grisx.scene.material import (
     Conductor,
@@ -648,15 +651,24 @@ class _Loader:
         node = self._deref(node, "texture")
         if id(node) in self.texture_ids:
             return self.texture_ids[id(node)]
-        self._require_type(node, ("bitmap",))
+        t = self._require_type(node, ("bitmap", "checkerboard"))
         p = _Props(self, node)
-        filename = p.string("filename")
-        raw = p.bool("raw", False)
-        p.choice("filter_type", "bilinear", ("bilinear",), " — grisx textures are bilinear")
-        p.choice("wrap_mode", "repeat", ("repeat",), " — grisx textures wrap around")
+        to_uv = p.transform("to_uv")
+        # Mitsuba's to_uv is a 2D affine map: of a 4x4 transform, rows and columns x, y and the translation
+        uv_map = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0)) if to_uv is None else tuple(tuple(float(to_uv[r, c]) for c in (0, 1, 3)) for r in (0, 1))
+        if t == "checkerboard":
+            tex: Any = Checkerboard(color0=p.color("color0", 0.4), color1=p.color("color1", 0.2), to_uv=uv_map)
+            name = node.attrs.get("id") or "checkerboard"
+        else:
+            filename = p.string("filename")
+            raw = p.bool("raw", False)
+            p.choice("filter_type", "bilinear", ("bilinear",), " — grisx textures are bilinear")
+            p.choice("wrap_mode", "repeat", ("repeat",), " — grisx textures wrap around")
+            image = self.image(node, filename, raw)
+            tex = image if to_uv is None else Bitmap(image, to_uv=uv_map)
+            name = node.attrs.get("id") or filename
         p.finish()
-        image = self.image(node, filename, raw)
-        tid = self.scene.add_texture(image, name=node.attrs.get("id") or filename)
+        tid = self.scene.add_texture(tex, name=name)
         self.texture_ids[id(node)] = tid
         return tid
 

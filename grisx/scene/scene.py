@@ -51,7 +51,7 @@ from grisx.scene.material import (
     material_kinds,
     pack_materials,
 )
-from grisx.scene.texture import TextureSet, pack_textures, texture_lookup
+from grisx.scene.texture import Bitmap, Checkerboard, TextureSet, pack_textures, texture_lookup
 from grisx.scene.transform import rotate, translate
 
 wp.set_module_options({"enable_backward": False})
@@ -381,7 +381,7 @@ class Scene:
         self.name = name
         self.materials: list[Any] = []
         self.material_names: dict[str, int] = {}
-        self.textures: list[np.ndarray] = []
+        self.textures: list[np.ndarray | Bitmap | Checkerboard] = []
         self.objects: list[_Object] = []
         self.point_lights: list[PointLight] = []
         self.environment: ConstantEnvironment | EnvMap | None = None
@@ -400,15 +400,25 @@ class Scene:
             self.material_names[name] = mid
         return mid
 
-    def add_texture(self, image: np.ndarray, name: str | None = None) -> int:
-        """Register a linear RGB image (H, W, 3) as an albedo texture; returns its id."""
+    def add_texture(self, image: np.ndarray | Bitmap | Checkerboard, name: str | None = None) -> int:
+        """Register an albedo texture — a linear RGB image (H, W, 3), or a :class:`~grisx.scene.texture.Bitmap`
+        or :class:`~grisx.scene.texture.Checkerboard` record; returns its id."""
+        if isinstance(image, Checkerboard):
+            self.textures.append(image)
+            return len(self.textures) - 1
+        if isinstance(image, Bitmap):
+            self.textures.append(dataclasses.replace(image, image=self._texture_image(image.image, name)))
+            return len(self.textures) - 1
+        self.textures.append(self._texture_image(image, name))
+        return len(self.textures) - 1
+
+    def _texture_image(self, image: np.ndarray, name: str | None) -> np.ndarray:
         img = np.asarray(image, dtype=np.float32)
         if img.ndim == 2:
             img = np.repeat(img[:, :, None], 3, axis=2)
         if img.ndim != 3 or img.shape[2] < 3:
             raise InvalidValueError(f"texture {name or len(self.textures)}: expected (H, W, 3), got {img.shape}")
-        self.textures.append(img[:, :, :3])
-        return len(self.textures) - 1
+        return img[:, :, :3]
 
     def add_mesh(
         self,

@@ -2,13 +2,23 @@
 
 Every texture registered on a :class:`~grisx.scene.scene.Scene` is packed
 into one ``wp.array(dtype=wp.vec3)`` with a :class:`TextureInfo` record
-(offset, width, height) per texture, so kernels carry a single struct
-whatever the number of textures. Texels are linear RGB, row 0 at the top of
-the image; ``uv = (0, 0)`` is the top-left corner of texel (0, 0), as in
-Mitsuba's ``bitmap`` (bilinear filter, ``repeat`` wrap mode).
+(kind, offset, width, height, uv transform, colours) per texture, so kernels
+carry a single struct whatever the number of textures. Two kinds, with
+Mitsuba 3's meaning:
+
+* **bitmap** (a linear RGB image, :class:`Bitmap` or a bare array): texels
+  row 0 at the top of the image; ``uv = (0, 0)`` is the top-left corner of
+  texel (0, 0), bilinear filter, ``repeat`` wrap mode;
+* **checkerboard** (:class:`Checkerboard`): ``color0`` where the fractional
+  parts of u and v are both above ½ or both at most ½, ``color1`` elsewhere
+  (``checkerboard.cpp``).
+
+Both look up at ``to_uv · (u, v, 1)``, a 2×3 affine map (Mitsuba's ``to_uv``).
 """
 
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 import warp as wp
@@ -17,14 +27,41 @@ from grisx.errors import InvalidValueError
 
 wp.set_module_options({"enable_backward": False})
 
-__all__ = ["TextureInfo", "TextureSet", "texture_lookup", "pack_textures"]
+__all__ = ["Bitmap", "Checkerboard", "TextureInfo", "TextureSet", "texture_lookup", "pack_textures", "TEXTURE_BITMAP", "TEXTURE_CHECKERBOARD"]
+
+TEXTURE_BITMAP = wp.constant(0)
+TEXTURE_CHECKERBOARD = wp.constant(1)
+#: the identity 2×3 uv map
+IDENTITY_UV = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0))
+
+
+@dataclasses.dataclass(frozen=True)
+class Bitmap:
+    """A linear RGB image (H, W, 3), looked up at ``to_uv · (u, v, 1)`` (2×3, rows)."""
+
+    image: np.ndarray
+    to_uv: tuple[tuple[float, float, float], tuple[float, float, float]] = IDENTITY_UV
+
+
+@dataclasses.dataclass(frozen=True)
+class Checkerboard:
+    """Mitsuba's ``checkerboard``: ``color0`` (default 0.4) and ``color1`` (0.2) in squares of ½ in uv."""
+
+    color0: tuple[float, float, float] = (0.4, 0.4, 0.4)
+    color1: tuple[float, float, float] = (0.2, 0.2, 0.2)
+    to_uv: tuple[tuple[float, float, float], tuple[float, float, float]] = IDENTITY_UV
 
 
 @wp.struct
 class TextureInfo:
+    kind: int  # TEXTURE_*
     offset: int
     width: int
     height: int
+    uv_row0: wp.vec3  # to_uv: u' = row0 · (u, v, 1)
+    uv_row1: wp.vec3  # v' = row1 · (u, v, 1)
+    color0: wp.vec3  # checkerboard colours
+    color1: wp.vec3
 
 
 @wp.struct
@@ -42,9 +79,17 @@ def _texel(ts: TextureSet, info: TextureInfo, x: int, y: int) -> wp.vec3:
 
 
 @wp.func
-def texture_lookup(ts: TextureSet, texture: int, uv: wp.vec2) -> wp.vec3:
-    """Bilinear, wrap-around lookup of texture ``texture`` at ``uv``."""
+def texture_lookup(ts: TextureSet, texture: int, uv_in: wp.vec2) -> wp.vec3:
+    """Texture ``texture`` at ``to_uv · uv``: a checkerboard's colour, or a bitmap's bilinear, wrap-around value."""
     info = ts.info[texture]
+    h = wp.vec3(uv_in[0], uv_in[1], 1.0)
+    uv = wp.vec2(wp.dot(info.uv_row0, h), wp.dot(info.uv_row1, h))
+    if info.kind == TEXTURE_CHECKERBOARD:
+        upper_u = uv[0] - wp.floor(uv[0]) > 0.5
+        upper_v = uv[1] - wp.floor(uv[1]) > 0.5
+        if upper_u == upper_v:
+            return info.color0
+        return info.color1
     x = uv[0] * float(info.width) - 0.5
     y = uv[1] * float(info.height) - 0.5
     x0 = wp.floor(x)
@@ -58,12 +103,27 @@ def texture_lookup(ts: TextureSet, texture: int, uv: wp.vec2) -> wp.vec3:
     return a * (1.0 - fy) + b * fy
 
 
-def pack_textures(images: list[np.ndarray], device: wp.context.Device) -> TextureSet:
-    """Pack linear RGB images (H, W, 3) into one device atlas."""
+def _to_uv(m: object, i: int) -> np.ndarray:
+    a = np.asarray(m, dtype=np.float64)
+    if a.shape != (2, 3) or not np.all(np.isfinite(a)):
+        raise InvalidValueError(f"texture {i}: to_uv must be a finite 2x3 affine map, got {m!r}")
+    return a
+
+
+def pack_textures(textures: list, device: wp.context.Device) -> TextureSet:
+    """Pack textures — linear RGB images (H, W, 3), :class:`Bitmap` or :class:`Checkerboard` records — into one device atlas."""
     infos = []
     chunks = []
     offset = 0
-    for i, img in enumerate(images):
+    for i, tex in enumerate(textures):
+        if isinstance(tex, Checkerboard):
+            colours = np.asarray([tex.color0, tex.color1], dtype=np.float64)
+            if colours.shape != (2, 3) or not np.all(np.isfinite(colours)) or np.any(colours < 0):
+                raise InvalidValueError(f"texture {i}: checkerboard colours must be finite, non-negative RGB, got {tex.color0}, {tex.color1}")
+            uv = _to_uv(tex.to_uv, i)
+            infos.append((int(TEXTURE_CHECKERBOARD), 0, 1, 1, uv[0], uv[1], colours[0], colours[1]))
+            continue
+        img, uv = (tex.image, _to_uv(tex.to_uv, i)) if isinstance(tex, Bitmap) else (tex, np.asarray(IDENTITY_UV))
         a = np.asarray(img, dtype=np.float32)
         if a.ndim == 2:
             a = np.repeat(a[:, :, None], 3, axis=2)
@@ -72,13 +132,19 @@ def pack_textures(images: list[np.ndarray], device: wp.context.Device) -> Textur
         a = a[:, :, :3]
         if not np.all(np.isfinite(a)) or np.any(a < 0):
             raise InvalidValueError(f"texture {i}: texels must be finite and non-negative")
-        infos.append((offset, a.shape[1], a.shape[0]))
+        infos.append((int(TEXTURE_BITMAP), offset, a.shape[1], a.shape[0], uv[0], uv[1], np.zeros(3), np.zeros(3)))
         chunks.append(a.reshape(-1, 3))
         offset += a.shape[0] * a.shape[1]
     ts = TextureSet()
     data = np.concatenate(chunks) if chunks else np.zeros((1, 3), dtype=np.float32)
     ts.texels = wp.array(data, dtype=wp.vec3, device=device)
-    info_np = np.array(infos if infos else [(0, 1, 1)], dtype=TextureInfo.numpy_dtype())
-    ts.info = wp.array(info_np, dtype=TextureInfo, device=device)
-    ts.count = len(images)
+    records = []
+    for kind, off, w, hgt, row0, row1, c0, c1 in infos or [(int(TEXTURE_BITMAP), 0, 1, 1, (1, 0, 0), (0, 1, 0), (0, 0, 0), (0, 0, 0))]:
+        t = TextureInfo()
+        t.kind, t.offset, t.width, t.height = kind, off, w, hgt
+        t.uv_row0, t.uv_row1 = wp.vec3(*map(float, row0)), wp.vec3(*map(float, row1))
+        t.color0, t.color1 = wp.vec3(*map(float, c0)), wp.vec3(*map(float, c1))
+        records.append(t)
+    ts.info = wp.array(records, dtype=TextureInfo, device=device)
+    ts.count = len(textures)
     return ts

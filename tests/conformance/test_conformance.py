@@ -29,6 +29,7 @@ from grisx.imageio import read_exr
 from grisx.render import render
 from grisx.scene.material import Diffuse
 from grisx.scene.mitsuba import load_mitsuba
+from grisx.scene.texture import Bitmap, Checkerboard
 from grisx.testing import block_means, image_agreement_test
 
 HERE = Path(__file__).resolve().parent
@@ -75,6 +76,7 @@ CASES: dict[str, Case] = {
     "texture_srgb": Case(32, 16),
     "texture_raw": Case(32, 16),
     "texture_exr": Case(32, 16),
+    "checkerboard": Case(32, 16),
     "envmap": Case(32, 16),
     "constant": Case(32, 16),
     "point": Case(32, 16),
@@ -203,3 +205,18 @@ def test_a_cylinder_with_its_normals_unflipped_is_caught():
     scene.objects[5] = dataclasses.replace(tube, faces=tube.faces[:, ::-1].copy(), normals=-tube.normals)
     result = agreement(scene, "cylinder")
     assert not result.passed, f"a cylinder's flip_normals ignored went unnoticed: {result}"
+
+
+def test_a_checkerboard_with_its_colours_swapped_is_caught():
+    """color0 where the fractional parts of u and v fall on the same side of ½ (Mitsuba), not color1."""
+    scene = load_mitsuba(SCENES / "checkerboard.xml")
+    scene.textures[:] = [dataclasses.replace(t, color0=t.color1, color1=t.color0) if isinstance(t, Checkerboard) else t for t in scene.textures]
+    result = agreement(scene, "checkerboard")
+    assert not result.passed, f"a checkerboard with swapped colours went unnoticed: {result}"
+
+
+def test_a_bitmap_without_its_to_uv_is_caught():
+    scene = load_mitsuba(SCENES / "checkerboard.xml")
+    scene.textures[:] = [t.image if isinstance(t, Bitmap) else t for t in scene.textures]
+    result = agreement(scene, "checkerboard")
+    assert not result.passed, f"a bitmap's to_uv ignored went unnoticed: {result}"

@@ -414,8 +414,10 @@ ERRORS = [
     (doc('<shape type="obj">\n<string name="filename" value="mesh.ply"/></shape>'), 3, "string", "filename", ".obj file"),
     (doc('<shape type="cube"><bsdf type="conductor">\n<texture type="bitmap" name="specular_reflectance">'
          '<string name="filename" value="t.png"/></texture></bsdf></shape>'), 3, "texture", "specular_reflectance", "textures are supported only"),
-    (doc('<shape type="cube"><bsdf type="diffuse">\n<texture type="checkerboard" name="reflectance"/></bsdf></shape>'),
-     3, "texture", "type", "checkerboard"),
+    (doc('<shape type="cube"><bsdf type="diffuse">\n<texture type="mesh_attribute" name="reflectance"/></bsdf></shape>'),
+     3, "texture", "type", "mesh_attribute"),
+    (doc('<shape type="cube"><bsdf type="diffuse"><texture type="checkerboard" name="reflectance">\n<texture type="bitmap" name="color0">'
+         '<string name="filename" value="t.png"/></texture></texture></bsdf></shape>'), 3, "texture", "color0", "textures are supported only"),
     (doc('<shape type="cube"><bsdf type="diffuse">\n<float name="reflectance" value="abc"/></bsdf></shape>'), 3, "float", "value", "cannot parse"),
     (doc('<shape type="cube">\n<default name="x" value="1"/></shape>'), 3, "default", None, "only allowed directly inside"),
     (doc('<integrator type="path">\n<boolean name="hide_emitters" value="true"/></integrator>'), 3, "boolean", "hide_emitters", "not supported"),

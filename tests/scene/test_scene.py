@@ -17,7 +17,7 @@ from grisx.scene.lights import PointLight  # noqa: F401  (records used by the bu
 from grisx.scene.material import Diffuse
 from grisx.scene.scene import RigidMotion, Scene, SceneData, intersect
 from grisx.scene.shapes import rectangle
-from grisx.scene.texture import TextureSet, pack_textures, texture_lookup
+from grisx.scene.texture import Bitmap, Checkerboard, TextureSet, pack_textures, texture_lookup
 
 # ---- cameras ---------------------------------------------------------------------------
 
@@ -261,6 +261,27 @@ def test_texture_lookup_is_bilinear_with_wraparound():
     np.testing.assert_allclose(res[1], 0.25 * (img[0, 0] + img[0, 1] + img[1, 0] + img[1, 1]), atol=1e-4)
     np.testing.assert_allclose(res[2], img[0, 0], atol=1e-3)  # wraps in u and v
     np.testing.assert_allclose(res[3], 0.5 * (img[0, 0] + img[0, 3]), atol=1e-4)  # left edge blends with the last column
+
+
+def _lookup_all(tex, uv):
+    ts = pack_textures([tex], "cpu")
+    out = wp.zeros(len(uv), dtype=wp.vec3, device="cpu")
+    wp.launch(_lookup, dim=len(uv), inputs=[ts, wp.array(np.asarray(uv, dtype=np.float32), dtype=wp.vec2, device="cpu"), out], device="cpu")
+    return out.numpy()
+
+
+def test_checkerboard_is_mitsubas_and_to_uv_is_affine():
+    c0, c1 = (0.9, 0.8, 0.7), (0.1, 0.2, 0.3)
+    # checkerboard.cpp: color0 where frac(u) > ½ and frac(v) > ½ agree
+    uv = [[0.25, 0.25], [0.75, 0.75], [0.75, 0.25], [0.25, 0.75], [-0.25, 0.25], [1.75, -1.25]]
+    res = _lookup_all(Checkerboard(c0, c1), uv)
+    np.testing.assert_allclose(res, [c0, c0, c1, c1, c1, c0], atol=0)
+    # to_uv scales by 2 in u and shifts v by ½: (0.3, 0.1) → (0.6, 0.6), color0; (0.2, 0.1) → (0.4, 0.6), color1
+    res = _lookup_all(Checkerboard(c0, c1, to_uv=((2.0, 0.0, 0.0), (0.0, 1.0, 0.5))), [[0.3, 0.1], [0.2, 0.1]])
+    np.testing.assert_allclose(res, [c0, c1], atol=0)
+    img = np.arange(4 * 3 * 3, dtype=np.float32).reshape(3, 4, 3)
+    res = _lookup_all(Bitmap(img, to_uv=((0.5, 0.0, 0.125), (0.0, 1.0, 0.0))), [[0.0, 1 / 6], [0.25, 1 / 6]])
+    np.testing.assert_allclose(res, [img[0, 0], 0.5 * (img[0, 0] + img[0, 1])], atol=1e-4)
 
 
 # ---- built-in scenes ---------------------------------------------------------------------
