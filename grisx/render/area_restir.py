@@ -314,6 +314,9 @@ class AreaReSTIR(ReSTIRPT):
             wp.launch(k["initial"], dim=dim, inputs=[b.data, self.seed, sf, self.candidates, self.max_bounces, self.shift_params, self.domains[0]], outputs=[cur], device=dev)
         return cur, film
 
+    def after_canonical(self, reservoirs: wp.array) -> None:
+        """Called with the canonical reservoirs before any reuse (a variant may keep them)."""
+
     def resample(self, frame: int) -> tuple[wp.array, wp.array]:
         """One frame's passes up to the final reservoirs (canonical, temporal, spatial); returns them and their film samples."""
         b = self.built
@@ -324,6 +327,7 @@ class AreaReSTIR(ReSTIRPT):
             self.gbuffer.fill(b, float(frame), self.seed + 104729, jitter=True)
         cam, cam_prev = self.cameras(frame)
         cur, film_cur = self.canonical(frame)
+        self.after_canonical(cur)
         history, _, other = self.buffers
         film_hist, film_a, film_b, _ = self.films
         g, g_prev = self.gbuffer.current, self.gbuffer.previous

@@ -66,14 +66,15 @@ class GradientFromPrimal(AreaReSTIR):
     def kernels(self) -> list[Any]:
         return [*super().kernels(), *self.gk.values()]
 
-    def add_gradients(self, frame: int, reservoirs: wp.array, film: wp.array, scale: float) -> None:
-        """Add ``scale`` × the primal and the pixels' parts of dx, dy from the kept samples (film sample ``film``)."""
+    def add_gradients(self, frame: int, reservoirs: wp.array, film: wp.array, scale: float, paths: bool = True) -> None:
+        """Add ``scale`` × the primal and the pixels' parts of dx, dy from the kept samples (film sample ``film``);
+        without ``paths``, the parts of the emission seen directly alone."""
         cam, _ = self.cameras(frame)
         b = self.built
         with self._phase("gradients"):
             wp.launch(
                 self.gk["gradient"], dim=(self.height, self.width),
-                inputs=[b.data, cam, self.shift_params, float(scale), self.films[3], film, self.direct, reservoirs],
+                inputs=[b.data, cam, self.shift_params, float(scale), int(paths), self.films[3], film, self.direct, reservoirs],
                 outputs=[self.gradient.primal, self.gradient.halves, self.nonfinite], device=b.device,
             )
 

@@ -91,6 +91,7 @@ def make_gradient_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         cam: CameraData,
         sp: ShiftParams,
         scale: float,
+        path_gradients: int,
         film_direct: wp.array2d(dtype=FilmSample),
         film: wp.array2d(dtype=FilmSample),
         direct: wp.array2d(dtype=wp.vec3),
@@ -102,7 +103,8 @@ def make_gradient_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         """Add ``scale`` × pixel a's primal estimate L_e + f(y) W_y and its four parts ⟨Δ⟩_a (Eq. 11).
 
         ``direct`` is L_e seen by the film sample ``film_direct`` (the canonical one); ``film`` holds the
-        film samples of the ``reservoirs``' kept paths (the same array when nothing was reused).
+        film samples of the ``reservoirs``' kept paths (the same array when nothing was reused). With
+        ``path_gradients`` = 0 the parts hold the emission's differences alone (ReSTIR G-PT resamples the paths' own).
         """
         y, x = wp.tid()
         h = film.shape[0]
@@ -126,7 +128,7 @@ def make_gradient_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             k = _pair_side(slot)
             # emission at x₁ (a path of length 0): equal film densities on both sides, ω* = ½ (Eq. 4)
             d = pair_value(k, le, area_domain(scene, cam, bx, by, fs_direct).emission, 1.0, 1.0, 1.0, True)
-            if has_path:
+            if has_path and path_gradients != 0:
                 ad = area_domain(scene, cam, bx, by, fs)  # u kept in pixel b: a film translation, |J| = 1
                 s = shift(scene, ad.dom, pr.path, sp)  # the inner shift T_ab (hybrid)
                 v = pair_value(k, pr.path.f, s.path.f, t_a, path_target(s.path), s.jacobian, s.valid)  # Eq. 13–16
