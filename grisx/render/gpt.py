@@ -82,7 +82,14 @@ class GradientFromPrimal(AreaReSTIR):
         """dx, dy from the parts and the screened Poisson image: the frame."""
         with self._phase("gradients"):
             self.gradient.gradients(self.gk)
-        self.image = self.gradient.reconstruct(self._phase)
+        return self.reconstructed()
+
+    #: false: frames return the primal and leave the reconstruction to the caller (a benchmark averaging instances first)
+    reconstruct_frames = True
+
+    def reconstructed(self) -> wp.array:
+        """The screened Poisson image of this frame's primal, dx and dy (the frame), or the primal alone."""
+        self.image = self.gradient.reconstruct(self._phase) if self.reconstruct_frames else self.gradient.primal
         return self.image
 
     def extra(self) -> dict[str, np.ndarray]:

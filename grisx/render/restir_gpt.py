@@ -475,8 +475,7 @@ class ReSTIRGPT(GradientFromPrimal):
         with self._phase("gradients"):
             self.gradient.gradients(self.gk)
             wp.launch(self.pk["gradient"], dim=dim, inputs=[pairs], outputs=[self.gradient.dx, self.gradient.dy, self.nonfinite], device=dev)
-        self.image = self.gradient.reconstruct(self._phase)
-        return self.image
+        return self.reconstructed()
 
 
 def create_restir_gpt(ctx: Any) -> ReSTIRGPT:
