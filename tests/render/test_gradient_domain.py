@@ -9,7 +9,7 @@ frame alone is compared with ``pt`` at that frame's camera (temporal reuse throu
 motion vectors). The reference's standard errors for the differences are taken as if
 dx[x] = I[x+1] − I[x] were independent across x, an upper bound (a block mean of differences
 telescopes: each pixel enters with coefficients summing to at most one in magnitude), so the check
-errs on the side of passing. Scenes: the Cornell box and the closed bright room at max_depth 8 with
+errs on the side of passing. Scenes: the Cornell box and the closed bright room at max_depth 32 with
 Russian roulette from depth 5.
 
 Known-biased siblings fail the same check beyond 6σ: the inner shift without its Jacobian
@@ -98,9 +98,9 @@ def _check(method: str, params: dict[str, Any], scene: str, which: str, *, camer
     return result
 
 
-CLOSED_ROOM = {"max_depth": 8, "rr_depth": 5}
+CLOSED_ROOM = {"max_depth": 32, "rr_depth": 5}
 CASES = [("cornell-box", "static", {"max_depth": 16}), ("closed-room", "static", CLOSED_ROOM), ("closed-room", "moving", CLOSED_ROOM)]
-CASE_IDS = ["cornell", "closed-room-depth8-rr", "closed-room-depth8-rr-moving"]
+CASE_IDS = ["cornell", "closed-room-depth32-rr", "closed-room-depth32-rr-moving"]
 
 
 def _frames(camera: str) -> int:
