@@ -46,6 +46,7 @@ import numpy as np
 import warp as wp
 
 from grisx.params import Param
+from grisx.poisson import reconstruct
 from grisx.render.area_restir import AREA_KEYS, AreaReSTIR, area_params
 from grisx.render.base.gradient import RECONSTRUCTIONS, GradientFrame, make_gradient_kernels
 from grisx.render.base.registry import RenderMethod, create_renderer, register, renderer_params
@@ -89,7 +90,12 @@ class GradientFromPrimal(AreaReSTIR):
 
     def reconstructed(self) -> wp.array:
         """The screened Poisson image of this frame's primal, dx and dy (the frame), or the primal alone."""
-        self.image = self.gradient.reconstruct(self._phase) if self.reconstruct_frames else self.gradient.primal
+        g = self.gradient
+        if not self.reconstruct_frames:
+            self.image = g.primal
+            return self.image
+        with self._phase("reconstruction"):
+            self.image = reconstruct(g.primal, g.dx, g.dy, alpha=g.alpha, norm=g.norm)
         return self.image
 
     def extra(self) -> dict[str, np.ndarray]:

@@ -4,8 +4,8 @@ Every gradient-domain renderer ends the same way: a primal image P, the forward 
 dx[y, x] ≈ I[y, x+1] − I[y, x] and dy[y, x] ≈ I[y+1, x] − I[y, x] (the convention of
 :mod:`grisx.poisson.gradient`), and the screened Poisson image of the three (L2 or L1, α = 0.2),
 which is what the renderer returns as its frame. :class:`GradientFrame` holds these buffers on
-the device and runs the reconstruction (timed as the phase ``reconstruction``: it counts in the
-frame time, as in seed 000, Sec. 5).
+the device and the reconstruction's settings; the renderers run :func:`grisx.poisson.reconstruct`
+on them (timed as the phase ``reconstruction``: it counts in the frame time, as in seed 000, Sec. 5).
 
 **Gradients from primal samples** (``# ---- gradients from primal samples ----``): the estimator
 of Gradient-domain path tracing (Kettunen et al. 2015; B.2) and of *Gradient after ReSTIR*
@@ -33,7 +33,6 @@ al., "Gradient-domain path tracing", 2015; :mod:`grisx.poisson`.
 
 from __future__ import annotations
 
-import contextlib
 from typing import Any
 
 import numpy as np
@@ -41,7 +40,6 @@ import warp as wp
 
 from grisx.device import specialized_module
 from grisx.errors import InvalidParameterError
-from grisx.poisson import reconstruct
 from grisx.render.base.area import FilmSample, area_domain
 from grisx.render.base.path_shift import PathReservoir, ShiftParams, make_path_shift, path_target
 from grisx.render.base.screen import kernel_cache
@@ -154,7 +152,7 @@ def make_gradient_kernels(kinds: frozenset[int]) -> dict[str, Any]:
 
 
 class GradientFrame:
-    """A frame's primal, dx and dy on the device, their parts from every pixel, and the reconstruction."""
+    """A frame's primal, dx and dy on the device, their parts from every pixel, and the reconstruction's norm and α."""
 
     def __init__(self, width: int, height: int, device: Any, reconstruction: str = "l2", alpha: float = 0.2) -> None:
         if reconstruction not in RECONSTRUCTIONS:
@@ -179,12 +177,6 @@ class GradientFrame:
     def gradients(self, kernels: dict[str, Any]) -> None:
         """dx and dy from the pixels' parts (after the last ``gradient`` pass of the frame)."""
         wp.launch(kernels["combine"], dim=self.dx.shape, inputs=[self.halves], outputs=[self.dx, self.dy], device=self.device)
-
-    def reconstruct(self, phase: Any = None) -> wp.array:
-        """The screened Poisson image of primal, dx and dy (the frame's final image)."""
-        with phase("reconstruction") if phase is not None else contextlib.nullcontext():
-            self.image = reconstruct(self.primal, self.dx, self.dy, alpha=self.alpha, norm=self.norm)
-        return self.image
 
     def extra(self) -> dict[str, np.ndarray]:
         """The last frame's primal, dx and dy (the render CLI writes them as EXRs beside the image)."""
