@@ -31,7 +31,8 @@ Each frame ends with the screened Poisson reconstruction (``reconstruction=l2|l1
 
 The emission seen directly at x₁ enters dx and dy as a path of length 0 from the canonical film
 sample (ω* = ½, equal film densities on both sides). ``jacobian=false`` (|J| = 1 in every inner
-shift) is the known-biased sibling the tests catch.
+shift) and ``symmetric=false`` (the one-sided Eq. 2: pixel i's base paths alone, ω = 1, which misses
+the paths of pixel j that T_ij does not reach) are the known-biased siblings the tests catch.
 
 References: seed 000 (Wang et al., Gradient-domain ReSTIR Path Tracing), Sec. 3.1, 4.1, Eq. 1–4,
 10–16; M. Kettunen, M. Manzi, M. Aittala, J. Lehtinen, F. Durand, M. Zwicker, "Gradient-domain
@@ -59,8 +60,10 @@ __all__ = ["GradientPT", "GradientAfterReSTIR", "create_gpt", "create_gradient_a
 class GradientFromPrimal(AreaReSTIR):
     """What both baselines share: Area ReSTIR's samples, the gradient pass and the reconstruction."""
 
-    def __init__(self, built: Any, width: int, height: int, *, reconstruction: str = "l2", poisson_alpha: float = 0.2, **area: Any) -> None:
+    def __init__(self, built: Any, width: int, height: int, *, reconstruction: str = "l2", poisson_alpha: float = 0.2, symmetric: bool = True,
+                 **area: Any) -> None:
         super().__init__(built, width, height, **area)
+        self.symmetric = bool(symmetric)
         self.gradient = GradientFrame(self.width, self.height, built.device, reconstruction, poisson_alpha)
         self.gk = make_gradient_kernels(frozenset(built.features.material_kinds))
 
@@ -75,7 +78,7 @@ class GradientFromPrimal(AreaReSTIR):
         with self._phase("gradients"):
             wp.launch(
                 self.gk["gradient"], dim=(self.height, self.width),
-                inputs=[b.data, cam, self.shift_params, float(scale), int(paths), self.films[3], film, self.direct, reservoirs],
+                inputs=[b.data, cam, self.shift_params, float(scale), int(paths), int(self.symmetric), self.films[3], film, self.direct, reservoirs],
                 outputs=[self.gradient.primal, self.gradient.halves, self.nonfinite], device=b.device,
             )
 
@@ -139,12 +142,13 @@ def create_gradient_after_restir(ctx: Any) -> GradientAfterReSTIR:
     return create_renderer(GradientAfterReSTIR, ctx)
 
 
-def gradient_params(keep: tuple[str, ...] = AREA_KEYS) -> tuple[Param, ...]:
-    """Area ReSTIR's params ``keep`` (its defaults) and the reconstruction's."""
+def gradient_params(keep: tuple[str, ...] = AREA_KEYS, symmetric: bool = True) -> tuple[Param, ...]:
+    """Area ReSTIR's params ``keep`` (its defaults), the reconstruction's and (``symmetric``) the one-sided ablation."""
     own = renderer_params(
         GradientFromPrimal,
         Param("reconstruction", ..., "screened Poisson reconstruction of the frame: l2 (unbiased) or l1 (robust, slightly biased)", kind="choice", choices=tuple(RECONSTRUCTIONS)),
         Param("poisson_alpha", ..., "weight alpha of the primal term of the screened Poisson reconstruction (Kettunen et al. 2015: 0.2)", minimum=1e-6),
+        *((Param("symmetric", ..., "both pixels' base paths with MIS (Eq. 3-4, 13); false: the one-sided Eq. 2, biased where the inner shift is partial", kind="bool"),) if symmetric else ()),
     )
     return area_params(keep) + own
 

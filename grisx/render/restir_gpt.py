@@ -490,7 +490,7 @@ register(
         "restir-gpt",
         "ReSTIR G-PT (Wang et al., seed 000): paired-pixel reservoirs with the pair target, inner and outer shifts, pixel-pair temporal and adaptive spatial reuse, positivization; Area ReSTIR primal, screened Poisson reconstruction",
         create_restir_gpt,
-        params=gradient_params() + renderer_params(
+        params=gradient_params(symmetric=False) + renderer_params(
             ReSTIRGPT,
             Param("positivize", ..., "r+ and r- reservoirs of max(+-omega*G, 0) sharing their candidates (Eq. 23-26); false: one reservoir of |omega*G| (Eq. 19)", kind="bool"),
             Param("cross_sign", ..., "reuse across signs (Chang et al. 2023): merge the source pair's reservoir of the other sign too (needs positivize)", kind="bool"),

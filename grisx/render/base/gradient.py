@@ -45,7 +45,7 @@ from grisx.render.base.path_shift import PathReservoir, ShiftParams, make_path_s
 from grisx.render.base.screen import kernel_cache
 from grisx.scene.camera import CameraData
 from grisx.scene.scene import SceneData, finite_or_dropped
-from grisx.theory.gradient import PAIR_BASE_I, PAIR_BASE_J, pair_estimate, pair_value
+from grisx.theory.gradient import PAIR_BASE_I, PAIR_BASE_J, pair_estimate, pair_value, shifted_difference
 
 wp.set_module_options({"enable_backward": False})
 
@@ -90,6 +90,7 @@ def make_gradient_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         sp: ShiftParams,
         scale: float,
         path_gradients: int,
+        symmetric: int,
         film_direct: wp.array2d(dtype=FilmSample),
         film: wp.array2d(dtype=FilmSample),
         direct: wp.array2d(dtype=wp.vec3),
@@ -102,7 +103,8 @@ def make_gradient_kernels(kinds: frozenset[int]) -> dict[str, Any]:
 
         ``direct`` is L_e seen by the film sample ``film_direct`` (the canonical one); ``film`` holds the
         film samples of the ``reservoirs``' kept paths (the same array when nothing was reused). With
-        ``path_gradients`` = 0 the parts hold the emission's differences alone (ReSTIR G-PT resamples the paths' own).
+        ``path_gradients`` = 0 the parts hold the emission's differences alone (ReSTIR G-PT resamples the paths' own);
+        ``symmetric`` = 0 is the one-sided Eq. 2 (pixel i alone, ω = 1): biased where T_ij is partial.
         """
         y, x = wp.tid()
         h = film.shape[0]
@@ -130,6 +132,10 @@ def make_gradient_kernels(kinds: frozenset[int]) -> dict[str, Any]:
                 ad = area_domain(scene, cam, bx, by, fs)  # u kept in pixel b: a film translation, |J| = 1
                 s = shift(scene, ad.dom, pr.path, sp)  # the inner shift T_ab (hybrid)
                 v = pair_value(k, pr.path.f, s.path.f, t_a, path_target(s.path), s.jacobian, s.valid)  # Eq. 13–16
+                if symmetric == 0:
+                    v = wp.vec3(0.0)
+                    if k == PAIR_BASE_I:
+                        v = shifted_difference(pr.path.f, s.path.f, s.jacobian, s.valid)  # Eq. 2, one-sided
                 d = d + pair_estimate(v, pr.res.ucw)  # Eq. 11
             halves[slot, y, x] = halves[slot, y, x] + finite_or_dropped(d, nonfinite) * scale
 

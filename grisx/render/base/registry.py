@@ -53,6 +53,7 @@ VOCABULARY = {
     "light_candidates": ("int", "ReSTIR DI: initial light-sampled candidates per pixel"),
     "bsdf_candidates": ("int", "ReSTIR DI: initial BSDF-sampled candidates per pixel"),
     "reconstruction": ("choice", "gradient-domain methods: the screened Poisson reconstruction of the frame, l2 or l1 (grisx.poisson)"),
+    "symmetric": ("bool", "gradient-domain methods: both pixels' base paths with MIS (seed 000, Eq. 3-4); false: the one-sided, biased Eq. 2"),
     "poisson_alpha": ("float", "gradient-domain methods: weight alpha of the primal term of the screened Poisson reconstruction"),
     "direct": ("choice", "where direct light comes from: nee (the method's own paths) or restir-di (ReSTIR DI on the same G-buffer)"),
 }
