@@ -52,8 +52,10 @@ are the toys' functions. Targets are the luminance of the RGB ω*G (signed; lum 
 estimate is the RGB ω*G(y) W.
 
 Neighbour pairs are chosen from the G-buffer alone (its own camera samples), never from the
-reservoirs' samples. ``jacobian=false`` drops every shift's Jacobian and ``outer_jacobian=false``
-the outer shift's alone: both are known-biased siblings the tests catch. Differences from the
+reservoirs' samples. ``jacobian=false`` drops every shift's Jacobian, ``outer_jacobian=false`` the
+outer shift's alone, and ``symmetric=false`` resamples the one-sided Eq. 2 on pixel i's half of X
+alone (the pair target without the other pixel's MIS-weighted term, Eq. 12–13): all three are
+known-biased siblings the tests catch. Differences from the
 paper: one spatial round of one neighbour pair, ``pair_search`` tries (the paper: 256), the
 initial candidates are the primal pass's (not separately traced paths), and previous-frame domains
 are traced through the current geometry (exact for static scenes).
@@ -94,6 +96,7 @@ from grisx.theory.gradient import (
     pair_source_inputs,
     pair_update,
     pair_value,
+    shifted_difference,
 )
 from grisx.theory.gris import luminance
 from grisx.theory.random import random_uniform
@@ -184,8 +187,9 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     module = specialized_module(__name__, kinds)
 
     @wp.func
-    def pair_value_at(scene: SceneData, cam: CameraData, x: int, y: int, orient: int, fs: FilmSample, k: int, path: PathSample, sp: ShiftParams) -> wp.vec3:
-        """ω*_ij G_ij(y, k) (Eq. 14–16) of pair (i = (x, y), j = i + axis) for base path ``path`` at film sample ``fs``."""
+    def pair_value_at(scene: SceneData, cam: CameraData, x: int, y: int, orient: int, fs: FilmSample, k: int, path: PathSample, sp: ShiftParams, symmetric: int) -> wp.vec3:
+        """ω*_ij G_ij(y, k) (Eq. 14–16) of pair (i = (x, y), j = i + axis) for base path ``path`` at film sample ``fs``;
+        ``symmetric`` = 0: the one-sided Eq. 2 on pixel i's half alone (the biased ablation)."""
         e = _axis(orient)
         ox = x + e[0]
         oy = y + e[1]
@@ -193,12 +197,16 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             ox = x
             oy = y
         inner = shift(scene, area_domain(scene, cam, ox, oy, fs).dom, path, sp)  # the inner shift T_ij or T_ji
+        if symmetric == 0:
+            if k != PAIR_BASE_I:
+                return wp.vec3(0.0)
+            return shifted_difference(path.f, inner.path.f, inner.jacobian, inner.valid)  # Eq. 2 without Eq. 3's other half
         return pair_value(k, path.f, inner.path.f, path_target(path), path_target(inner.path), inner.jacobian, inner.valid)
 
     @wp.func
     def outer(
         scene: SceneData, cam: CameraData, x: int, y: int, orient: int, fs_src: FilmSample, to_dst: wp.vec2, k: int,
-        path: PathSample, sp: ShiftParams, use_jacobian: int,
+        path: PathSample, sp: ShiftParams, use_jacobian: int, symmetric: int,
     ) -> PairCandidate:
         """T*(y, k) = (τ(y), k) into pair (x, y, orient) (Eq. 21–22): τ translates the film offset by ``to_dst``
         and shifts the path from the primary vertex of the corresponding pixel; ω*G evaluated there."""
@@ -227,7 +235,7 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         c.path = tau.path
         c.jacobian = t.jacobian
         c.valid = True
-        c.value = pair_value_at(scene, cam, x, y, orient, c.film, k, tau.path, sp)
+        c.value = pair_value_at(scene, cam, x, y, orient, c.film, k, tau.path, sp, symmetric)
         return c
 
     @wp.func
@@ -254,7 +262,7 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     # ---- initial paired-pixel candidates ----
     @wp.kernel(module=module)
     def pair_initial_pass(
-        scene: SceneData, cam: CameraData, seed: int, frame: int, sp: ShiftParams, positivize: int,
+        scene: SceneData, cam: CameraData, seed: int, frame: int, sp: ShiftParams, positivize: int, symmetric: int,
         film: wp.array2d(dtype=FilmSample), canonical: wp.array2d(dtype=PathReservoir), out: wp.array4d(dtype=PairReservoir),
     ):
         orient, y, x = wp.tid()
@@ -281,7 +289,7 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             c.film = film[py, px]
             c.value = wp.vec3(0.0)
             if pr.res.ucw > 0.0 and pr.path.length > 0:
-                c.value = pair_value_at(scene, cam, x, y, orient, c.film, k, pr.path, sp)
+                c.value = pair_value_at(scene, cam, x, y, orient, c.film, k, pr.path, sp, symmetric)
             for slot in range(2):
                 if slot == 0 or positivize != 0:
                     cur = out[slot, orient, y, x]
@@ -302,7 +310,7 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     @wp.kernel(module=module)
     def pair_merge_pass(
         scene: SceneData, cam: CameraData, cam_src: CameraData, seed: int, frame: int, sp: ShiftParams,
-        positivize: int, cross_sign: int, use_outer_jacobian: int, temporal: int, history_cap: float,
+        positivize: int, cross_sign: int, use_outer_jacobian: int, symmetric: int, temporal: int, history_cap: float,
         reuse: int, search: int, radius: float, g: GBufferData, g_src: GBufferData,
         own: wp.array4d(dtype=PairReservoir), src: wp.array4d(dtype=PairReservoir), out: wp.array4d(dtype=PairReservoir),
     ):
@@ -357,7 +365,7 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
                     c_same = confidence_capped(c_same, history_cap)
                     c_other = confidence_capped(c_other, history_cap)
                 # the pair's own sample: its p̂ here, and carried to the source pair by T*⁻¹ (seed 001, Eq. 16)
-                back = outer(scene, cam_src, nx, ny, orient, mine.film, -to_dst, mine.k, mine.path, sp, use_outer_jacobian)
+                back = outer(scene, cam_src, nx, ny, orient, mine.film, -to_dst, mine.k, mine.path, sp, use_outer_jacobian, symmetric)
                 b = pair_balance_empty()
                 b = pair_balance_add(b, sign, 1, c_own, 0.0, luminance(mine.value), 1.0, True, 0)
                 b = pair_balance_add(b, sign, n_src, c_same, c_other, luminance(back.value), back.jacobian, back.valid, -1)
@@ -371,7 +379,7 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
                         c_e = c_same
                         if input_e == 1:
                             c_e = c_other
-                        cand = outer(scene, cam, x, y, orient, theirs.film, to_dst, theirs.k, theirs.path, sp, use_outer_jacobian)
+                        cand = outer(scene, cam, x, y, orient, theirs.film, to_dst, theirs.k, theirs.path, sp, use_outer_jacobian, symmetric)
                         inv_j = float(0.0)
                         if cand.valid:
                             inv_j = 1.0 / cand.jacobian
@@ -455,8 +463,8 @@ class ReSTIRGPT(GradientFromPrimal):
         history, pairs, other = self.pairs
         # ---- initial paired-pixel candidates ----
         with self._phase("pair_initial"):
-            wp.launch(self.pk["initial"], dim=dim, inputs=[b.data, cam, self.seed, int(frame), self.shift_params, int(self.positivize), self.films[3], self.canonical_kept], outputs=[pairs], device=dev)
-        common = [int(self.positivize), int(self.cross_sign), int(self.outer_jacobian)]
+            wp.launch(self.pk["initial"], dim=dim, inputs=[b.data, cam, self.seed, int(frame), self.shift_params, int(self.positivize), int(self.symmetric), self.films[3], self.canonical_kept], outputs=[pairs], device=dev)
+        common = [int(self.positivize), int(self.cross_sign), int(self.outer_jacobian), int(self.symmetric)]
         g, g_prev = self.gbuffer.current, self.gbuffer.previous
         # ---- temporal reuse ----
         if self.pair_temporal and self.pair_frames > 0:
@@ -490,7 +498,7 @@ register(
         "restir-gpt",
         "ReSTIR G-PT (Wang et al., seed 000): paired-pixel reservoirs with the pair target, inner and outer shifts, pixel-pair temporal and adaptive spatial reuse, positivization; Area ReSTIR primal, screened Poisson reconstruction",
         create_restir_gpt,
-        params=gradient_params(symmetric=False) + renderer_params(
+        params=gradient_params() + renderer_params(
             ReSTIRGPT,
             Param("positivize", ..., "r+ and r- reservoirs of max(+-omega*G, 0) sharing their candidates (Eq. 23-26); false: one reservoir of |omega*G| (Eq. 19)", kind="bool"),
             Param("cross_sign", ..., "reuse across signs (Chang et al. 2023): merge the source pair's reservoir of the other sign too (needs positivize)", kind="bool"),
