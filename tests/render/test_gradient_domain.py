@@ -186,7 +186,7 @@ def test_positivization_lowers_gradient_variance():
 @pytest.mark.parametrize("method", ALL_METHODS)
 def test_every_builtin_scene_renders_finite(method):
     for scene in sorted(BUILTIN_SCENES):
-        result = render(scene, method, res=(8, 6), frames=2, params={"max_depth": 4})
+        result = render(scene, method, res=(8, 6), frames=2, spp=1 if METHODS[method].uses_spp else None, params={"max_depth": 4})
         assert np.all(np.isfinite(result.image)), scene
         assert result.settings["nonfinite_samples"] == 0, scene
         for name, img in result.extra.items():

@@ -119,6 +119,7 @@ def make_gradient_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             L = L + pr.path.f * pr.res.ucw  # f(y) · W_y (seed 000, Eq. 7)
         primal[y, x] = primal[y, x] + finite_or_dropped(L, nonfinite) * scale
         t_a = path_target(pr.path)
+        same_film = fs.offset == fs_direct.offset and fs.lens == fs_direct.lens
         for slot in range(4):
             o = _neighbor(slot)
             bx = x + o[0]
@@ -126,10 +127,12 @@ def make_gradient_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             if bx < 0 or bx >= w or by < 0 or by >= h:
                 continue
             k = _pair_side(slot)
+            ad = area_domain(scene, cam, bx, by, fs_direct)  # u kept in pixel b: a film translation, |J| = 1
             # emission at x₁ (a path of length 0): equal film densities on both sides, ω* = ½ (Eq. 4)
-            d = pair_value(k, le, area_domain(scene, cam, bx, by, fs_direct).emission, 1.0, 1.0, 1.0, True)
+            d = pair_value(k, le, ad.emission, 1.0, 1.0, 1.0, True)
             if has_path and path_gradients != 0:
-                ad = area_domain(scene, cam, bx, by, fs)  # u kept in pixel b: a film translation, |J| = 1
+                if not same_film:
+                    ad = area_domain(scene, cam, bx, by, fs)  # the kept sample came from another film sample
                 s = shift(scene, ad.dom, pr.path, sp)  # the inner shift T_ab (hybrid)
                 v = pair_value(k, pr.path.f, s.path.f, t_a, path_target(s.path), s.jacobian, s.valid)  # Eq. 13–16
                 if symmetric == 0:
