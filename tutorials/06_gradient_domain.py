@@ -54,6 +54,8 @@
 # 5. Reuse across pixel pairs: a 1D row, the outer shift $T^*=(\tau, k)$,
 #    temporal reuse, dense vs adaptive spatial reuse, and a 1D screened
 #    Poisson reconstruction.
+# 6. The same functions in the scene renderers `gpt`, `gradient-after-restir`
+#    and `restir-gpt`: gradient images and their reconstruction.
 
 # %% Setup
 import time
@@ -323,6 +325,71 @@ ax.set_xlabel("pixel")
 ax.legend(fontsize=7)
 ax.set_title("1D row: gradients turn a noisy primal into a clean reconstruction")
 save(fig, "06_row_poisson.png")
+
+# %% [markdown]
+# ## 8. In a scene: the same functions in the renderer
+#
+# The renderers of `grisx.render` call the very functions this tutorial ran on
+# the toys: `pair_value` (ω*G, Eq. 14–16) and `pair_estimate` (Eq. 17) for every
+# pixel pair, `signed_target`/`pair_update` (Eq. 19, 25–26) and the
+# `pair_balance_*` MIS of a positivized merge, `outer_shift_of` (Eq. 21–22) for
+# reuse between pairs. Each pixel's sample carries its film position (Area
+# ReSTIR's sample space), so the inner shift between pixels i and j is a film
+# translation followed by the hybrid path shift.
+#
+# * `gpt` — gradient-domain path tracing (B.2): fresh base paths shifted to
+#   the four neighbours;
+# * `gradient-after-restir` — B.1: Area ReSTIR's kept paths shifted;
+# * `restir-gpt` — paired-pixel reservoirs, temporal and adaptive spatial
+#   reuse of pairs, positivization.
+#
+# Each returns the screened Poisson image (L2 by default) and keeps the
+# primal, dx and dy (`renderer.extra()`; the render CLI writes them as EXRs).
+# The numbers below are one frame's errors at a tiny size on the CPU, not the
+# paper's equal-time comparison (that is `benchmarks/gradient_domain.py`, on CUDA).
+# At a few frames the gradients still have outliers (failed or badly
+# conditioned shifts): the L2 reconstruction, unbiased, spreads them; the L1
+# one (IRLS), slightly biased, suppresses them — Lehtinen et al.'s observation.
+
+# %%
+from grisx.eval.metrics import relmse  # noqa: E402
+from grisx.poisson import forward_gradient, reconstruct  # noqa: E402
+from grisx.render.driver import render  # noqa: E402
+
+SCENE = "cornell-box"
+SCENE_RES = (48, 36) if QUICK else (160, 120)
+SCENE_FRAMES = 4 if QUICK else 16
+REF_SPP = 64 if QUICK else 1024
+scene_ref = render(SCENE, "pt", spp=REF_SPP, res=SCENE_RES, device=DEVICE, seed=SEED + 99, params={"max_depth": 6}).image
+ref_grad = forward_gradient(scene_ref)
+scene_runs = {}
+for method in ("area-restir", "gpt", "gradient-after-restir", "restir-gpt"):
+    t0 = time.perf_counter()
+    spp = 1 if method == "gpt" else None  # gpt: one fresh sample per pixel and frame, like the others
+    res = render(SCENE, method, res=SCENE_RES, frames=SCENE_FRAMES, spp=spp, device=DEVICE, seed=SEED, params={"max_depth": 6})
+    scene_runs[method] = res
+    grads = ""
+    if res.extra:
+        l1 = reconstruct(res.extra["primal"], res.extra["dx"], res.extra["dy"], norm="L1")  # the same frame, robust to outliers
+        grads = f" (L2), L1 {relmse(l1, scene_ref):.3f}, primal {relmse(res.extra['primal'], scene_ref):.3f}, dx {relmse(res.extra['dx'][:, :-1], ref_grad.dx[:, :-1]):.3f}"
+    print(f"{method:22s} last frame ({SCENE_FRAMES} frames, static camera): relMSE {relmse(res.image, scene_ref):.3f}{grads}  ({time.perf_counter() - t0:.1f} s incl. compiling)")
+
+# %%
+g = scene_runs["restir-gpt"].extra
+panels = [("primal", g["primal"]), ("dx", g["dx"]), ("dy", g["dy"]), ("L2 reconstruction", scene_runs["restir-gpt"].image),
+          ("L1 reconstruction", reconstruct(g["primal"], g["dx"], g["dy"], norm="L1")), (f"pt, {REF_SPP} spp", scene_ref)]
+fig, axes = plt.subplots(1, len(panels), figsize=(3.2 * len(panels), 2.8))
+for ax, (name, img) in zip(axes, panels):
+    lum = img @ np.array([0.2126, 0.7152, 0.0722])
+    if name in ("dx", "dy"):
+        lim = np.percentile(np.abs(lum), 99) + 1e-6
+        ax.imshow(lum, cmap="coolwarm", vmin=-lim, vmax=lim)
+    else:
+        ax.imshow(np.clip(img / (np.percentile(scene_ref, 99) + 1e-6), 0, 1) ** (1 / 2.2))
+    ax.set_title(f"{name}", fontsize=8)
+    ax.axis("off")
+fig.suptitle(f"restir-gpt on {SCENE}, one frame of {SCENE_FRAMES} ({SCENE_RES[0]}×{SCENE_RES[1]}, {DEVICE})", fontsize=9)
+save(fig, "06_scene_gradients.png")
 
 # %% [markdown]
 # ## Summary and references

@@ -187,6 +187,8 @@ def write_outputs(result: Any, out: Path, method: str, exr: bool = False) -> lis
             written.append(str(write_png(png, disp, encode=encode)))
     else:
         written.append(str(write_png(png, result.image)))
+        for name, img in result.extra.items():  # gradient-domain methods: primal, dx, dy beside the reconstruction
+            written.append(str(write_exr(out.with_suffix(f".{name}.exr"), img)))
     sidecar = out.with_suffix(".json")
     meta = {
         "grisx_version": __version__,

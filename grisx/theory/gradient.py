@@ -113,6 +113,7 @@ __all__ = [
     "signed_target",
     "pair_estimate",
     "outer_shift",
+    "outer_shift_of",
     "pair_outer_weight",
     "pair_update",
     "pair_slot_sign",
@@ -272,6 +273,24 @@ def pair_estimate(value: wp.vec3, ucw: float) -> wp.vec3:  # noqa: F811 (a Warp 
 
 
 @wp.func
+def outer_shift_of(k: int, jacobian: float, valid: wp.bool) -> PairShift:
+    """The indicator and Jacobian of T*(x, k) = (τ(x), k) (seed 000, Eq. 21–22), for a τ whose base path the caller keeps.
+
+    A renderer's base path is a whole light path (τ: the film translation and the hybrid path shift,
+    :mod:`grisx.render.restir_gpt`); ``jacobian`` and ``valid`` are τ's, γ(k) = k, and
+    |∂T*/∂(x, k)| = |∂τ/∂x|. (``x`` is left 0: the toys' scalar base path goes through :func:`outer_shift`.)
+    """
+    s = PairShift()
+    s.x = 0.0
+    s.k = k
+    s.jacobian = wp.abs(jacobian)
+    s.valid = valid
+    if not valid:
+        s.jacobian = 0.0
+    return s
+
+
+@wp.func
 def outer_shift(tau: ShiftResult, k: int) -> PairShift:
     """T*(x, k) = (τ(x), k) (seed 000, Eq. 21) with |∂T*/∂(x, k)| = |∂τ/∂x| (Eq. 22).
 
@@ -279,11 +298,9 @@ def outer_shift(tau: ShiftResult, k: int) -> PairShift:
     target pair (pixel i' → i for k = 0, j' → j for k = 1); the indicator is
     carried by the identity γ(k) = k.
     """
-    s = PairShift()
+    s = outer_shift_of(k, tau.jacobian, tau.valid)
     s.x = tau.x
-    s.k = k
-    s.jacobian = wp.abs(tau.jacobian)
-    s.valid = tau.valid
+    s.jacobian = wp.abs(tau.jacobian)  # as given, also where τ failed (the toys read valid)
     return s
 
 

@@ -29,7 +29,9 @@ from grisx.scene.transform import compose, rotate, scale, translate
 RADIANCE = sorted(n for n, m in METHODS.items() if m.kind == "radiance")
 #: control variates are unbiased but signed: ⟨F_i⟩ = α⟨F_j⟩ + ⟨F_i − αF_j⟩ with α ≤ 2 (seed 002, Eq. 7, 9) may be
 #: negative in a pixel and as large as (1 + 2·2)× the brightest emitter
-SIGNED = {"restcv": 5.0, "restcv-di": 5.0, "stcv": 5.0, "icv": 5.0}
+SIGNED = {"restcv": 5.0, "restcv-di": 5.0, "stcv": 5.0, "icv": 5.0,
+          # gradient-domain methods return the screened Poisson image of a primal and signed gradients: unbiased (L2), not positive
+          "gpt": 5.0, "gradient-after-restir": 5.0, "restir-gpt": 5.0}
 RES = (12, 9)
 FRAMES = 4
 

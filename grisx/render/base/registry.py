@@ -52,6 +52,9 @@ VOCABULARY = {
     "spatial_cv": ("bool", "spatial control variates (seed 002, Eq. 8) on or off"),
     "light_candidates": ("int", "ReSTIR DI: initial light-sampled candidates per pixel"),
     "bsdf_candidates": ("int", "ReSTIR DI: initial BSDF-sampled candidates per pixel"),
+    "reconstruction": ("choice", "gradient-domain methods: the screened Poisson reconstruction of the frame, l2 or l1 (grisx.poisson)"),
+    "symmetric": ("bool", "gradient-domain methods: both pixels' base paths with MIS (seed 000, Eq. 3-4); false: the one-sided, biased Eq. 2"),
+    "poisson_alpha": ("float", "gradient-domain methods: weight alpha of the primal term of the screened Poisson reconstruction"),
     "direct": ("choice", "where direct light comes from: nee (the method's own paths) or restir-di (ReSTIR DI on the same G-buffer)"),
 }
 #: names that mean one of the above and must not be used for it
@@ -60,10 +63,11 @@ SYNONYMS = {
     "jacobian_max": "max_jacobian", "j_max": "max_jacobian", "temporal_cap": "history_cap", "m_cap": "history_cap",
     "neighbours": "neighbors", "num_neighbors": "neighbors", "spatial_radius": "radius", "use_jacobian": "jacobian",
     "jittered": "jitter", "pixel_jitter": "jitter", "num_candidates": "candidates",
+    "poisson": "reconstruction", "norm": "reconstruction", "screening": "poisson_alpha",
 }
 
 #: the renderer modules, each of which registers its methods when imported
-PLUGINS = ("grisx.render.views", "grisx.render.pt", "grisx.render.restir_di", "grisx.render.restir_gi", "grisx.render.restir_pt", "grisx.render.restcv", "grisx.render.decoupled")
+PLUGINS = ("grisx.render.views", "grisx.render.pt", "grisx.render.restir_di", "grisx.render.restir_gi", "grisx.render.restir_pt", "grisx.render.restcv", "grisx.render.decoupled", "grisx.render.area_restir", "grisx.render.gpt", "grisx.render.restir_gpt")
 
 
 @dataclasses.dataclass

@@ -1,0 +1,391 @@
+"""Area ReSTIR: ReSTIR PT whose samples carry their primary sample point over the pixel's area (Zhang et al. 2024).
+
+ReSTIR PT (:mod:`grisx.render.restir_pt`) resamples paths from one primary vertex per pixel and
+frame; the pixel's footprint is averaged only across frames. Area ReSTIR makes the film sample
+part of what is resampled: a sample is (u, l, x̄) — the offset u ∈ [0,1)² of the primary sample
+point inside the pixel, the lens point l and the path x̄ from the primary vertex of the ray through
+i + u (:mod:`grisx.render.base.area`) — so reuse moves whole pixel-area samples and one reservoir
+integrates the pixel's footprint (antialiasing and defocus). Per frame:
+
+``# ---- primary vertices ----``
+    each pixel draws a film sample (u, l) uniformly (its own random stream, independent of the
+    G-buffer's), traces its camera ray and keeps the primary vertex x₁ and the emission seen
+    there (added outside the reservoir, as ReSTIR PT does).
+``# ---- initial candidates ----``
+    ``candidates`` (1, the paper's setting) path-tracer samples from x₁, streamed into a path
+    reservoir by ``stream_candidates`` exactly as ReSTIR PT; the joint density of (u, l, x̄) is the
+    path's, the film density being 1. The canonical reservoir always has confidence 1 (also where
+    its ray missed: the pixel's domain includes those u).
+``# ---- temporal reuse ----``
+    with *fractional* motion vectors: the G-buffer's motion δ of the pixel (previous minus current
+    film position) and the previous pixel p that holds i + δ define the translation
+    u ↦ u + i + δ − p between the two pixels' sub-squares (:func:`~grisx.render.base.area.film_translate`);
+    the history sample (u', l, x̄) is shifted to (u' + p − i − δ, l, T(x̄)) where that offset stays
+    inside pixel i, T the hybrid path shift from the new primary vertex. MIS is the generalized
+    balance heuristic over the two domains (seed 001, Eq. 15–16), the canonical sample's
+    p̂_{←p} evaluated through the inverse translation on the previous frame's camera; history
+    confidence capped at ``history_cap``.
+``# ---- spatial reuse ----``
+    ``spatial_rounds`` rounds of ``neighbors`` (2, the paper's) random pixels within ``radius`` that
+    pass the G-buffer similarity test, pairwise MIS against the canonical reservoir. A neighbour's
+    sample (u_q, l_q, x̄_q) moves to pixel i by the whole-pixel translation: the ray through
+    i + u_q, then the hybrid shift of x̄_q from its primary vertex (|J| of the path shift alone).
+``# ---- shading ----``
+    L_e(x₁) + f(y) W_y, with the kept sample's film offset stored beside the reservoir.
+
+**What is and isn't Zhang et al. 2024.** Kept: the sample space (film offset and lens point inside
+the sample), the whole-pixel and fractional translations as shifts of that coordinate (|J| = 1),
+one initial candidate and two spatial neighbours, temporal reuse through fractional motion vectors.
+Not kept: their *primary-hit* reservoirs of direct light alone and their raster G-buffer reuse —
+here every sample is a full ReSTIR PT path (the primal pass that seed 000 runs its gradients on);
+the pixel filter is a box (no Gaussian/tent filter weights); previous domains are traced with the
+previous camera through the current geometry (exact for static scenes, as ReSTIR PT's temporal
+pass). Neighbours are chosen from the G-buffer alone, never from the reservoirs' samples, so the
+choice is independent of what is reused.
+
+All estimator math is :mod:`grisx.theory`'s (``reservoir_update``/``merge``/``finalize``,
+``resampling_weight``, ``two_domain_balance``, pairwise MIS, ``confidence_capped``); shifts and
+candidates are :func:`~grisx.render.base.path_shift.make_path_shift`'s. ``jacobian=false`` is the
+biased ablation, as for ReSTIR PT.
+
+References: S. Zhang, D. Lin, M. Kettunen, C. Yuksel, C. Wyman, "Area ReSTIR: Resampling for
+Real-Time Defocus and Antialiasing", ACM TOG 43(4), 2024; D. Lin et al., "Generalized resampled
+importance sampling", SIGGRAPH 2022; seed 000, Sec. 5 (Area ReSTIR as the primal pass).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+from typing import Any
+
+import warp as wp
+
+from grisx.device import specialized_module
+from grisx.errors import InvalidParameterError
+from grisx.params import Param
+from grisx.render.base.area import FILM_STREAM, FilmSample, area_domain, film_sample, film_translate
+from grisx.render.base.path_shift import (
+    Domain,
+    PathReservoir,
+    PathShiftResult,
+    ShiftParams,
+    make_path_shift,
+    path_sample_empty,
+    path_target,
+    target_back,
+    target_to,
+)
+from grisx.render.base.registry import METHODS, RenderMethod, create_renderer, register
+from grisx.render.base.reuse import (
+    SIMILARITY_DEPTH,
+    SIMILARITY_NORMAL_COS,
+    neighbor_set_add,
+    neighbor_set_empty,
+    neighbor_set_pixel,
+    pixels_similar,
+    spatial_neighbor,
+    temporal_neighbor,
+)
+from grisx.render.base.screen import kernel_cache, pixel_key_of
+from grisx.render.restir_pt import ReSTIRPT, make_restir_pt_kernels, path_reservoir
+from grisx.scene.camera import CameraData
+from grisx.scene.gbuffer import GBufferData
+from grisx.scene.scene import SceneData
+from grisx.theory.gris import resampling_weight
+from grisx.theory.mis import pairwise_mis_canonical_term, pairwise_mis_neighbor, two_domain_balance
+from grisx.theory.random import random_subkey, random_uniform
+from grisx.theory.reservoir import confidence_capped, reservoir_empty, reservoir_merge, reservoir_update
+
+wp.set_module_options({"enable_backward": False})
+
+__all__ = ["AreaReSTIR", "create_area_restir", "make_area_restir_kernels", "area_params"]
+
+# random streams of a pixel (pixel_key_of), as ReSTIR PT's
+_STREAM_RESAMPLE = wp.constant(1)
+_STREAM_TEMPORAL = wp.constant(2)
+_STREAM_SPATIAL = wp.constant(3)  # + round
+_STREAM_PATHS = wp.constant(64)  # + candidate
+
+
+@wp.func
+def _shift_none() -> PathShiftResult:
+    s = PathShiftResult()
+    s.path = path_sample_empty()
+    s.jacobian = 0.0
+    s.valid = False
+    return s
+
+
+@kernel_cache
+def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
+    """The passes of Area ReSTIR compiled for the material kinds ``kinds`` (cached)."""
+    shifts = make_path_shift(kinds)
+    shift = shifts.shift
+    sample_paths = shifts.stream_candidates
+    settle = shifts.settle
+    module = specialized_module(__name__, kinds)
+
+    @wp.func
+    def film_shift(scene: SceneData, cam: CameraData, x: int, y: int, fs: FilmSample, pr: PathReservoir, sp: ShiftParams) -> PathShiftResult:
+        """T(u, l, x̄) into pixel (x, y): the ray through (x, y) + u, then the path shift from its primary vertex."""
+        if fs.valid == 0:
+            return _shift_none()
+        return shift(scene, area_domain(scene, cam, x, y, fs).dom, pr.path, sp)
+
+    # ---- primary vertices ----
+    @wp.kernel(module=module)
+    def primary_pass(
+        scene: SceneData, cam: CameraData, seed: int, frame: int,
+        film: wp.array2d(dtype=FilmSample), domains: wp.array2d(dtype=Domain), direct: wp.array2d(dtype=wp.vec3),
+    ):
+        y, x = wp.tid()
+        fs = film_sample(pixel_key_of(seed, frame, x, y, film.shape[1], FILM_STREAM))
+        ad = area_domain(scene, cam, x, y, fs)
+        film[y, x] = fs
+        domains[y, x] = ad.dom
+        direct[y, x] = ad.emission
+
+    # ---- initial candidates ----
+    @wp.kernel(module=module)
+    def initial_pass(
+        scene: SceneData, seed: int, frame: int, candidates: int, max_bounces: int, sp: ShiftParams,
+        domains: wp.array2d(dtype=Domain), out: wp.array2d(dtype=PathReservoir),
+    ):
+        y, x = wp.tid()
+        width = domains.shape[1]
+        ukey = pixel_key_of(seed, frame, x, y, width, _STREAM_RESAMPLE)
+        dom = domains[y, x]
+        pr = PathReservoir()
+        pr.res = reservoir_empty()
+        pr.path = path_sample_empty()
+        pr.estimate = wp.vec3(0.0)
+        inv_n = 1.0 / float(candidates)
+        for cand in range(candidates):
+            key = pixel_key_of(seed, frame, x, y, width, _STREAM_PATHS + cand)
+            pr = sample_paths(scene, dom, key, max_bounces, inv_n, sp, pr, random_subkey(ukey, cand))
+        pr.res.confidence = 1.0  # also where the ray missed: those u are part of the pixel's domain
+        out[y, x] = settle(scene, dom, pr, sp)
+
+    # ---- temporal reuse ----
+    @wp.kernel(module=module)
+    def temporal_pass(
+        scene: SceneData, cam: CameraData, cam_prev: CameraData, seed: int, frame: int, sp: ShiftParams, history_cap: float,
+        g: GBufferData, g_prev: GBufferData,
+        canonical: wp.array2d(dtype=PathReservoir), film_can: wp.array2d(dtype=FilmSample),
+        history: wp.array2d(dtype=PathReservoir), film_hist: wp.array2d(dtype=FilmSample),
+        out: wp.array2d(dtype=PathReservoir), film_out: wp.array2d(dtype=FilmSample),
+    ):
+        y, x = wp.tid()
+        can = canonical[y, x]
+        fs_c = film_can[y, x]
+        out[y, x] = can
+        film_out[y, x] = fs_c
+        # the previous pixel p and the fractional motion δ come from the G-buffer alone (independent of the samples)
+        nb = temporal_neighbor(g, g_prev, x, y, SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH)
+        if nb.valid == 0:
+            return
+        prev = history[nb.y, nb.x]
+        if prev.res.confidence <= 0.0:
+            return
+        delta = g.motion[y, x]
+        to_prev = wp.vec2(float(x - nb.x), float(y - nb.y)) + delta  # u' = u + i + δ − p
+        ukey = pixel_key_of(seed, frame, x, y, g.hit.shape[1], _STREAM_TEMPORAL)
+        c_i = can.res.confidence
+        c_j = confidence_capped(prev.res.confidence, history_cap)
+        # canonical sample: p̂_i(y_c) and p̂_{←p}(y_c) through the inverse translation, on the previous camera
+        t_c = path_target(can.path)
+        t_cj = target_to(film_shift(scene, cam_prev, nb.x, nb.y, film_translate(fs_c, to_prev), can, sp))
+        m_c = two_domain_balance(c_i, t_c, c_j, t_cj)  # seed 001, Eq. 15
+        # history sample translated into pixel i (fractional motion vector), its path shifted from the new x₁
+        fs_t = film_translate(film_hist[nb.y, nb.x], -to_prev)
+        s_t = film_shift(scene, cam, x, y, fs_t, prev, sp)
+        t_ti = path_target(s_t.path)
+        t_tj = target_back(prev.path, s_t)
+        m_t = two_domain_balance(c_j, t_tj, c_i, t_ti)
+        r = reservoir_empty()
+        r = reservoir_update(r, resampling_weight(m_c, t_c, can.res.ucw, 1.0), t_c, c_i, random_uniform(ukey, 0))
+        sel = can.path
+        sel_fs = fs_c
+        other = prev.res
+        other.confidence = c_j
+        r = reservoir_merge(r, other, m_t, t_ti, s_t.jacobian, random_uniform(ukey, 1))  # seed 000, Eq. 9
+        if r.selected:
+            sel = s_t.path
+            sel_fs = fs_t
+        out[y, x] = path_reservoir(r, sel)
+        film_out[y, x] = sel_fs
+
+    # ---- spatial reuse ----
+    @wp.kernel(module=module)
+    def spatial_pass(
+        scene: SceneData, cam: CameraData, seed: int, frame: int, round_index: int, neighbors: int, radius: float, sp: ShiftParams,
+        g: GBufferData,
+        inp: wp.array2d(dtype=PathReservoir), film_in: wp.array2d(dtype=FilmSample),
+        out: wp.array2d(dtype=PathReservoir), film_out: wp.array2d(dtype=FilmSample),
+    ):
+        y, x = wp.tid()
+        width = inp.shape[1]
+        height = inp.shape[0]
+        can = inp[y, x]
+        fs_c = film_in[y, x]
+        out[y, x] = can
+        film_out[y, x] = fs_c
+        ukey = pixel_key_of(seed, frame, x, y, width, _STREAM_SPATIAL + round_index)
+        # ---- the neighbours, drawn once from the G-buffer alone ----
+        ns = neighbor_set_empty()
+        c_c = can.res.confidence
+        total = c_c
+        for q in range(neighbors):
+            nb = spatial_neighbor(x, y, width, height, radius, wp.vec2(random_uniform(ukey, 2 * q), random_uniform(ukey, 2 * q + 1)))
+            if nb.valid != 0 and pixels_similar(g, x, y, g, nb.x, nb.y, SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH):
+                ns = neighbor_set_add(ns, nb, q)
+                total += inp[nb.y, nb.x].res.confidence
+        k = ns.count
+        if k == 0:
+            return
+        # the canonical sample's pairwise weight: (u_c, l_c, y_c) moved to each neighbour
+        t_c = path_target(can.path)
+        m_c = float(0.0)
+        for j in range(k):
+            nb = neighbor_set_pixel(ns, j)
+            t_cq = target_to(film_shift(scene, cam, nb.x, nb.y, fs_c, can, sp))  # p̂_{←q}(y_c), seed 001, Eq. 16
+            m_c += pairwise_mis_canonical_term(inp[nb.y, nb.x].res.confidence, t_cq, c_c, t_c, k, total)
+        r = reservoir_empty()
+        r = reservoir_update(r, resampling_weight(m_c, t_c, can.res.ucw, 1.0), t_c, c_c, random_uniform(ukey, 100))
+        sel = can.path
+        sel_fs = fs_c
+        # each neighbour's sample moved here by the whole-pixel translation, weighted against the canonical
+        for j in range(k):
+            nb = neighbor_set_pixel(ns, j)
+            other = inp[nb.y, nb.x]
+            fs_q = film_in[nb.y, nb.x]
+            s = film_shift(scene, cam, x, y, fs_q, other, sp)
+            t_qi = path_target(s.path)
+            t_qq = target_back(other.path, s)
+            m_q = pairwise_mis_neighbor(other.res.confidence, t_qq, c_c, t_qi, k, total)
+            r = reservoir_merge(r, other.res, m_q, t_qi, s.jacobian, random_uniform(ukey, 101 + ns.slot[j]))  # seed 000, Eq. 9
+            if r.selected:
+                sel = s.path
+                sel_fs = fs_q
+        out[y, x] = path_reservoir(r, sel)
+        film_out[y, x] = sel_fs
+
+    return {"primary": primary_pass, "initial": initial_pass, "temporal": temporal_pass, "spatial": spatial_pass,
+            "shade": make_restir_pt_kernels(kinds)["shade"]}
+
+
+class AreaReSTIR(ReSTIRPT):
+    """Area ReSTIR over a built scene; ``render_frame(frame)`` runs one frame's passes (see the module docstring).
+
+    ReSTIR PT's settings and buffers (``jitter`` and ``direct`` do not apply: the film sample is always
+    in the sample, direct light in the paths) with its own kernels and two spatial neighbours.
+    """
+
+    def __init__(self, built: Any, width: int, height: int, *, neighbors: int = 2, **restir_pt: Any) -> None:
+        if restir_pt.pop("jitter", True) is not True or restir_pt.pop("direct", "nee") != "nee":
+            raise InvalidParameterError(f"{type(self).__name__}: the film sample is always part of the sample (jitter) and direct light is in the paths (direct=nee)")
+        super().__init__(built, width, height, neighbors=neighbors, **restir_pt)
+        shape = (self.height, self.width)
+        # the G-buffer serves the similarity tests and motion vectors only; the primary vertices are the film samples'
+        self.films = [wp.zeros(shape, dtype=FilmSample, device=built.device) for _ in range(4)]  # 0: history, 1–2: scratch, 3: canonical
+
+    def make_kernels(self, kinds: frozenset[int]) -> dict[str, Any]:
+        return make_area_restir_kernels(kinds)
+
+    def cameras(self, frame: int) -> tuple[Any, Any]:
+        """This frame's and the previous frame's camera records."""
+        b = self.built
+        return b.camera_data(float(frame), self.width, self.height), b.camera_data(float(frame) - 1.0, self.width, self.height)
+
+    def canonical(self, frame: int, stream_frame: int | None = None) -> tuple[wp.array, wp.array]:
+        """Primary vertices and initial candidates of ``frame`` (random streams of ``stream_frame``): reservoirs, film samples."""
+        b = self.built
+        dev = b.device
+        dim = (self.height, self.width)
+        k = self.k
+        sf = int(frame if stream_frame is None else stream_frame)
+        cam, _ = self.cameras(frame)
+        film = self.films[3]
+        with self._phase("primary"):
+            wp.launch(k["primary"], dim=dim, inputs=[b.data, cam, self.seed, sf], outputs=[film, self.domains[0], self.direct], device=dev)
+        cur = self.buffers[1]
+        with self._phase("initial"):
+            wp.launch(k["initial"], dim=dim, inputs=[b.data, self.seed, sf, self.candidates, self.max_bounces, self.shift_params, self.domains[0]], outputs=[cur], device=dev)
+        return cur, film
+
+    def after_canonical(self, reservoirs: wp.array) -> None:
+        """Called with the canonical reservoirs before any reuse (a variant may keep them)."""
+
+    def resample(self, frame: int) -> tuple[wp.array, wp.array]:
+        """One frame's passes up to the final reservoirs (canonical, temporal, spatial); returns them and their film samples."""
+        b = self.built
+        dev = b.device
+        dim = (self.height, self.width)
+        k = self.k
+        with self._phase("gbuffer"):
+            self.gbuffer.fill(b, float(frame), self.seed + 104729, jitter=True)
+        cam, cam_prev = self.cameras(frame)
+        cur, film_cur = self.canonical(frame)
+        self.after_canonical(cur)
+        history, _, other = self.buffers
+        film_hist, film_a, film_b, _ = self.films
+        g, g_prev = self.gbuffer.current, self.gbuffer.previous
+        if self.temporal and self.frames_rendered > 0:
+            with self._phase("temporal"):
+                wp.launch(
+                    k["temporal"], dim=dim,
+                    inputs=[b.data, cam, cam_prev, self.seed, int(frame), self.shift_params, self.history_cap, g, g_prev, cur, film_cur, history, film_hist],
+                    outputs=[other, film_a], device=dev,
+                )
+            cur, other = other, cur
+            film_cur = film_a
+        for rnd in range(self.spatial_rounds):
+            film_out = film_b if film_cur is not film_b else film_a
+            with self._phase("spatial"):
+                wp.launch(
+                    k["spatial"], dim=dim,
+                    inputs=[b.data, cam, self.seed, int(frame), rnd, self.neighbors, self.radius, self.shift_params, g, cur, film_cur],
+                    outputs=[other, film_out], device=dev,
+                )
+            cur, other = other, cur
+            film_cur = film_out
+        # this frame's reservoirs and film samples are the next frame's history
+        wp.copy(film_hist, film_cur)
+        self.buffers = [cur, history, other]
+        self.frames_rendered += 1
+        return cur, film_hist
+
+    def render_frame(self, frame: int) -> wp.array:
+        """One frame: primary vertices, initial candidates, temporal and spatial reuse, shading."""
+        cur, _ = self.resample(frame)
+        with self._phase("shade"):
+            wp.launch(self.k["shade"], dim=(self.height, self.width), inputs=[self.direct, cur], outputs=[self.image, self.nonfinite], device=self.built.device)
+        return self.image
+
+
+
+def create_area_restir(ctx: Any) -> AreaReSTIR:
+    return create_renderer(AreaReSTIR, ctx)
+
+
+#: ReSTIR PT's params that Area ReSTIR takes (jitter and direct do not apply: the film sample is always in the sample)
+AREA_KEYS = ("shift", "candidates", "max_depth", "rr_depth", "temporal", "spatial_rounds", "neighbors", "radius", "history_cap",
+             "rough_threshold", "near_field", "jacobian", "max_jacobian")
+
+
+def area_params(keep: tuple[str, ...] = AREA_KEYS) -> tuple[Param, ...]:
+    """ReSTIR PT's params named in ``keep`` (the same names mean the same things), with Area ReSTIR's defaults."""
+    own = {name: p.default for name, p in inspect.signature(AreaReSTIR.__init__).parameters.items() if p.default is not inspect.Parameter.empty}
+    return tuple(dataclasses.replace(p, default=own.get(p.name, p.default)) for p in METHODS["restir-pt"].params if p.name in keep)
+
+# ---- registration (grisx.render.base.registry) ----
+
+register(
+    RenderMethod(
+        "area-restir",
+        "Area ReSTIR (Zhang et al. 2024) on ReSTIR PT paths: the film sample inside the resampled sample, reused by pixel and fractional-motion translations",
+        create_area_restir,
+        params=area_params(),
+    )
+)

@@ -1,0 +1,105 @@
+"""Pixel-area samples: the primary sample point as part of the sample, moved between pixels by translation.
+
+ReSTIR PT (:mod:`grisx.render.restir_pt`) integrates, per pixel and frame, over paths from one
+fixed primary vertex x₁ — the G-buffer's jittered visible point — and the pixel's box filter is
+averaged over frames outside the reservoirs. Area ReSTIR (Zhang et al. 2024) and gradient-domain
+rendering (Kettunen et al. 2015; seed 000) instead put the *film sample* inside the sample: a
+pixel's integral is
+
+    I_i = ∫_{[0,1)²} ∫_{lens} [ L_e(x₁(i + u)) + ∫ f(x̄; x₁(i + u)) dx̄ ] du dl,
+
+and a sample is (u, l, x̄): the offset u of the primary sample point inside the pixel, the lens
+point l and the path x̄ from the primary vertex x₁ of the camera ray through i + u
+(:class:`FilmSample`, :func:`area_domain`). Moving a sample to pixel j keeps (u, l) and traces
+the ray through j + u — a translation on the film, |∂u'/∂u| = 1 — then shifts x̄ from there with
+:func:`~grisx.render.base.path_shift.make_path_shift`'s ``shift`` (``film_shift``), so the
+Jacobian of the whole shift is the path shift's. Temporal reuse translates by a *fractional*
+motion vector δ instead of a whole pixel (:func:`film_translate`): a previous-frame sample at
+film position s' = p + u' lands at s = s' − δ, and the shift is defined where s stays inside the
+destination pixel — a bijection between two sub-squares, again with |J| = 1.
+
+Random streams: the film sample has its own stream per pixel and pass (:func:`film_sample`),
+apart from the G-buffer's camera sample, so the G-buffer's similarity tests and motion vectors
+(which decide who reuses from whom) are independent of the samples being reused.
+
+Assumptions: a box pixel filter (a scene's gaussian filter is not used by these renderers) and a
+static scene between the frames of a temporal shift (previous domains are traced with the
+previous camera through the current geometry, as ReSTIR PT's temporal pass does).
+
+References: S. Zhang et al., "Area ReSTIR: Resampling for Real-Time Defocus and Antialiasing",
+ACM TOG 43(4), 2024; M. Kettunen et al., "Gradient-domain path tracing", 2015; seed 000, Sec. 3.1.
+"""
+
+from __future__ import annotations
+
+import warp as wp
+
+from grisx.render.base.path_shift import Domain, vertex_from_hit
+from grisx.scene.camera import CameraData, camera_ray
+from grisx.scene.lights import emitter_radiance, environment_eval
+from grisx.scene.scene import SceneData, intersect
+from grisx.theory.random import random_uniform
+
+wp.set_module_options({"enable_backward": False})
+
+__all__ = ["FilmSample", "AreaDomain", "film_sample", "area_domain", "film_translate", "FILM_STREAM"]
+
+#: the film sample's random stream of a pixel (pixel_key_of), apart from ReSTIR PT's 1–10 and 64+
+FILM_STREAM = 48
+
+
+@wp.struct
+class FilmSample:
+    """Where in pixel i a sample's camera ray goes: offset u ∈ [0,1)² and lens point l; ``valid`` = 0 after a failed translation."""
+
+    offset: wp.vec2
+    lens: wp.vec2
+    valid: int
+
+
+@wp.struct
+class AreaDomain:
+    """The primary vertex x₁ of the camera ray through i + u (a path :class:`Domain`) and L_e seen along that ray."""
+
+    dom: Domain
+    emission: wp.vec3  # emitted radiance toward the camera; the environment where the ray missed
+
+
+@wp.func
+def film_sample(key: wp.uint32) -> FilmSample:
+    """A film sample uniform over the pixel and the lens (box filter), from counters 0–3 of ``key``."""
+    s = FilmSample()
+    s.offset = wp.vec2(random_uniform(key, 0), random_uniform(key, 1))
+    s.lens = wp.vec2(random_uniform(key, 2), random_uniform(key, 3))
+    s.valid = 1
+    return s
+
+
+@wp.func
+def area_domain(scene: SceneData, cam: CameraData, x: int, y: int, s: FilmSample) -> AreaDomain:
+    """Trace the camera ray of film sample ``s`` in pixel (x, y): its primary vertex and the emission it sees."""
+    out = AreaDomain()
+    out.emission = wp.vec3(0.0)
+    if s.valid == 0:
+        out.dom = Domain()
+        out.dom.valid = 0
+        return out
+    ray = camera_ray(cam, float(x) + s.offset[0], float(y) + s.offset[1], s.lens)
+    si = intersect(scene, ray.o, ray.d, cam.far_clip)
+    out.dom = vertex_from_hit(si, -ray.d)  # valid = 0 where the ray missed
+    if si.valid == 0:
+        out.emission = environment_eval(scene.lights, ray.d)
+    else:
+        out.emission = emitter_radiance(scene.lights, si.tri, si.ng, -ray.d)
+    return out
+
+
+@wp.func
+def film_translate(s: FilmSample, shift: wp.vec2) -> FilmSample:
+    """u + ``shift``, valid only inside [0,1)² (the translation between two pixels' sub-squares, |J| = 1)."""
+    out = s
+    u = s.offset + shift
+    out.offset = u
+    if s.valid == 0 or u[0] < 0.0 or u[0] >= 1.0 or u[1] < 0.0 or u[1] >= 1.0:
+        out.valid = 0
+    return out

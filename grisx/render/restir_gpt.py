@@ -1,0 +1,511 @@
+"""ReSTIR G-PT: gradient-domain ReSTIR path tracing with paired-pixel reservoirs (Wang et al., seed 000).
+
+Gradient after ReSTIR (``gradient-after-restir``, :mod:`grisx.render.gpt`) picks its paths by the
+*primal* target of one pixel and only then shifts them to the neighbours, so it samples pixel
+differences poorly. *Gradient with ReSTIR* (seed 000, Sec. 4.2) resamples in the difference's own
+domain: every horizontal and vertical pixel pair (i, j) — j = i + x̂ or i + ŷ — keeps a reservoir
+of **paired-pixel samples** (y, k) over X = Ω_i×{0} ∪ Ω_j×{1} (Eq. 14), k telling which pixel the
+base path y lives in, with target
+
+    p̂(y, k) = |ω*_ij(y, k) G_ij(y, k)|                                          (seed 000, Eq. 19)
+
+where G is the difference of the base path's contribution and that of its *inner shift* to the
+other pixel (Eq. 15; the film translation and hybrid path shift of :mod:`grisx.render.base.area`)
+and ω* the balance heuristic on the two pixels' targets (Eq. 13, 16) —
+:func:`~grisx.theory.gradient.pair_value`, the function the ``f1-f2`` toy is verified with. The
+pair's difference is ⟨Δ_ij⟩ = ω*G(y, k) · W (Eq. 17), dx[i] = −Δ_ij. Per frame:
+
+``# ---- primal pass ----``
+    Area ReSTIR (:mod:`grisx.render.area_restir`: 1 candidate, temporal reuse with fractional
+    motion vectors, 2 spatial neighbours) gives the primal image, as in the paper.
+``# ---- initial paired-pixel candidates ----``
+    each pair streams two candidates, pixel i's canonical sample (y_i, 0) and pixel j's (y_j, 1),
+    with their UCWs from the primal pass's initial candidates (before any reuse), resampling weight
+    w = p̂(y, k) W (Eq. 20 with m = 1: each candidate alone covers its half of X). With
+    ``positivize`` the reservoirs r₊ and r₋ of targets max(±ω*G, 0) (Eq. 25–26) are fed the *same*
+    candidates (Sec. 4.4); ⟨Δ⟩ is then the sum of their fixed-sign estimates (Eq. 24).
+``# ---- temporal reuse ----``
+    with **pixel-pair motion vectors** (Sec. 4.3.1): the pair (i, j) is carried to (i + δ, j + δ)
+    of the previous frame by pixel i's fractional motion vector δ; the previous pair's samples come
+    back through the **outer shift** T*(y, k) = (τ(y), k) (Eq. 21): the base path moves to the
+    corresponding pixel of this pair (the film offset translated by δ, the path shifted from the new
+    primary vertex), k is kept and |∂T*/∂(y, k)| = |∂τ/∂y| (Eq. 22, ``outer_shift_of``).
+``# ---- spatial reuse ----``
+    one neighbour pair (the paper's setting) of the same orientation: ``pair_reuse=dense`` a random
+    pair within ``radius`` whose pixel i passes the G-buffer similarity test; ``adaptive`` (Sec. 4.3.2,
+    Fig. 6, 10) reuses only for *edge pairs* — |albedo(i) − albedo(j)| > 0.1, normals apart by more
+    than cos⁻¹ 0.9 (the paper prints "Dot > 0.9", which would make almost every pair an edge pair:
+    read as a typo) or depths by more than 10% — and picks, among up to ``pair_search`` random pairs
+    within ``radius``, the first that is an edge pair whose two pixels match this pair's (edge-aligned
+    reuse); ``off`` none.
+``# ---- gradients and reconstruction ----``
+    dx, dy from the pairs' reservoirs plus the emission seen directly (as B.1 does, ω* = ½), then the
+    screened Poisson image (``reconstruction=l2|l1``), which is the frame.
+
+**MIS.** Every merge (temporal and spatial) is the generalized balance heuristic over its inputs
+(seed 001, Eq. 15–16) — the pair's own reservoir and the source pair's reservoir of the same sign,
+and with ``cross_sign`` (Chang et al. 2023) the source's reservoir of the other sign too — each
+input's target carried through the outer shift: :func:`~grisx.theory.gradient.pair_balance_add`,
+:func:`~grisx.theory.gradient.pair_balance_mis`, :func:`~grisx.theory.gradient.pair_update`,
+:func:`~grisx.theory.gradient.pair_slot_sign` and :func:`~grisx.theory.gradient.pair_source_inputs`
+are the toys' functions. Targets are the luminance of the RGB ω*G (signed; lum is linear), the
+estimate is the RGB ω*G(y) W.
+
+Neighbour pairs are chosen from the G-buffer alone (its own camera samples), never from the
+reservoirs' samples. ``jacobian=false`` drops every shift's Jacobian, ``outer_jacobian=false`` the
+outer shift's alone, and ``symmetric=false`` resamples the one-sided Eq. 2 on pixel i's half of X
+alone (the pair target without the other pixel's MIS-weighted term, Eq. 12–13): all three are
+known-biased siblings the tests catch. Differences from the
+paper: one spatial round of one neighbour pair, ``pair_search`` tries (the paper: 256), the
+initial candidates are the primal pass's (not separately traced paths), and previous-frame domains
+are traced through the current geometry (exact for static scenes).
+
+References: seed 000 (Wang et al., Gradient-domain ReSTIR Path Tracing), Sec. 4.2–4.4, Eq. 14–26;
+seed 001, Eq. 15–16; W. Chang et al., "Parameter-space ReSTIR", SIGGRAPH 2023; S. Zhang et al.,
+"Area ReSTIR", 2024.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import warp as wp
+
+from grisx.device import specialized_module
+from grisx.errors import InvalidParameterError
+from grisx.params import Param
+from grisx.render.base.area import FilmSample, area_domain, film_translate
+from grisx.render.base.path_shift import PathReservoir, PathSample, ShiftParams, make_path_shift, path_sample_empty, path_target
+from grisx.render.base.registry import RenderMethod, create_renderer, register, renderer_params
+from grisx.render.base.reuse import SIMILARITY_DEPTH, SIMILARITY_NORMAL_COS, pixels_similar, spatial_neighbor, temporal_neighbor
+from grisx.render.base.screen import kernel_cache, pixel_key_of
+from grisx.render.gpt import GradientFromPrimal, gradient_params
+from grisx.scene.camera import CameraData
+from grisx.scene.gbuffer import GBufferData
+from grisx.scene.scene import SceneData, finite_or_dropped
+from grisx.theory.gradient import (
+    PAIR_BASE_I,
+    PairBalance,
+    outer_shift_of,
+    pair_balance_add,
+    pair_balance_empty,
+    pair_balance_mis,
+    pair_estimate,
+    pair_input_slot,
+    pair_slot_sign,
+    pair_source_inputs,
+    pair_update,
+    pair_value,
+    shifted_difference,
+)
+from grisx.theory.gris import luminance
+from grisx.theory.random import random_uniform
+from grisx.theory.reservoir import Reservoir, confidence_capped, reservoir_empty, reservoir_finalize
+
+wp.set_module_options({"enable_backward": False})
+
+__all__ = ["ReSTIRGPT", "PairReservoir", "create_restir_gpt", "make_restir_gpt_kernels", "PAIR_REUSE"]
+
+#: spatial reuse of pairs: none, a random similar pair, or edge pairs only from edge-aligned pairs (Sec. 4.3.2)
+PAIR_REUSE = {"off": 0, "dense": 1, "adaptive": 2}
+_REUSE_ADAPTIVE = wp.constant(2)
+#: Sec. 4.3.2's edge-pair thresholds: albedo difference, normal cosine, relative depth
+_EDGE_ALBEDO = wp.constant(0.1)
+_EDGE_NORMAL_COS = wp.constant(0.9)
+_EDGE_DEPTH = wp.constant(0.1)
+_STREAM_PAIR_INITIAL = wp.constant(40)  # + orientation
+_STREAM_PAIR_TEMPORAL = wp.constant(42)  # + orientation
+_STREAM_PAIR_SPATIAL = wp.constant(44)  # + orientation
+
+
+@wp.struct
+class PairReservoir:
+    """A paired-pixel reservoir: bookkeeping, the kept base path y (in the base pixel's domain at film
+    sample ``film``), its indicator k and ω*G_ij(y, k) in RGB (Eq. 14–16) at this pair."""
+
+    res: Reservoir
+    path: PathSample
+    film: FilmSample
+    k: int
+    value: wp.vec3
+
+
+@wp.struct
+class PairCandidate:
+    """A paired-pixel sample after the outer shift into a pair: base path, film sample, k, ω*G there, |∂T*| and validity."""
+
+    path: PathSample
+    film: FilmSample
+    k: int
+    value: wp.vec3
+    jacobian: float
+    valid: wp.bool
+
+
+@wp.func
+def _axis(orient: int) -> wp.vec2i:
+    if orient == 0:
+        return wp.vec2i(1, 0)
+    return wp.vec2i(0, 1)
+
+
+@wp.func
+def _pair_on_film(x: int, y: int, orient: int, width: int, height: int) -> bool:
+    e = _axis(orient)
+    return x >= 0 and y >= 0 and x + e[0] < width and y + e[1] < height
+
+
+@wp.func
+def _edge_pair(g: GBufferData, x: int, y: int, jx: int, jy: int) -> bool:
+    """Sec. 4.3.2: a pair whose two G-buffer pixels differ in albedo, normal or depth (a miss counts as an edge)."""
+    if g.hit[y, x] == 0 or g.hit[jy, jx] == 0:
+        return g.hit[y, x] != g.hit[jy, jx]
+    da = g.albedo[y, x] - g.albedo[jy, jx]
+    if wp.max(wp.abs(da[0]), wp.max(wp.abs(da[1]), wp.abs(da[2]))) > _EDGE_ALBEDO:
+        return True
+    if wp.dot(g.normal[y, x], g.normal[jy, jx]) < _EDGE_NORMAL_COS:
+        return True
+    return wp.abs(g.depth[y, x] - g.depth[jy, jx]) > _EDGE_DEPTH * g.depth[y, x]
+
+
+@wp.func
+def _pairs_alike(g: GBufferData, x: int, y: int, nx: int, ny: int, e: wp.vec2i) -> bool:
+    """Edge-aligned reuse: pixel i of each pair like the other's i, and j like j (normals, depths, albedos)."""
+    if not pixels_similar(g, x, y, g, nx, ny, SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH):
+        return False
+    if not pixels_similar(g, x + e[0], y + e[1], g, nx + e[0], ny + e[1], SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH):
+        return False
+    da = g.albedo[y, x] - g.albedo[ny, nx]
+    db = g.albedo[y + e[1], x + e[0]] - g.albedo[ny + e[1], nx + e[0]]
+    return wp.length(da) <= _EDGE_ALBEDO and wp.length(db) <= _EDGE_ALBEDO
+
+
+@kernel_cache
+def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
+    """The paired-pixel passes of ReSTIR G-PT compiled for the material kinds ``kinds`` (cached)."""
+    shift = make_path_shift(kinds).shift
+    module = specialized_module(__name__, kinds)
+
+    @wp.func
+    def pair_value_at(scene: SceneData, cam: CameraData, x: int, y: int, orient: int, fs: FilmSample, k: int, path: PathSample, sp: ShiftParams, symmetric: int) -> wp.vec3:
+        """ω*_ij G_ij(y, k) (Eq. 14–16) of pair (i = (x, y), j = i + axis) for base path ``path`` at film sample ``fs``;
+        ``symmetric`` = 0: the one-sided Eq. 2 on pixel i's half alone (the biased ablation)."""
+        e = _axis(orient)
+        ox = x + e[0]
+        oy = y + e[1]
+        if k != PAIR_BASE_I:
+            ox = x
+            oy = y
+        inner = shift(scene, area_domain(scene, cam, ox, oy, fs).dom, path, sp)  # the inner shift T_ij or T_ji
+        if symmetric == 0:
+            if k != PAIR_BASE_I:
+                return wp.vec3(0.0)
+            return shifted_difference(path.f, inner.path.f, inner.jacobian, inner.valid)  # Eq. 2 without Eq. 3's other half
+        return pair_value(k, path.f, inner.path.f, path_target(path), path_target(inner.path), inner.jacobian, inner.valid)
+
+    @wp.func
+    def outer(
+        scene: SceneData, cam: CameraData, x: int, y: int, orient: int, fs_src: FilmSample, to_dst: wp.vec2, k: int,
+        path: PathSample, sp: ShiftParams, use_jacobian: int, symmetric: int,
+    ) -> PairCandidate:
+        """T*(y, k) = (τ(y), k) into pair (x, y, orient) (Eq. 21–22): τ translates the film offset by ``to_dst``
+        and shifts the path from the primary vertex of the corresponding pixel; ω*G evaluated there."""
+        c = PairCandidate()
+        c.k = k
+        c.film = film_translate(fs_src, to_dst)
+        c.path = path_sample_empty()
+        c.value = wp.vec3(0.0)
+        c.jacobian = 0.0
+        c.valid = False
+        if c.film.valid == 0 or path.length < 1:
+            return c
+        e = _axis(orient)
+        bx = x
+        by = y
+        if k != PAIR_BASE_I:
+            bx = x + e[0]
+            by = y + e[1]
+        tau = shift(scene, area_domain(scene, cam, bx, by, c.film).dom, path, sp)
+        jac = tau.jacobian
+        if use_jacobian == 0:
+            jac = 1.0
+        t = outer_shift_of(k, jac, tau.valid)  # seed 000, Eq. 21–22
+        if not t.valid:
+            return c
+        c.path = tau.path
+        c.jacobian = t.jacobian
+        c.valid = True
+        c.value = pair_value_at(scene, cam, x, y, orient, c.film, k, tau.path, sp, symmetric)
+        return c
+
+    @wp.func
+    def keep(r: Reservoir, c: PairCandidate) -> PairReservoir:
+        out = PairReservoir()
+        out.res = r
+        out.path = c.path
+        out.film = c.film
+        out.k = c.k
+        out.value = c.value
+        return out
+
+    @wp.func
+    def as_candidate(p: PairReservoir) -> PairCandidate:
+        c = PairCandidate()
+        c.path = p.path
+        c.film = p.film
+        c.k = p.k
+        c.value = p.value
+        c.jacobian = 1.0
+        c.valid = True
+        return c
+
+    # ---- initial paired-pixel candidates ----
+    @wp.kernel(module=module)
+    def pair_initial_pass(
+        scene: SceneData, cam: CameraData, seed: int, frame: int, sp: ShiftParams, positivize: int, symmetric: int,
+        film: wp.array2d(dtype=FilmSample), canonical: wp.array2d(dtype=PathReservoir), out: wp.array4d(dtype=PairReservoir),
+    ):
+        orient, y, x = wp.tid()
+        h = film.shape[0]
+        w = film.shape[1]
+        empty = PairReservoir()
+        empty.res = reservoir_empty()
+        empty.path = path_sample_empty()
+        empty.value = wp.vec3(0.0)
+        out[0, orient, y, x] = empty
+        out[1, orient, y, x] = empty
+        if not _pair_on_film(x, y, orient, w, h):
+            return
+        e = _axis(orient)
+        ukey = pixel_key_of(seed, frame, x, y, w, _STREAM_PAIR_INITIAL + orient)
+        # (y_i, 0) and (y_j, 1): each pixel's canonical sample with its UCW, alone on its half of X (m = 1)
+        for k in range(2):
+            px = x + k * e[0]
+            py = y + k * e[1]
+            pr = canonical[py, px]
+            c = as_candidate(empty)
+            c.k = k
+            c.path = pr.path
+            c.film = film[py, px]
+            c.value = wp.vec3(0.0)
+            if pr.res.ucw > 0.0 and pr.path.length > 0:
+                c.value = pair_value_at(scene, cam, x, y, orient, c.film, k, pr.path, sp, symmetric)
+            for slot in range(2):
+                if slot == 0 or positivize != 0:
+                    cur = out[slot, orient, y, x]
+                    sign = pair_slot_sign(positivize, slot)
+                    # the shared candidates of r+ and r- (Sec. 4.4); Eq. 20 with m = 1, |J| = 1
+                    r = pair_update(cur.res, sign, luminance(c.value), 1.0, pr.res.ucw, 1.0, 0.5, random_uniform(ukey, 2 * k + slot))
+                    if r.selected:
+                        cur = keep(r, c)
+                    else:
+                        cur.res = r
+                    out[slot, orient, y, x] = cur
+        for slot in range(2):
+            p = out[slot, orient, y, x]
+            p.res = reservoir_finalize(p.res)  # W = Σ w / p̂(y, k), Eq. 18
+            out[slot, orient, y, x] = p
+
+    # ---- temporal reuse / spatial reuse: one merge of a source pair into each of this pair's reservoirs ----
+    @wp.kernel(module=module)
+    def pair_merge_pass(
+        scene: SceneData, cam: CameraData, cam_src: CameraData, seed: int, frame: int, sp: ShiftParams,
+        positivize: int, cross_sign: int, use_outer_jacobian: int, symmetric: int, temporal: int, history_cap: float,
+        reuse: int, search: int, radius: float, g: GBufferData, g_src: GBufferData,
+        own: wp.array4d(dtype=PairReservoir), src: wp.array4d(dtype=PairReservoir), out: wp.array4d(dtype=PairReservoir),
+    ):
+        orient, y, x = wp.tid()
+        h = own.shape[2]
+        w = own.shape[3]
+        out[0, orient, y, x] = own[0, orient, y, x]
+        out[1, orient, y, x] = own[1, orient, y, x]
+        if not _pair_on_film(x, y, orient, w, h):
+            return
+        e = _axis(orient)
+        ukey = pixel_key_of(seed, frame, x, y, w, _STREAM_PAIR_TEMPORAL + orient + 2 * (1 - temporal))
+        # ---- the source pair (from the G-buffers alone) and the film translation u_dst = u_src + to_dst ----
+        nx = int(-1)
+        ny = int(-1)
+        to_dst = wp.vec2(0.0, 0.0)
+        if temporal != 0:
+            nb = temporal_neighbor(g, g_src, x, y, SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH)  # pixel-pair motion (Sec. 4.3.1)
+            if nb.valid != 0 and _pair_on_film(nb.x, nb.y, orient, w, h):
+                nx = nb.x
+                ny = nb.y
+                to_dst = wp.vec2(float(nb.x - x), float(nb.y - y)) - g.motion[y, x]
+        else:
+            if reuse == _REUSE_ADAPTIVE and not _edge_pair(g, x, y, x + e[0], y + e[1]):
+                return  # an interior pair: no spatial reuse (Sec. 4.3.2)
+            tries = int(1)
+            if reuse == _REUSE_ADAPTIVE:
+                tries = search
+            for t in range(tries):
+                if nx < 0:
+                    nb = spatial_neighbor(x, y, w, h, radius, wp.vec2(random_uniform(ukey, 2 * t + 8), random_uniform(ukey, 2 * t + 9)))
+                    if nb.valid != 0 and _pair_on_film(nb.x, nb.y, orient, w, h):
+                        ok = bool(False)
+                        if reuse == _REUSE_ADAPTIVE:
+                            ok = _edge_pair(g, nb.x, nb.y, nb.x + e[0], nb.y + e[1]) and _pairs_alike(g, x, y, nb.x, nb.y, e)
+                        else:
+                            ok = pixels_similar(g, x, y, g, nb.x, nb.y, SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH)
+                        if ok:
+                            nx = nb.x
+                            ny = nb.y
+        if nx < 0:
+            return
+        for slot in range(2):
+            if slot == 0 or positivize != 0:
+                sign = pair_slot_sign(positivize, slot)
+                mine = own[slot, orient, y, x]
+                c_own = mine.res.confidence
+                n_src = pair_source_inputs(1, positivize, cross_sign)
+                c_same = src[slot, orient, ny, nx].res.confidence
+                c_other = src[1 - slot, orient, ny, nx].res.confidence
+                if temporal != 0:
+                    c_same = confidence_capped(c_same, history_cap)
+                    c_other = confidence_capped(c_other, history_cap)
+                # the pair's own sample: its p̂ here, and carried to the source pair by T*⁻¹ (seed 001, Eq. 16)
+                back = outer(scene, cam_src, nx, ny, orient, mine.film, -to_dst, mine.k, mine.path, sp, use_outer_jacobian, symmetric)
+                b = pair_balance_empty()
+                b = pair_balance_add(b, sign, 1, c_own, 0.0, luminance(mine.value), 1.0, True, 0)
+                b = pair_balance_add(b, sign, n_src, c_same, c_other, luminance(back.value), back.jacobian, back.valid, -1)
+                r = reservoir_empty()
+                r = pair_update(r, sign, luminance(mine.value), pair_balance_mis(b, c_own), mine.res.ucw, 1.0, c_own, random_uniform(ukey, 0))
+                res = keep(r, as_candidate(mine))
+                # the source pair's reservoirs of this sign (and of the other, across signs) through T*
+                for input_e in range(2):
+                    if input_e < n_src:
+                        theirs = src[pair_input_slot(slot, input_e), orient, ny, nx]
+                        c_e = c_same
+                        if input_e == 1:
+                            c_e = c_other
+                        cand = outer(scene, cam, x, y, orient, theirs.film, to_dst, theirs.k, theirs.path, sp, use_outer_jacobian, symmetric)
+                        inv_j = float(0.0)
+                        if cand.valid:
+                            inv_j = 1.0 / cand.jacobian
+                        b = pair_balance_empty()
+                        b = pair_balance_add(b, sign, 1, c_own, 0.0, luminance(cand.value), 1.0, cand.valid, -1)
+                        b = pair_balance_add(b, sign, n_src, c_same, c_other, luminance(theirs.value), inv_j, cand.valid, input_e)
+                        mis = pair_balance_mis(b, c_e)
+                        r = pair_update(r, sign, luminance(cand.value), mis, theirs.res.ucw, cand.jacobian, c_e, random_uniform(ukey, 1 + input_e))  # Eq. 20
+                        if r.selected:
+                            res = keep(r, cand)
+                res.res = reservoir_finalize(r)
+                out[slot, orient, y, x] = res
+
+    # ---- gradients and reconstruction ----
+    @wp.kernel(module=module)
+    def pair_gradient_pass(
+        pairs: wp.array4d(dtype=PairReservoir), dx: wp.array2d(dtype=wp.vec3), dy: wp.array2d(dtype=wp.vec3), nonfinite: wp.array(dtype=wp.int32),
+    ):
+        """dx[i] −= Σ_slots ω*G(y) W (Eq. 17, 24; dx[i] = −Δ_ij), dy likewise."""
+        orient, y, x = wp.tid()
+        d = wp.vec3(0.0)
+        for slot in range(2):
+            p = pairs[slot, orient, y, x]
+            if p.res.ucw > 0.0:
+                d = d + pair_estimate(p.value, p.res.ucw)
+        d = finite_or_dropped(d, nonfinite)
+        if orient == 0:
+            dx[y, x] = dx[y, x] - d
+        else:
+            dy[y, x] = dy[y, x] - d
+
+    return {"initial": pair_initial_pass, "merge": pair_merge_pass, "gradient": pair_gradient_pass}
+
+
+class ReSTIRGPT(GradientFromPrimal):
+    """ReSTIR G-PT over a built scene: Area ReSTIR's primal pass and paired-pixel reservoirs for dx, dy (module docstring)."""
+
+    def __init__(
+        self, built: Any, width: int, height: int, *, positivize: bool = True, cross_sign: bool = False, pair_reuse: str = "adaptive",
+        pair_temporal: bool = True, pair_search: int = 64, outer_jacobian: bool = True, **options: Any,
+    ) -> None:
+        if pair_reuse not in PAIR_REUSE:
+            raise InvalidParameterError(f"pair_reuse must be one of {', '.join(PAIR_REUSE)}, not '{pair_reuse}'")
+        if cross_sign and not positivize:
+            raise InvalidParameterError("cross_sign reuses across the r+ and r- reservoirs: it needs positivize=true")
+        if pair_search < 1:
+            raise InvalidParameterError(f"pair_search must be >= 1, got {pair_search}")
+        super().__init__(built, width, height, **options)
+        self.positivize = bool(positivize)
+        self.cross_sign = bool(cross_sign)
+        self.pair_reuse = PAIR_REUSE[pair_reuse]
+        self.pair_temporal = bool(pair_temporal)
+        self.pair_search = int(pair_search)
+        self.outer_jacobian = bool(outer_jacobian)
+        self.pk = make_restir_gpt_kernels(frozenset(built.features.material_kinds))
+        shape = (2, 2, self.height, self.width)  # (slot: r+ or |.|, r-), (orientation: x, y), H, W
+        self.pairs = [wp.zeros(shape, dtype=PairReservoir, device=built.device) for _ in range(3)]  # 0: history, 1–2: scratch
+        self.canonical_kept = wp.zeros((self.height, self.width), dtype=PathReservoir, device=built.device)
+        self.pair_frames = 0
+
+    def kernels(self) -> list[Any]:
+        return [*super().kernels(), *self.pk.values()]
+
+    def reset(self, seed: int | None = None) -> None:
+        super().reset(seed)
+        self.pair_frames = 0
+
+    def after_canonical(self, reservoirs: wp.array) -> None:
+        wp.copy(self.canonical_kept, reservoirs)  # the gradient pass's initial candidates (before any reuse)
+
+    def render_frame(self, frame: int) -> wp.array:
+        """Primal pass, paired-pixel candidates, temporal and spatial pair reuse, gradients, reconstruction."""
+        b = self.built
+        dev = b.device
+        # ---- primal pass ----
+        cur, film = self.resample(frame)
+        self.gradient.begin()
+        self.add_gradients(frame, cur, film, 1.0, paths=False)  # the primal image and the emission's differences
+        cam, cam_prev = self.cameras(frame)
+        dim = (2, self.height, self.width)
+        history, pairs, other = self.pairs
+        # ---- initial paired-pixel candidates ----
+        with self._phase("pair_initial"):
+            wp.launch(self.pk["initial"], dim=dim, inputs=[b.data, cam, self.seed, int(frame), self.shift_params, int(self.positivize), int(self.symmetric), self.films[3], self.canonical_kept], outputs=[pairs], device=dev)
+        common = [int(self.positivize), int(self.cross_sign), int(self.outer_jacobian), int(self.symmetric)]
+        g, g_prev = self.gbuffer.current, self.gbuffer.previous
+        # ---- temporal reuse ----
+        if self.pair_temporal and self.pair_frames > 0:
+            with self._phase("pair_temporal"):
+                wp.launch(self.pk["merge"], dim=dim, inputs=[b.data, cam, cam_prev, self.seed, int(frame), self.shift_params, *common, 1, self.history_cap,
+                                                            self.pair_reuse, self.pair_search, self.radius, g, g_prev, pairs, history], outputs=[other], device=dev)
+            pairs, other = other, pairs
+        # ---- spatial reuse ----
+        if self.pair_reuse != 0:
+            with self._phase("pair_spatial"):
+                wp.launch(self.pk["merge"], dim=dim, inputs=[b.data, cam, cam, self.seed, int(frame), self.shift_params, *common, 0, self.history_cap,
+                                                            self.pair_reuse, self.pair_search, self.radius, g, g, pairs, pairs], outputs=[other], device=dev)
+            pairs, other = other, pairs
+        self.pairs = [pairs, history, other]
+        self.pair_frames += 1
+        # ---- gradients and reconstruction ----
+        with self._phase("gradients"):
+            self.gradient.gradients(self.gk)
+            wp.launch(self.pk["gradient"], dim=dim, inputs=[pairs], outputs=[self.gradient.dx, self.gradient.dy, self.nonfinite], device=dev)
+        return self.reconstructed()
+
+
+def create_restir_gpt(ctx: Any) -> ReSTIRGPT:
+    return create_renderer(ReSTIRGPT, ctx)
+
+
+# ---- registration (grisx.render.base.registry) ----
+
+register(
+    RenderMethod(
+        "restir-gpt",
+        "ReSTIR G-PT (Wang et al., seed 000): paired-pixel reservoirs with the pair target, inner and outer shifts, pixel-pair temporal and adaptive spatial reuse, positivization; Area ReSTIR primal, screened Poisson reconstruction",
+        create_restir_gpt,
+        params=gradient_params() + renderer_params(
+            ReSTIRGPT,
+            Param("positivize", ..., "r+ and r- reservoirs of max(+-omega*G, 0) sharing their candidates (Eq. 23-26); false: one reservoir of |omega*G| (Eq. 19)", kind="bool"),
+            Param("cross_sign", ..., "reuse across signs (Chang et al. 2023): merge the source pair's reservoir of the other sign too (needs positivize)", kind="bool"),
+            Param("pair_reuse", ..., "spatial reuse of pairs: off, dense (a random similar pair) or adaptive (edge pairs only, edge-aligned neighbours; Sec. 4.3.2)", kind="choice", choices=tuple(PAIR_REUSE)),
+            Param("pair_temporal", ..., "temporal reuse of pairs with pixel-pair motion vectors (Sec. 4.3.1)", kind="bool"),
+            Param("pair_search", ..., "adaptive reuse: random pairs tried for an edge-aligned neighbour (the paper: 256)", kind="int", minimum=1, maximum=1024),
+            Param("outer_jacobian", ..., "use the outer shift's Jacobian (Eq. 22); false: |J| = 1 there, the biased ablation", kind="bool"),
+        ),
+    )
+)
