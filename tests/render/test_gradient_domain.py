@@ -209,3 +209,31 @@ def test_cli_writes_primal_and_gradients(tmp_path):
 def test_bad_params_raise(params, match):
     with pytest.raises(InvalidParameterError, match=match):
         render("cornell-box", "restir-gpt", res=(8, 6), params=params)
+
+
+def test_adaptive_reuse_merges_only_edge_pairs():
+    """Sec. 4.3.2 on the black/white grid: interior pairs keep their own reservoir, edge pairs (a numpy oracle of the
+    G-buffer test: albedo apart by > 0.1, normals by cos < 0.9, depths by > 10%, or one pixel a miss) take a neighbour's."""
+    built = _scene("checker-grid").build("cpu")
+    params = {**method_params("restir-gpt", {"pair_temporal": False, "pair_reuse": "adaptive", "radius": 4.0, "max_depth": 4}), "spp": 1}
+    r = METHODS["restir-gpt"].create(RenderContext(built, 24, 18, params, 5, None, "restir-gpt"))
+    r.render_frame(0)
+    g = r.gbuffer.numpy()
+    conf = r.pairs[0].numpy()["res"]["confidence"][0]  # slot r+, (orientation, y, x)
+    hit, alb, nrm, dep = g["hit"], g["albedo"], g["normal"], g["depth"]
+    merged = edges = 0
+    for o, (ex, ey) in enumerate(((1, 0), (0, 1))):
+        for y in range(18 - ey):
+            for x in range(24 - ex):
+                j = (y + ey, x + ex)
+                if hit[y, x] == 0 or hit[j] == 0:
+                    edge = hit[y, x] != hit[j]
+                else:
+                    edge = (np.abs(alb[y, x] - alb[j]).max() > 0.1 or np.dot(nrm[y, x], nrm[j]) < 0.9
+                            or abs(dep[y, x] - dep[j]) > 0.1 * dep[y, x])
+                edges += edge
+                if not edge:
+                    assert conf[o, y, x] == pytest.approx(1.0), (o, y, x)  # the canonical pair alone
+                merged += conf[o, y, x] > 1.0
+    print("edge pairs", edges, "merged", merged)
+    assert 0 < merged <= edges
