@@ -38,7 +38,9 @@ the sample), the whole-pixel and fractional translations as shifts of that coord
 one initial candidate and two spatial neighbours, temporal reuse through fractional motion vectors.
 Not kept: their *primary-hit* reservoirs of direct light alone and their raster G-buffer reuse —
 here every sample is a full ReSTIR PT path (the primal pass that seed 000 runs its gradients on);
-the pixel filter is a box (no Gaussian/tent filter weights); previous domains are traced with the
+the scene's pixel filter (box, or Mitsuba's gaussian) enters as a film weight with uniform film
+samples over its support (:mod:`~grisx.render.base.area`) rather than by filter importance
+sampling; previous domains are traced with the
 previous camera through the current geometry (exact for static scenes, as ReSTIR PT's temporal
 pass). Neighbours are chosen from the G-buffer alone, never from the reservoirs' samples, so the
 choice is independent of what is reused.
@@ -140,7 +142,7 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         film: wp.array2d(dtype=FilmSample), domains: wp.array2d(dtype=Domain), direct: wp.array2d(dtype=wp.vec3),
     ):
         y, x = wp.tid()
-        fs = film_sample(pixel_key_of(seed, frame, x, y, film.shape[1], FILM_STREAM))
+        fs = film_sample(pixel_key_of(seed, frame, x, y, film.shape[1], FILM_STREAM), cam)
         ad = area_domain(scene, cam, x, y, fs)
         film[y, x] = fs
         domains[y, x] = ad.dom
@@ -195,10 +197,10 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         c_j = confidence_capped(prev.res.confidence, history_cap)
         # canonical sample: p̂_i(y_c) and p̂_{←p}(y_c) through the inverse translation, on the previous camera
         t_c = path_target(can.path)
-        t_cj = target_to(film_shift(scene, cam_prev, nb.x, nb.y, film_translate(fs_c, to_prev), can, sp))
+        t_cj = target_to(film_shift(scene, cam_prev, nb.x, nb.y, film_translate(fs_c, to_prev, cam), can, sp))
         m_c = two_domain_balance(c_i, t_c, c_j, t_cj)  # seed 001, Eq. 15
         # history sample translated into pixel i (fractional motion vector), its path shifted from the new x₁
-        fs_t = film_translate(film_hist[nb.y, nb.x], -to_prev)
+        fs_t = film_translate(film_hist[nb.y, nb.x], -to_prev, cam)
         s_t = film_shift(scene, cam, x, y, fs_t, prev, sp)
         t_ti = path_target(s_t.path)
         t_tj = target_back(prev.path, s_t)

@@ -212,7 +212,7 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         and shifts the path from the primary vertex of the corresponding pixel; ω*G evaluated there."""
         c = PairCandidate()
         c.k = k
-        c.film = film_translate(fs_src, to_dst)
+        c.film = film_translate(fs_src, to_dst, cam)
         c.path = path_sample_empty()
         c.value = wp.vec3(0.0)
         c.jacobian = 0.0

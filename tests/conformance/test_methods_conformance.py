@@ -12,17 +12,21 @@ A method estimating the full image renders the features its shifts and reservoir
 apart (``FULL_IMAGE_CASES``): depth limits (``max_depth_4_rr_1``: Russian roulette from the
 first bounce; ``max_depth_1``: emitters only), every light type (spot, point, environment
 map, sphere and area lights), a rough conductor (glossy vertices the hybrid shift does not
-reconnect at), textures and two-sided BSDFs. A method estimating emitted + direct light
+reconnect at), textures, two-sided BSDFs and Mitsuba's gaussian pixel filter (2×2-pixel blocks
+there). A method estimating emitted + direct light
 (``reference_max_depth == 2``) renders ``max_depth_2``. A method registered later joins by
 itself; the skip list says why a method is left out.
 
 What these cases have caught: ReSTIR PT's reconnection to a spot light reused the spot's
 intensity toward the *original* path's vertex (z = −10.5 on ``spot``); ReSTIR GI and ReSTCV
-added ReSTIR DI's direct light at ``max_depth=1`` (z ≈ 190 on ``max_depth_1``).
+added ReSTIR DI's direct light at ``max_depth=1`` (z ≈ 190 on ``max_depth_1``); the methods
+that put the film sample inside their samples (area-restir, gpt, ...) ignored the gaussian
+filter (z ≈ −4 on ``filter_gaussian_wide``).
 """
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -37,8 +41,11 @@ from grisx.testing import BIASED_K, DEFAULT_K, reuse_unbiasedness_test
 
 HERE = Path(__file__).resolve().parent
 #: the cases a method renders, by the path tracer depth whose image it estimates (None: the file's)
-FULL_IMAGE_CASES = ("max_depth_4_rr_1", "max_depth_1", "spot", "point", "envmap", "sphere_light", "roughconductor", "texture_exr", "twosided")
+FULL_IMAGE_CASES = ("max_depth_4_rr_1", "max_depth_1", "spot", "point", "envmap", "sphere_light", "roughconductor", "texture_exr", "twosided",
+                    "filter_gaussian_wide")
 CASES_BY_DEPTH = {None: FULL_IMAGE_CASES, 2: ("max_depth_2",)}
+#: z-test block size per case (default 8): a pixel filter moves energy between neighbouring pixels, so small blocks
+BLOCK = {"filter_gaussian_wide": 2}
 RUNS = 64
 FRAMES = 4
 
@@ -58,10 +65,13 @@ def cases(method: str) -> tuple[str, ...]:
 PAIRS = [(m, c) for m in RADIANCE for c in (cases(m) or (None,))]
 
 
-def agreement(method: str, case: str, params: dict | None = None, *, runs: int = RUNS, k: float = DEFAULT_K, device: str = "cpu"):
+def agreement(method: str, case: str, params: dict | None = None, *, runs: int = RUNS, k: float = DEFAULT_K, device: str = "cpu", edit=None):
     """The method's runs on ``case``, through :func:`grisx.render.render` as a user calls it (the file's
-    max_depth and rr_depth become the method's defaults there), against Mitsuba's image."""
+    max_depth and rr_depth become the method's defaults there), against Mitsuba's image; ``edit(scene)``
+    changes the loaded scene first (the biased siblings)."""
     scene = load_mitsuba(HERE / "scenes" / f"{case}.xml")
+    if edit is not None:
+        edit(scene)
     ref = read_exr(HERE / "refs" / f"{case}.exr").astype(np.float64)[..., :3]
     ref_var = read_exr(HERE / "refs" / f"{case}.var.exr").astype(np.float64)[..., :3]
 
@@ -72,7 +82,7 @@ def agreement(method: str, case: str, params: dict | None = None, *, runs: int =
         assert result.settings.get("nonfinite_samples", 0) == 0, result.settings
         return np.mean(frames, axis=0)
 
-    return reuse_unbiasedness_test(run, ref, ref_var, runs, block=8, k=k)
+    return reuse_unbiasedness_test(run, ref, ref_var, runs, block=BLOCK.get(case, 8), k=k)
 
 
 @pytest.mark.parametrize(("method", "case"), PAIRS)
@@ -86,4 +96,13 @@ def test_method_agrees_with_mitsuba(method, case, device):
 def test_a_biased_method_disagrees_with_mitsuba():
     # ReSTIR PT with its shift Jacobians taken as 1 (the ablation the papers warn about)
     result = agreement("restir-pt", "max_depth_4_rr_1", {"shift": "reconnection", "jacobian": False}, k=BIASED_K)
+    assert not result.passed, result
+
+
+def test_a_film_sample_under_a_box_filter_is_caught_where_mitsuba_filters_with_a_gaussian():
+    # Area ReSTIR's film samples uniform over the pixel (a box), on a film whose filter is Mitsuba's wide gaussian
+    def box(scene):
+        scene.film = dataclasses.replace(scene.film, filter_stddev=0.0)
+
+    result = agreement("area-restir", "filter_gaussian_wide", edit=box, k=BIASED_K)
     assert not result.passed, result

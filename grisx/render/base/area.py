@@ -1,7 +1,7 @@
 """Pixel-area samples: the primary sample point as part of the sample, moved between pixels by translation.
 
 ReSTIR PT (:mod:`grisx.render.restir_pt`) integrates, per pixel and frame, over paths from one
-fixed primary vertex x₁ — the G-buffer's jittered visible point — and the pixel's box filter is
+fixed primary vertex x₁ — the G-buffer's jittered visible point — and the pixel filter is
 averaged over frames outside the reservoirs. Area ReSTIR (Zhang et al. 2024) and gradient-domain
 rendering (Kettunen et al. 2015; seed 000) instead put the *film sample* inside the sample: a
 pixel's integral is
@@ -22,9 +22,19 @@ Random streams: the film sample has its own stream per pixel and pass (:func:`fi
 apart from the G-buffer's camera sample, so the G-buffer's similarity tests and motion vectors
 (which decide who reuses from whom) are independent of the samples being reused.
 
-Assumptions: a box pixel filter (a scene's gaussian filter is not used by these renderers) and a
-static scene between the frames of a temporal shift (previous domains are traced with the
-previous camera through the current geometry, as ReSTIR PT's temporal pass does).
+**The pixel filter.** With a box filter u is uniform over the pixel's square and every sample
+weighs 1. With Mitsuba's gaussian (σ, radius r = 4σ: f(t) = max(0, e^{−t²/2σ²} − e^{−r²/2σ²})
+per axis, the default of a Mitsuba film) pixel i's value is ∫ w_i(t) L(c_i + t) dt with
+w_i = f(t_x) f(t_y) / Z_i normalized over the part of the filter inside the film (what
+Mitsuba's splatting film converges to). Then u is uniform over the filter's support
+[½ − r, ½ + r)² and x₁'s :class:`~grisx.render.base.path_shift.Domain` carries the film weight
+ω_i(u) = (2r)² w_i(u − ½), which :func:`~grisx.render.base.path_shift.make_path_shift`'s walks
+and shifts multiply into f (0 where the ray leaves the film). Moving u to pixel j is the same
+translation with |J| = 1; ω_j(u) is pixel j's own weight, so the integrand of every domain is
+its pixel's filtered one and the reuse stays unbiased, borders included.
+
+Assumption: a static scene between the frames of a temporal shift (previous domains are traced
+with the previous camera through the current geometry, as ReSTIR PT's temporal pass does).
 
 References: S. Zhang et al., "Area ReSTIR: Resampling for Real-Time Defocus and Antialiasing",
 ACM TOG 43(4), 2024; M. Kettunen et al., "Gradient-domain path tracing", 2015; seed 000, Sec. 3.1.
@@ -35,14 +45,14 @@ from __future__ import annotations
 import warp as wp
 
 from grisx.render.base.path_shift import Domain, vertex_from_hit
-from grisx.scene.camera import CameraData, camera_ray
+from grisx.scene.camera import GAUSSIAN_RADIUS, CameraData, camera_ray
 from grisx.scene.lights import emitter_radiance, environment_eval
 from grisx.scene.scene import SceneData, intersect
 from grisx.theory.random import random_uniform
 
 wp.set_module_options({"enable_backward": False})
 
-__all__ = ["FilmSample", "AreaDomain", "film_sample", "area_domain", "film_translate", "FILM_STREAM"]
+__all__ = ["FilmSample", "AreaDomain", "film_sample", "film_weight", "filter_reach", "area_domain", "film_translate", "FILM_STREAM"]
 
 #: the film sample's random stream of a pixel (pixel_key_of), apart from ReSTIR PT's 1–10 and 64+
 FILM_STREAM = 48
@@ -50,7 +60,8 @@ FILM_STREAM = 48
 
 @wp.struct
 class FilmSample:
-    """Where in pixel i a sample's camera ray goes: offset u ∈ [0,1)² and lens point l; ``valid`` = 0 after a failed translation."""
+    """Where pixel i's sample's camera ray goes: film offset u (from the pixel's corner; in the filter's support, [0,1)² for
+    a box) and lens point l; ``valid`` = 0 after a failed translation."""
 
     offset: wp.vec2
     lens: wp.vec2
@@ -66,13 +77,56 @@ class AreaDomain:
 
 
 @wp.func
-def film_sample(key: wp.uint32) -> FilmSample:
-    """A film sample uniform over the pixel and the lens (box filter), from counters 0–3 of ``key``."""
+def filter_reach(cam: CameraData) -> float:
+    """How far the pixel filter reaches from the pixel's centre: ½ (box) or r = 4σ (Mitsuba's gaussian)."""
+    if cam.filter_stddev > 0.0:
+        return GAUSSIAN_RADIUS * cam.filter_stddev
+    return 0.5
+
+
+@wp.func
+def film_sample(key: wp.uint32, cam: CameraData) -> FilmSample:
+    """A film sample uniform over the pixel filter's support and the lens, from counters 0–3 of ``key``."""
+    reach = filter_reach(cam)
     s = FilmSample()
-    s.offset = wp.vec2(random_uniform(key, 0), random_uniform(key, 1))
+    s.offset = wp.vec2(0.5 - reach + 2.0 * reach * random_uniform(key, 0), 0.5 - reach + 2.0 * reach * random_uniform(key, 1))
     s.lens = wp.vec2(random_uniform(key, 2), random_uniform(key, 3))
     s.valid = 1
     return s
+
+
+@wp.func
+def _gaussian_axis(t: float, r: float, inv2var: float) -> float:
+    return wp.max(0.0, wp.exp(-t * t * inv2var) - wp.exp(-r * r * inv2var))
+
+
+@wp.func
+def _gaussian_axis_integral(c: float, size: float, stddev: float) -> float:
+    """∫ f(t) dt over the filter's support [−r, r] ∩ the film, for a pixel centre at c on an axis of ``size`` pixels."""
+    r = GAUSSIAN_RADIUS * stddev
+    a = wp.max(-r, -c)
+    b = wp.min(r, size - c)
+    s2 = stddev * 1.41421356
+    return stddev * 1.25331414 * (wp.erf(b / s2) - wp.erf(a / s2)) - wp.exp(-r * r / (2.0 * stddev * stddev)) * (b - a)  # σ√(π/2)
+
+
+@wp.func
+def film_weight(cam: CameraData, x: int, y: int, offset: wp.vec2) -> float:
+    """ω_i(u) = (support area) · w_i: the weight of a film sample u drawn uniformly over the filter's support of pixel (x, y)."""
+    px = float(x) + offset[0]
+    py = float(y) + offset[1]
+    if px < 0.0 or py < 0.0 or px >= float(cam.width) or py >= float(cam.height):
+        return 0.0  # Mitsuba's film takes samples from inside the film only
+    sd = cam.filter_stddev
+    if sd <= 0.0:
+        return 1.0
+    r = GAUSSIAN_RADIUS * sd
+    inv2var = 1.0 / (2.0 * sd * sd)
+    cx = float(x) + 0.5
+    cy = float(y) + 0.5
+    w = _gaussian_axis(px - cx, r, inv2var) * _gaussian_axis(py - cy, r, inv2var)
+    z = _gaussian_axis_integral(cx, float(cam.width), sd) * _gaussian_axis_integral(cy, float(cam.height), sd)
+    return 4.0 * r * r * w / z
 
 
 @wp.func
@@ -84,22 +138,32 @@ def area_domain(scene: SceneData, cam: CameraData, x: int, y: int, s: FilmSample
         out.dom = Domain()
         out.dom.valid = 0
         return out
+    weight = film_weight(cam, x, y, s.offset)
+    if weight <= 0.0:
+        out.dom = Domain()
+        out.dom.valid = 0  # outside the film or the filter: contributes nothing
+        return out
     ray = camera_ray(cam, float(x) + s.offset[0], float(y) + s.offset[1], s.lens)
     si = intersect(scene, ray.o, ray.d, cam.far_clip)
     out.dom = vertex_from_hit(si, -ray.d)  # valid = 0 where the ray missed
+    out.dom.weight = weight
     if si.valid == 0:
-        out.emission = environment_eval(scene.lights, ray.d)
+        out.emission = environment_eval(scene.lights, ray.d) * weight
     else:
-        out.emission = emitter_radiance(scene.lights, si.tri, si.ng, -ray.d)
+        out.emission = emitter_radiance(scene.lights, si.tri, si.ng, -ray.d) * weight
     return out
 
 
 @wp.func
-def film_translate(s: FilmSample, shift: wp.vec2) -> FilmSample:
-    """u + ``shift``, valid only inside [0,1)² (the translation between two pixels' sub-squares, |J| = 1)."""
+def film_translate(s: FilmSample, shift: wp.vec2, cam: CameraData) -> FilmSample:
+    """u + ``shift``, valid only inside the filter's support [½ − r, ½ + r)² (a translation between two
+    pixels' supports, |J| = 1; [0,1)² for a box filter)."""
+    reach = filter_reach(cam)
     out = s
     u = s.offset + shift
     out.offset = u
-    if s.valid == 0 or u[0] < 0.0 or u[0] >= 1.0 or u[1] < 0.0 or u[1] >= 1.0:
+    lo = 0.5 - reach
+    hi = 0.5 + reach
+    if s.valid == 0 or u[0] < lo or u[0] >= hi or u[1] < lo or u[1] >= hi:
         out.valid = 0
     return out

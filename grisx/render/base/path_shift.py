@@ -189,6 +189,7 @@ class Domain:
     tri: int
     wo: wp.vec3
     valid: int  # 0: the camera ray missed (no path space to reuse into)
+    weight: float  # the domain's film weight (a pixel filter evaluated where its camera ray went, :mod:`~grisx.render.base.area`); 1 for a path vertex
 
 
 @wp.struct
@@ -350,6 +351,7 @@ def vertex_from_hit(si: SurfaceInteraction, wo: wp.vec3) -> Domain:
     v.tri = si.tri
     v.wo = wo
     v.valid = si.valid
+    v.weight = 1.0
     return v
 
 
@@ -456,7 +458,7 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
         n = x.length + 1  # index of the end vertex x_n
         key = x.key
         v = dst  # the current vertex x_i'
-        f = wp.vec3(1.0, 1.0, 1.0)
+        f = wp.vec3(dst.weight, dst.weight, dst.weight)  # the film weight of x₁' (1 unless the film sample is part of the path)
         pdf = float(1.0)
         eta = float(1.0)
         jac_rc = float(1.0)
@@ -630,7 +632,7 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
         if dom.valid == 0:
             return pr
         v = dom  # the current vertex x_i
-        fthru = wp.vec3(1.0, 1.0, 1.0)  # f of x₁ … x_i (BSDF factors so far)
+        fthru = wp.vec3(dom.weight, dom.weight, dom.weight)  # f of x₁ … x_i: x₁'s film weight, the BSDF factors so far
         pdf = float(1.0)  # density of the directions sampled so far (π-scaled measure, roulette included)
         eta = float(1.0)  # relative index of refraction crossed so far (for the roulette)
         cur = path_sample_empty()  # the walk's reconnection data (k = 0 until a pair qualifies)
