@@ -53,6 +53,10 @@ VOCABULARY = {
     "light_candidates": ("int", "ReSTIR DI: initial light-sampled candidates per pixel"),
     "bsdf_candidates": ("int", "ReSTIR DI: initial BSDF-sampled candidates per pixel"),
     "direct": ("choice", "where direct light comes from: nee (the method's own paths) or restir-di (ReSTIR DI on the same G-buffer)"),
+    "prefixes": ("int", "integration prefixes per pixel and frame, each connected to suffixes (seed 001, Eq. 23)"),
+    "gather_k": ("int", "supporting prefixes (nearest in world space) whose suffixes each integration prefix borrows"),
+    "roulette": ("bool", "Russian-roulette canonical suffix of the final gather (seed 001, Eq. 23); false: one per prefix"),
+    "canonical": ("bool", "false: leave the canonical sample out of the MIS (biased: coverage lost, seed 001 Eq. 17)"),
 }
 #: names that mean one of the above and must not be used for it
 SYNONYMS = {
@@ -63,7 +67,7 @@ SYNONYMS = {
 }
 
 #: the renderer modules, each of which registers its methods when imported
-PLUGINS = ("grisx.render.views", "grisx.render.pt", "grisx.render.restir_di", "grisx.render.restir_gi", "grisx.render.restir_pt", "grisx.render.restcv", "grisx.render.decoupled")
+PLUGINS = ("grisx.render.views", "grisx.render.pt", "grisx.render.restir_di", "grisx.render.restir_gi", "grisx.render.restir_pt", "grisx.render.restcv", "grisx.render.decoupled", "grisx.render.suffix_restir")
 
 
 @dataclasses.dataclass
