@@ -3,12 +3,13 @@
 #   bash benchmarks/run_cuda.sh OUT_DIR [GROUP ...]
 # GROUP: theory (toys, conditional, gradient, control_variates, manifold), poisson,
 #        scene (scene.py, pt.py), restir (restir_every_scene.py, restir_gi.py, restir_pt.py),
+#        suffix (suffix_restir.py: Suffix ReSTIR vs ReSTIR PT and MMIS, 1920x1080, camera path),
 #        study (grisx bench render), multigpu (multi_gpu_reference.py: needs 2 GPUs, not in the default groups).
 # Default: all groups. Each script writes its JSON and PNG into OUT_DIR.
 set -euo pipefail
 out=${1:-benchmarks/results/cuda}
 shift || true
-groups=${*:-theory poisson scene restir study}
+groups=${*:-theory poisson scene restir suffix study}
 mkdir -p "$out"
 py=${PYTHON:-python3}
 for g in $groups; do
@@ -28,6 +29,8 @@ for g in $groups; do
       $py benchmarks/restir_every_scene.py --device cuda --jobs 9 --out "$out"
       $py benchmarks/restir_gi.py --device cuda --out "$out"
       $py benchmarks/restir_pt.py --device cuda --out "$out" ;;
+    suffix)
+      $py benchmarks/suffix_restir.py --device cuda --out "$out" ;;
     study)
       $py -m grisx bench render cornell-box door-ajar --method pt --method restir-di --method restir-gi --method restir-pt \
           --budget 5 --res 640x360 --device cuda --out "$out/study" ;;
