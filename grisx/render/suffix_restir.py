@@ -73,7 +73,10 @@ that traced none).
   suffix's own throughput (pt's from the whole path's): other survival probabilities, same mean;
 * the MMIS baseline weighs by targets (the generalized balance heuristic, Eq. 15) rather than
   by source pdfs: a path-tracer suffix kept by RIS over its candidates has no tracked pdf;
-* direct light only by NEE at x₁ (``direct=nee``).
+* direct light by NEE at x₁ (``direct=nee``) or, as the paper, by ReSTIR DI (``direct=restir-di``:
+  :mod:`~grisx.render.restir_di` on the same G-buffer owns the paths x₁ → light, as in
+  ReSTIR PT's option; the gather then skips its NEE at x₁). The paper also applies NEE at the
+  prefix vertices; ours are x₁ alone, and x₂'s light is the suffix's (its NEE candidates).
 
 Temporal reuse evaluates the previous frame's prefixes and suffixes with this frame's geometry
 (exact for static scenes, as in ReSTIR PT). The reservoir of a pixel holds a prefix (its x₂
@@ -133,6 +136,8 @@ wp.set_module_options({"enable_backward": False})
 
 __all__ = ["Prefix", "SupportReservoir", "SuffixReSTIR", "make_suffix_restir_kernels"]
 
+#: where direct light comes from: NEE at the prefix vertex x₁, or ReSTIR DI on the same G-buffer (restir_pt's choice)
+DIRECT_CHOICES = ("nee", "restir-di")
 # random streams of a pixel (pixel_key_of)
 _STREAM_PREFIX = wp.constant(1)
 _STREAM_TEMPORAL = wp.constant(2)
@@ -553,6 +558,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         own_suffixes: int,
         roulette: int,
         canonical: int,
+        nee_at_x1: int,
         max_bounces: int,
         suffix_bounces: int,
         grid: wp.uint64,
@@ -586,7 +592,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         for j in range(prefixes):
             pkey = random_subkey(gkey, _STREAM_GATHER_PREFIX + j)
             # ---- direct light at x₁: NEE and the emitter the prefix direction hits (MIS), as pt ----
-            if max_bounces != 0:
+            if max_bounces != 0 and nee_at_x1 != 0:
                 d = PathReservoir()
                 d.res = reservoir_empty()
                 d.path = path_sample_empty()
@@ -703,8 +709,8 @@ class SuffixReSTIR(ScreenSpaceRenderer):
         seed: int = 0,
         timer: Any = None,
     ) -> None:
-        if direct != "nee":
-            raise InvalidParameterError(f"suffix-restir shades direct light by NEE at the prefix vertex only (direct=nee), not '{direct}'")
+        if direct not in DIRECT_CHOICES:
+            raise InvalidParameterError(f"direct must be one of {', '.join(DIRECT_CHOICES)}, not '{direct}'")
         if prefixes < 1 or gather_k < 0 or gather_radius < 0.0 or suffixes < 0 or suffixes > prefixes:
             raise InvalidParameterError("suffix-restir needs prefixes >= 1, gather_k >= 0, gather_radius >= 0 and 0 <= suffixes <= prefixes")
         if max_depth == 0 or max_depth < -1 or rr_depth < 1 or neighbors < 0 or radius <= 0.0:
@@ -735,7 +741,15 @@ class SuffixReSTIR(ScreenSpaceRenderer):
         self.k = make_suffix_restir_kernels(frozenset(built.features.material_kinds))
         dev = built.device
         shape = (self.height, self.width)
-        self.gbuffer = GBuffer(self.width, self.height, dev)
+        self.di = None
+        if direct == "restir-di":
+            # ReSTIR DI owns the paths x₁ → light (as in restir_pt): the same G-buffer, its own random streams
+            from grisx.render.base.registry import METHODS, RenderContext
+
+            self.di = METHODS["restir-di"].create(RenderContext(built, width, height, {"jitter": jitter}, self.seed + 7919, timer, "restir-di"))
+            self.gbuffer = self.di.gbuffer
+        else:
+            self.gbuffer = GBuffer(self.width, self.height, dev)
         self.domains = [wp.zeros(shape, dtype=Domain, device=dev) for _ in range(2)]  # current, previous
         self.buffers = [wp.zeros(shape, dtype=SupportReservoir, device=dev) for _ in range(3)]  # 0: history, 1–2: scratch
         row = max(2, 1 + self.neighbors, 1 + self.gather_k + self.suffixes)
@@ -816,13 +830,16 @@ class SuffixReSTIR(ScreenSpaceRenderer):
         if self.suffixes > 0:
             with self._phase("own_suffixes"):
                 wp.launch(k["own"], dim=dim, inputs=[self.spec, self.seed, int(frame), self.suffix_bounces, dom], outputs=[self.own_z, self.own_x, self.own_res], device=dev)
+        direct = self.direct  # emission seen at x₁; with ReSTIR DI, emission and direct light
+        if self.di is not None:
+            direct = self.di.direct_light(frame)
         with self._phase("gather"):
             wp.launch(
                 k["gather"],
                 dim=dim,
                 inputs=[
                     self.spec, self.full_sp, self.seed, int(frame), self.prefixes, self.gather_k, self.suffixes, int(self.roulette), int(self.canonical),
-                    self.max_bounces, self.suffix_bounces, self.grid.id, self.grid_radius, dom, self.direct, cur,
+                    int(self.di is None), self.max_bounces, self.suffix_bounces, self.grid.id, self.grid_radius, dom, direct, cur,
                     self.own_z, self.own_x, self.own_res, self.knn_idx, self.knn_dist, self.rows,
                 ],
                 outputs=[self.image, self.nonfinite],
@@ -861,7 +878,7 @@ _SHARED = (
     Param("canonical", ..., "include the canonical suffix domain (false: the borrowed suffixes alone, biased: Eq. 17's coverage lost)", kind="bool"),
     Param("shift", ..., "suffix shift: hybrid (reconnect x2' -> x3 where both are rough, replay before), reconnection or replay", kind="choice", choices=("hybrid", "reconnection", "replay")),
     *_restir_pt_params("max_depth", "rr_depth", "rough_threshold", "near_field", "jacobian", "max_jacobian", "jitter"),
-    Param("direct", ..., "direct light: nee at the prefix vertex x1 (the only choice so far)", kind="choice", choices=("nee",)),
+    *_restir_pt_params("direct"),
 )
 
 register(

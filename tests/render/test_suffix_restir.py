@@ -42,8 +42,9 @@ DEEP = {"max_depth": 32}  # with Russian roulette from the scene's rr_depth
         ("door-ajar", {"prefixes": 8}),
         ("door-ajar", {"prefixes": 8, "roulette": False}),
         ("door-ajar", {"prefixes": 1, "roulette": False}),
+        ("closed-room", {**DEEP, "prefixes": 8, "direct": "restir-di"}),  # the paper's split: ReSTIR DI for x₁ → light
     ],
-    ids=["closed-room-N8", "closed-room-N8-no-roulette", "closed-room-N1", "door-ajar-N8", "door-ajar-N8-no-roulette", "door-ajar-N1"],
+    ids=["closed-room-N8", "closed-room-N8-no-roulette", "closed-room-N1", "door-ajar-N8", "door-ajar-N8-no-roulette", "door-ajar-N1", "closed-room-N8-restir-di"],
 )
 def test_unbiased_against_the_path_tracer(scene, params):
     # door-ajar's pixels are heavy-tailed (light through a gap): more runs keep the standard errors honest
@@ -131,8 +132,8 @@ def test_every_builtin_scene_renders_finite():
 def test_params_are_checked_and_stats_reported():
     with pytest.raises(InvalidParameterError, match="prefixes"):
         render("closed-room", "suffix-restir", res=(8, 8), params={"prefixes": 0})
-    with pytest.raises(InvalidParameterError):
-        render("closed-room", "suffix-restir", res=(8, 8), params={"direct": "restir-di"})
+    with pytest.raises(InvalidParameterError, match="direct"):
+        render("closed-room", "suffix-restir", res=(8, 8), params={"direct": "sky"})
     with pytest.raises(InvalidParameterError, match="suffixes"):
         render("closed-room", "mmis-gather", res=(8, 8), params={"prefixes": 2, "suffixes": 3})
     out = render("closed-room", "suffix-restir", res=(8, 6), params={"max_depth": 4})
