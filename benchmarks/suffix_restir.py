@@ -21,7 +21,8 @@ Per scene (``--scenes``) and method this script measures, on one device:
 Methods: ``pt`` (1 spp), ``restir-pt`` (1 candidate), ``restir-pt`` with more candidates at the
 time of ``suffix-restir`` with 8 prefixes (its candidate count set from the two measured frame
 times: the paper's equal-time setting), ``suffix-restir`` with 8, 32 and 128 prefixes
-(``--prefixes``) and ``mmis-gather`` (64 × 3). The paper's RTX 4090 frame times are recorded
+(``--prefixes``), the first of them again with the O(k) pairwise gather MIS (``gather_mis=pairwise``),
+and ``mmis-gather`` (64 × 3). The paper's RTX 4090 frame times are recorded
 beside ours (``paper_ms``): 8 prefixes 74 ms, ReSTIR PT 76 ms, 32 prefixes 207 ms, 128 prefixes 736 ms.
 
 Usage::
@@ -63,6 +64,7 @@ def methods(prefixes: list[int]) -> list[tuple[str, str, dict[str, Any]]]:
     """(label, method, params) of the compared renderers (the equal-time ReSTIR PT is added once timed)."""
     rows = [("pt", "pt", {}), ("restir-pt", "restir-pt", {})]
     rows += [(f"suffix-restir N={n}", "suffix-restir", {"prefixes": n}) for n in prefixes]
+    rows.append((f"suffix-restir N={prefixes[0]} pairwise", "suffix-restir", {"prefixes": prefixes[0], "gather_mis": "pairwise"}))
     rows.append(("mmis-gather 64x3", "mmis-gather", {"prefixes": 64, "suffixes": 3}))
     return [(label, m, {"max_depth": MAX_DEPTH, **p}) for label, m, p in rows]
 

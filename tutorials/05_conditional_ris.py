@@ -338,7 +338,7 @@ save(fig, "05_mmis.png")
 # point and one BSDF-sampled bounce), a suffix the path tracer's path from
 # $x_2$ on; the suffix shift is ReSTIR PT's hybrid shift into another
 # prefix's $x_2'$. Its kernels call `conditional_ris` for the temporal and
-# spatial suffix reuse, `gather_weight` (Eq. 22: the shifted suffix, its
+# spatial suffix reuse, `gather_sample` (Eq. 22: the shifted suffix, its
 # conditional balance MIS weight and the joint UCW
 # $W_{X^p}W_{X^s|Z}|T'|$), `roulette_pick` and `canonical_roulette_weight`
 # (Eq. 23) — the functions the toys above ran, built for a path record

@@ -45,7 +45,7 @@ module's hybrid shift into the other prefix's x₂' — reconnect x₂' → x₃
     ``prefixes`` = N new prefixes per pixel, each with NEE at x₁ (direct light, the same BSDF
     direction as the prefix, so one prefix and its suffix are one path-tracer path), and the
     suffixes of its ``gather_k`` nearest supporting prefixes, shifted to it, each term
-    m_i(Y_i|Z) f(X^p, Y_i) W_{X^p} W_{X_i|Z} |T_i'| (:func:`gather_weight`: joint UCW, Thm. 4.1).
+    m_i(Y_i|Z) f(X^p, Y_i) W_{X^p} W_{X_i|Z} |T_i'| (:func:`gather_sample`: joint UCW, Thm. 4.1; ``gather_mis=pairwise``: :func:`gather_weight_pairwise`, O(k) shifts instead of O(k²)).
     Every domain has weight α = 1 in the gather's MIS (Eq. 15): a borrowed suffix's reservoir
     confidence (up to ``history_cap``) describes its quality *at its own prefix*, not at the
     integration prefix, and weighting by it was measured worse (closed room, 24×18, frame 6:
@@ -125,7 +125,7 @@ from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.gbuffer import GBuffer, GBufferData
 from grisx.scene.lights import luminance
 from grisx.scene.scene import SceneData, finite_or_dropped, intersect, segment_occluded, spawn_origin
-from grisx.theory.conditional import PROXY_TARGET, canonical_roulette_weight, make_conditional_ris, roulette_pick
+from grisx.theory.conditional import PAIRWISE_TARGET, PROXY_TARGET, canonical_roulette_weight, make_conditional_ris, roulette_pick
 from grisx.theory.gris import resampling_weight, ucw_from_source_pdf
 from grisx.theory.mis import target_from, two_domain_balance
 from grisx.theory.random import random_subkey, random_uniform
@@ -136,6 +136,9 @@ wp.set_module_options({"enable_backward": False})
 
 __all__ = ["Prefix", "SupportReservoir", "SuffixReSTIR", "make_suffix_restir_kernels"]
 
+#: the gather's MIS (Eq. 22): the generalized balance heuristic over all domains (O(k²) shifts per prefix,
+#: the paper's), or pairs of each borrowed domain with the canonical one (O(k); grisx.theory.conditional)
+GATHER_MIS = {"balance": int(PROXY_TARGET), "pairwise": int(PAIRWISE_TARGET)}
 #: where direct light comes from: NEE at the prefix vertex x₁, or ReSTIR DI on the same G-buffer (restir_pt's choice)
 DIRECT_CHOICES = ("nee", "restir-di")
 # random streams of a pixel (pixel_key_of)
@@ -558,6 +561,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         own_suffixes: int,
         roulette: int,
         canonical: int,
+        mis_mode: int,
         nee_at_x1: int,
         max_bounces: int,
         suffix_bounces: int,
@@ -632,11 +636,11 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             # ---- Eq. 22 for this prefix: borrowed suffixes, then the (rouletted) canonical one ----
             for l in range(1, n_row):
                 if rows.conf[t, l] > 0.0:
-                    gw = CRIS.gather_weight(spec, PROXY_TARGET, z, w_prefix, l, 0, rows.z[t], rows.x[t], rows.res[t], rows.conf[t], rows.targets[t])
+                    gw = CRIS.gather_sample(spec, mis_mode, z, w_prefix, l, 0, rows.z[t], rows.x[t], rows.res[t], rows.conf[t], rows.targets[t])
                     if gw.weight > 0.0:
                         L += wp.cw_mul(z.f, gw.y.f) * (gw.weight * inv_n)  # f(X^p, Y_l) m_l W_{X^p,Y_l} / N
             if traced:
-                gw = CRIS.gather_weight(spec, PROXY_TARGET, z, w_prefix, 0, 0, rows.z[t], rows.x[t], rows.res[t], rows.conf[t], rows.targets[t])
+                gw = CRIS.gather_sample(spec, mis_mode, z, w_prefix, 0, 0, rows.z[t], rows.x[t], rows.res[t], rows.conf[t], rows.targets[t])
                 if gw.weight > 0.0:
                     rw = float(1.0)
                     if j >= own_suffixes:
@@ -690,6 +694,7 @@ class SuffixReSTIR(ScreenSpaceRenderer):
         gather_radius: float = 0.0,
         roulette: bool = True,
         canonical: bool = True,
+        gather_mis: str = "balance",
         temporal: bool = True,
         spatial: bool = True,
         suffix_in_prefix_target: bool = False,
@@ -711,6 +716,8 @@ class SuffixReSTIR(ScreenSpaceRenderer):
     ) -> None:
         if direct not in DIRECT_CHOICES:
             raise InvalidParameterError(f"direct must be one of {', '.join(DIRECT_CHOICES)}, not '{direct}'")
+        if gather_mis not in GATHER_MIS:
+            raise InvalidParameterError(f"gather_mis must be one of {', '.join(GATHER_MIS)}, not '{gather_mis}'")
         if prefixes < 1 or gather_k < 0 or gather_radius < 0.0 or suffixes < 0 or suffixes > prefixes:
             raise InvalidParameterError("suffix-restir needs prefixes >= 1, gather_k >= 0, gather_radius >= 0 and 0 <= suffixes <= prefixes")
         if max_depth == 0 or max_depth < -1 or rr_depth < 1 or neighbors < 0 or radius <= 0.0:
@@ -719,6 +726,7 @@ class SuffixReSTIR(ScreenSpaceRenderer):
         self.width, self.height = int(width), int(height)
         self.prefixes, self.gather_k, self.suffixes = int(prefixes), int(gather_k), int(suffixes)
         self.roulette, self.canonical = bool(roulette), bool(canonical)
+        self.mis_mode = GATHER_MIS[gather_mis]
         self.temporal, self.spatial = bool(temporal), bool(spatial)
         self.suffix_in_prefix_target = bool(suffix_in_prefix_target)
         self.neighbors, self.radius, self.history_cap = int(neighbors), float(radius), float(history_cap)
@@ -838,7 +846,7 @@ class SuffixReSTIR(ScreenSpaceRenderer):
                 k["gather"],
                 dim=dim,
                 inputs=[
-                    self.spec, self.full_sp, self.seed, int(frame), self.prefixes, self.gather_k, self.suffixes, int(self.roulette), int(self.canonical),
+                    self.spec, self.full_sp, self.seed, int(frame), self.prefixes, self.gather_k, self.suffixes, int(self.roulette), int(self.canonical), self.mis_mode,
                     int(self.di is None), self.max_bounces, self.suffix_bounces, self.grid.id, self.grid_radius, dom, direct, cur,
                     self.own_z, self.own_x, self.own_res, self.knn_idx, self.knn_dist, self.rows,
                 ],
@@ -896,6 +904,7 @@ register(
             Param("neighbors", ..., "spatial neighbours per pixel", kind="int", minimum=0, maximum=16),
             Param("radius", ..., "spatial reuse radius in pixels", minimum=1.0),
             Param("history_cap", ..., "temporal confidence cap of prefixes and suffixes"),
+            Param("gather_mis", ..., "gather MIS: balance (Eq. 15 over the k + 1 domains, O(k^2) shifts) or pairwise (each borrowed domain against the canonical, O(k))", kind="choice", choices=tuple(GATHER_MIS)),
             Param("suffix_in_prefix_target", ..., "prefix target f_p times the old suffix's target (seed 001, Sec. S.1.1): biased, for teaching", kind="bool"),
             *_SHARED,
         ),

@@ -88,7 +88,7 @@ from typing import Any
 
 import warp as wp
 
-from grisx.theory.mis import MIS_BALANCE, mis_weight, target_from
+from grisx.theory.mis import MIS_BALANCE, mis_weight, pairwise_mis_canonical_term, pairwise_mis_neighbor, target_from
 from grisx.theory.random import random_uniform
 from grisx.theory.gris import resampling_weight, ris_weight
 from grisx.theory.reservoir import Reservoir, confidence_capped, reservoir_empty, reservoir_finalize, reservoir_update
@@ -100,6 +100,7 @@ __all__ = [
     "canonical_roulette_weight",
     "PROXY_TARGET",
     "PROXY_SOURCE_PDF",
+    "PAIRWISE_TARGET",
     "make_conditional_ris",
 ]
 
@@ -108,6 +109,8 @@ __all__ = [
 #: inputs: the balance heuristic of MMIS, West et al. 2022)
 PROXY_TARGET = wp.constant(0)
 PROXY_SOURCE_PDF = wp.constant(1)
+#: the gather's MIS as pairs (each borrowed domain against the canonical one) over targets: O(k) shifts
+PAIRWISE_TARGET = wp.constant(2)
 
 
 @wp.func
@@ -197,7 +200,7 @@ def make_conditional_ris(
 
     Returns an object with the ``wp.func`` attributes ``canonical_suffix``,
     ``carried_target``, ``conditional_mis``, ``conditional_ris``,
-    ``spatial_conditional_ris``, ``gather_weight`` and ``gather_term`` and the structs
+    ``spatial_conditional_ris``, ``gather_sample``, ``gather_weight_pairwise`` and ``gather_term`` and the structs
     ``ConditionalReservoir`` and ``GatherSample``.
     """
     if suffix_empty is None:
@@ -382,7 +385,59 @@ def make_conditional_ris(
         return shifts
 
     @wp.func
-    def gather_weight(
+    def gather_weight_pairwise(
+        spec: spec_type,
+        z: prefix_type,
+        prefix_ucw: float,
+        source: int,
+        canonical: int,
+        prefixes: wp.array(dtype=prefix_type),
+        suffixes: wp.array(dtype=suffix_type),
+        reservoirs: wp.array(dtype=Reservoir),
+        confidences: wp.array(dtype=float),
+    ) -> GatherSample:
+        """:func:`gather_sample` with *pairwise* conditional MIS instead of the balance heuristic over all domains.
+
+        Each borrowed domain l pairs with the canonical one (Bitterli 2022's pairwise MIS read given
+        Z, :func:`~grisx.theory.mis.pairwise_mis_neighbor`): a borrowed sample's weight needs only
+        p̂(Y_l|z) and p̂_{←l}(Y_l) = p̂_l(X_l|Z_l) / |T_l'| — no further shift — and the canonical
+        sample's needs one inverse shift per borrowed domain, so a row of k + 1 costs O(k) shifts,
+        not O(k²). The weights still sum to one over the domains that reach y (the pair
+        weights sum to one; a pair whose borrowed domain misses y gives its share to the
+        canonical domain), which is all Eq. 22 asks. Domains of confidence 0 are left out.
+        """
+        out = GatherSample()
+        out.weight = 0.0
+        src = reservoirs[source]
+        s = shift(spec, prefixes[source], z, suffixes[source])
+        out.y = s.x
+        if not s.valid or src.ucw <= 0.0:
+            return out
+        n = prefixes.shape[0]
+        c_c = confidences[canonical]
+        total = c_c
+        k = int(0)
+        for l in range(n):
+            if l != canonical and confidences[l] > 0.0:
+                total += confidences[l]
+                k += 1
+        t_c = target(spec, z, s.x)  # p̂(y|z)
+        m = float(0.0)
+        if source == canonical:
+            if k == 0:
+                m = pairwise_mis_canonical_term(0.0, 0.0, c_c, t_c, 0, total)  # no neighbours: 1
+            for l in range(n):
+                if l != canonical and confidences[l] > 0.0:
+                    t_l = carried_target(spec, PROXY_TARGET, prefixes[l], z, s.x)  # p̂_{←l}(y), Eq. 16
+                    m += pairwise_mis_canonical_term(confidences[l], t_l, c_c, t_c, k, total)
+        else:
+            t_l = target_from(target(spec, prefixes[source], suffixes[source]), 1.0 / s.jacobian)  # p̂_l(x)/|T'|, Eq. 16
+            m = pairwise_mis_neighbor(confidences[source], t_l, c_c, t_c, k, total)
+        out.weight = m * joint_ucw(prefix_ucw, shifted_conditional_ucw(src.ucw, s.jacobian))
+        return out
+
+    @wp.func
+    def gather_sample(
         spec: spec_type,
         mode: int,
         z: prefix_type,
@@ -398,8 +453,12 @@ def make_conditional_ris(
         """Y_i = T_i(X_i|Z) and m_i(Y_i|Z) W_{X^p, Y_i}: input ``source``'s term of Eq. 22 for prefix z, less f (seed 001).
 
         W_{X^p,Y_i} = W_{X^p} · W_{X_i|Z} |T_i'| (Thm. 4.1 with the shifted
-        conditional UCW). Weight 0 where the shift is undefined or W = 0.
+        conditional UCW). m_i is :func:`conditional_mis` over the row with ``mode``'s proxy, or,
+        for ``PAIRWISE_TARGET``, :func:`gather_weight_pairwise`'s. Weight 0 where the shift is
+        undefined or W = 0.
         """
+        if mode == PAIRWISE_TARGET:
+            return gather_weight_pairwise(spec, z, prefix_ucw, source, canonical, prefixes, suffixes, reservoirs, confidences)
         out = GatherSample()
         out.weight = 0.0
         src = reservoirs[source]
@@ -427,9 +486,9 @@ def make_conditional_ris(
     ) -> float:
         """m_i(Y_i|Z) f(X^p, Y_i) W_{X^p, Y_i}: input ``source``'s term of Eq. 22 for prefix z (seed 001), scalar f.
 
-        :func:`gather_weight` times the integrand; 0 where the shift is undefined or W = 0.
+        :func:`gather_sample`'s weight times the integrand; 0 where the shift is undefined or W = 0.
         """
-        g = gather_weight(spec, mode, z, prefix_ucw, source, canonical, prefixes, suffixes, reservoirs, confidences, targets)
+        g = gather_sample(spec, mode, z, prefix_ucw, source, canonical, prefixes, suffixes, reservoirs, confidences, targets)
         if g.weight <= 0.0:
             return 0.0
         return g.weight * integrand(spec, z, g.y)
@@ -440,7 +499,8 @@ def make_conditional_ris(
     ns = ConditionalRIS()
     ns.ConditionalReservoir = ConditionalReservoir
     ns.GatherSample = GatherSample
-    ns.gather_weight = gather_weight
+    ns.gather_weight_pairwise = gather_weight_pairwise
+    ns.gather_sample = gather_sample
     ns.canonical_suffix = canonical_suffix
     ns.carried_target = carried_target
     ns.conditional_mis = conditional_mis

@@ -47,8 +47,10 @@ DEEP = {"max_depth": 32}  # with Russian roulette from the scene's rr_depth
         ("door-ajar", {"prefixes": 1, "roulette": False}),
         ("closed-room", {**DEEP, "prefixes": 8, "direct": "restir-di"}),  # the paper's split: ReSTIR DI for x₁ → light
         ("glossy-room", {"max_depth": 8, "prefixes": 8}),  # smooth x₂ or x₃: the suffix shift replays before it reconnects
+        ("closed-room", {**DEEP, "prefixes": 8, "gather_mis": "pairwise"}),  # O(k) MIS: each borrowed domain against the canonical
+        ("door-ajar", {"prefixes": 8, "gather_mis": "pairwise"}),
     ],
-    ids=["closed-room-N8", "closed-room-N8-no-roulette", "closed-room-N1", "door-ajar-N8", "door-ajar-N8-no-roulette", "door-ajar-N1", "closed-room-N8-restir-di", "glossy-room-N8"],
+    ids=["closed-room-N8", "closed-room-N8-no-roulette", "closed-room-N1", "door-ajar-N8", "door-ajar-N8-no-roulette", "door-ajar-N1", "closed-room-N8-restir-di", "glossy-room-N8", "closed-room-pairwise", "door-ajar-pairwise"],
 )
 def test_unbiased_against_the_path_tracer(scene, params):
     # door-ajar's and glossy-room's pixels are heavy-tailed: more runs keep the standard errors honest
