@@ -52,9 +52,9 @@ DEEP = {"max_depth": 32}  # with Russian roulette from the scene's rr_depth
     ],
     ids=["closed-room-N8", "closed-room-N8-no-roulette", "closed-room-N1", "door-ajar-N8", "door-ajar-N8-no-roulette", "door-ajar-N1", "closed-room-N8-restir-di", "glossy-room-N8", "closed-room-pairwise", "door-ajar-pairwise"],
 )
-def test_unbiased_against_the_path_tracer(scene, params):
+def test_unbiased_against_the_path_tracer(scene, params, device):
     # door-ajar's and glossy-room's pixels are heavy-tailed: more runs keep the standard errors honest
-    result = check("suffix-restir", params, scene=scene, camera="static", frames=3, runs=32 if scene == "closed-room" else 64, res=RES)
+    result = check("suffix-restir", params, scene=scene, camera="static", frames=3, runs=32 if scene == "closed-room" else 64, res=RES, device=device)
     print("suffix-restir", scene, params, "image z", result.image.z, result.blocks)
     assert result.passed, result
 
@@ -124,9 +124,9 @@ def test_one_prefix_without_reuse_is_a_path_tracer():
 # ---- robustness, params, stats ----------------------------------------------------------------------
 
 
-def test_every_builtin_scene_renders_finite():
+def test_every_builtin_scene_renders_finite(device):
     for name in BUILTIN_SCENES:
-        built = load_scene(name).build("cpu")
+        built = load_scene(name).build(device)
         for method, extra in (("suffix-restir", {}), ("mmis-gather", {"prefixes": 4})):
             params = {**method_params(method, {"max_depth": 6, **extra}), "spp": 1}
             r = METHODS[method].create(RenderContext(built, 8, 6, params, 2, None, method))
