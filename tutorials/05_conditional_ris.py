@@ -334,17 +334,18 @@ save(fig, "05_mmis.png")
 # ## 6. A scene: the final gather beside ReSTIR PT
 #
 # `--method suffix-restir` (`grisx/render/suffix_restir.py`) is the same
-# estimator on light paths. A prefix is $x_1 \to x_2$ (the camera's visible
-# point and one BSDF-sampled bounce), a suffix the path tracer's path from
-# $x_2$ on; the suffix shift is ReSTIR PT's hybrid shift into another
-# prefix's $x_2'$. Its kernels call `conditional_ris` for the temporal and
+# estimator on light paths. A prefix runs from the camera's visible point
+# $x_1$ to $x_k$, the end of the first pair of rough vertices (in a diffuse
+# room $k = 2$: one bounce), a suffix is the path tracer's path from $x_k$
+# on, and the suffix shift is ReSTIR PT's hybrid shift into another
+# prefix's $x_k'$. Its kernels call `conditional_ris` for the temporal and
 # spatial suffix reuse, `gather_sample` (Eq. 22: the shifted suffix, its
 # conditional balance MIS weight and the joint UCW
 # $W_{X^p}W_{X^s|Z}|T'|$), `roulette_pick` and `canonical_roulette_weight`
 # (Eq. 23) — the functions the toys above ran, built for a path record
 # instead of a float by `make_conditional_ris(..., prefix_type=Prefix,
-# suffix_type=PathSample)`. The $k$ nearest supporting prefixes come from a
-# spatial hash grid over their $x_2$, rebuilt every frame.
+# suffix_type=PathSample)`. The nearest supporting prefixes come from a
+# spatial hash grid over their $x_k$, rebuilt every frame.
 #
 # Below: the closed room of bright walls and one small light (long paths),
 # one frame after a few frames of history under a static camera, for ReSTIR

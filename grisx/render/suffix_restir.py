@@ -2,59 +2,66 @@
 
 ReSTIR PT (:mod:`~grisx.render.restir_pt`) reuses whole paths at the primary vertex x₁, so a
 pixel's neighbours hand it their secondary bounces too: the image is smooth but correlated.
-Suffix ReSTIR cuts each path x₁ → x₂ → x₃ → … into a **prefix** x^p = (x₁ → x₂) and a
-**suffix** x^s = (x₂ → x₃ → …), reuses only suffixes, and integrates by tracing fresh prefixes
-that *borrow* them. A suffix is sampled after its prefix, so its weight is a conditional UCW
+Suffix ReSTIR cuts each path x₁ → x₂ → … into a **prefix** x^p = (x₁ → … → x_k) and a
+**suffix** x^s = (x_k → x_{k+1} → …), reuses only suffixes, and integrates by tracing fresh
+prefixes that *borrow* them. The prefix ends at x_k, the second vertex of the first pair of
+consecutive rough vertices farther apart than the near field — the hybrid shift's
+reconnection rule (``prefix=hybrid``; in a diffuse scene k = 2, and ``prefix=bounce`` always
+cuts at x₂). A suffix is sampled after its prefix, so its weight is a conditional UCW
 W_{X^s|Z} (seed 001, Def. 4.1) given the **supporting prefixes** Z that carry it; every formula
 of that theory is :mod:`grisx.theory.conditional`'s, built here by
 :func:`~grisx.theory.conditional.make_conditional_ris` with this file's prefix record and
 :class:`~grisx.render.base.path_shift.PathSample` as the suffix.
 
-A suffix is a path of the *domain* at its prefix's end vertex x₂ (ω_o toward x₁): the path
+A suffix is a path of the *domain* at its prefix's end vertex x_k (ω_o toward x_{k−1}): the path
 tracer of :func:`~grisx.render.base.path_shift.make_path_shift` traces it (``stream_candidates``,
 its NEE and BSDF-hit candidates, one kept by RIS), and the suffix shift T(x^s | Z_j → z) is that
-module's hybrid shift into the other prefix's x₂' — reconnect x₂' → x₃ where x₂ and x₃ are rough
-(seed 004, Eq. 11), replay first where they are not. Per frame:
+module's hybrid shift into the other prefix's x_k' — reconnect x_k' → x_{k+1} where both are
+rough (seed 004, Eq. 11), replay first where they are not — undefined where the suffix is longer
+than the other prefix leaves (``max_depth`` counts the whole path). Per frame:
 
 ``# ---- primary vertices ----``
     x₁ from the jittered G-buffer; emission seen directly is added outside the estimator.
 ``# ---- supporting prefixes ----`` (Alg. 1 lines 4–6)
-    a new prefix x₁ → x₂ by BSDF sampling at x₁, GRIS-merged with the previous frame's
-    supporting prefix at the reprojected pixel (reconnected x₁' → x₂, |J| of Eq. 11) with target
-    p̂(x^p) = f_p(x^p) (Eq. 19) and the generalized balance heuristic (Eq. 15), the old one
-    favoured by its confidence (capped at ``history_cap``). Prefix selection never looks at a
-    suffix (Sec. 6.2); ``suffix_in_prefix_target=true`` multiplies the target by the old suffix's
-    p̂ — the self-conditioned alternative of Sec. S.1.1, biased, for teaching.
+    a new prefix by BSDF sampling from x₁, GRIS-merged with the previous frame's supporting
+    prefix at the reprojected pixel, shifted here by random replay (|J| = p_src / p_dst; a
+    one-bounce prefix reconnects x₁' → x₂ instead, |J| of Eq. 11), with target p̂(x^p) = f_p(x^p)
+    (Eq. 19) and the generalized balance heuristic (Eq. 15), the old one favoured by its
+    confidence (capped at ``history_cap``). Prefix selection never looks at a suffix (Sec. 6.2);
+    ``suffix_in_prefix_target=true`` multiplies the target by the old suffix's p̂ — the
+    self-conditioned alternative of Sec. S.1.1, biased, for teaching.
 ``# ---- temporal suffix reuse ----`` (Alg. 1 lines 8–9)
     a canonical suffix after the supporting prefix, then conditional RIS
     (:func:`conditional_ris`, Eq. 13) between it and the previous suffix shifted to this prefix,
-    target p̂_i(x^s) = f_ps f_s (Eq. 20: the suffix path's own m_t f in the domain x₂), MIS the
+    target p̂_i(x^s) = f_ps f_s (Eq. 20: the suffix path's own m_t f in the domain x_k), MIS the
     conditional generalized balance heuristic (Eq. 15–16) with the supporting prefixes as Z and
     the old suffix's confidence as its domain weight.
 ``# ---- spatial suffix reuse ----`` (Alg. 1 line 10)
     conditional RIS over the pixel's own suffix (canonical) and ``neighbors`` similar pixels'
     within ``radius``.
 ``# ---- k-NN grid ----``
-    the supporting prefixes' end points x₂ go into a uniform spatial hash (``wp.HashGrid``)
+    the supporting prefixes' end points x_k go into a uniform spatial hash (``wp.HashGrid``)
     built each frame; the paper searched a BVH. A hash grid is what Warp offers on CPU and CUDA
     alike, is rebuilt in one pass per frame, and a fixed-radius query with the k nearest kept
     is what the gather needs. The radius (``gather_radius`` × scene radius; 0: automatic,
-    2 R √(k / pixels), the spacing of k prefixes if the pixels' x₂ covered a disc of radius R)
+    2 R √(k / pixels), the spacing of k prefixes if the pixels' x_k covered a disc of radius R)
     bounds the search: fewer than k neighbours within it are fewer domains, not bias.
 ``# ---- final gather ----`` (Eq. 22–23, Alg. 1 lines 12–22)
-    ``prefixes`` = N new prefixes per pixel, each with NEE at x₁ (direct light, the same BSDF
-    direction as the prefix, so one prefix and its suffix are one path-tracer path), and the
-    suffixes of its ``gather_k`` nearest supporting prefixes, shifted to it, each term
-    m_i(Y_i|Z) f(X^p, Y_i) W_{X^p} W_{X_i|Z} |T_i'| (:func:`gather_sample`: joint UCW, Thm. 4.1; ``gather_mis=pairwise``: :func:`gather_weight_pairwise`, O(k) shifts instead of O(k²)).
-    Every domain has weight α = 1 in the gather's MIS (Eq. 15): a borrowed suffix's reservoir
-    confidence (up to ``history_cap``) describes its quality *at its own prefix*, not at the
-    integration prefix, and weighting by it was measured worse (closed room, 24×18, frame 6:
-    relMSE 0.175 against 0.068 with α = 1). The MIS weights include the prefix's own canonical
-    suffix domain; with ``roulette=true`` only
-    one random prefix traces its canonical suffix, weighted N (:func:`roulette_pick`,
-    :func:`canonical_roulette_weight`, Eq. 23); ``roulette=false`` traces one per prefix.
-    ``canonical=false`` drops the canonical domain: the borrowed suffixes no longer cover the
-    suffix space (Eq. 17) — biased, and the tests show it.
+    ``prefixes`` = N new prefixes per pixel. Each one's own walk (the same uniforms) adds the
+    light of the paths that end within it — NEE at x₁ … x_{k−1} and emitters hit at x₂ … x_k,
+    MIS'd as in ``pt`` (all of the walk's light where no suffix follows) — so that one prefix
+    and its suffix are one path-tracer path. Then it borrows the suffixes of its ``gather_k``
+    nearest supporting prefixes, shifted to it, each term m_i(Y_i|Z) f(X^p, Y_i) W_{X^p}
+    W_{X_i|Z} |T_i'| (:func:`gather_sample`: joint UCW, Thm. 4.1; ``gather_mis=pairwise``:
+    :func:`gather_weight_pairwise`, O(k) shifts instead of O(k²)). Every domain has weight
+    α = 1 in the gather's MIS (Eq. 15): a borrowed suffix's reservoir confidence (up to
+    ``history_cap``) describes its quality *at its own prefix*, not at the integration prefix,
+    and weighting by it was measured worse (closed room, 24×18, frame 6: relMSE 0.175 against
+    0.068 with α = 1). The MIS weights include the prefix's own canonical suffix domain; with
+    ``roulette=true`` only one random prefix traces its canonical suffix, weighted N
+    (:func:`roulette_pick`, :func:`canonical_roulette_weight`, Eq. 23); ``roulette=false``
+    traces one per prefix. ``canonical=false`` drops the canonical domain: the borrowed
+    suffixes no longer cover the suffix space (Eq. 17) — biased, and the tests show it.
 
 **MMIS baseline** (``mmis-gather``, West et al. 2022 as in seed 001 Fig. 7): no reuse across
 pixels or frames; each pixel traces ``prefixes`` prefixes and ``suffixes`` suffixes (after its
@@ -64,22 +71,17 @@ that traced none).
 
 **Simplifications** (stated, not hidden):
 
-* the prefix is always one bounce (x₁ → x₂). The paper ends it at the hybrid shift's
-  reconnection vertex; here where x₂ or x₃ is smooth the *suffix* shift replays until a rough
-  pair instead (the same hybrid rule, applied inside the suffix), which keeps every suffix
-  domain the same depth, so max_depth and Russian roulette (from ``rr_depth`` − 1 within the
-  suffix) mean the same in every domain;
-* the prefix direction itself is never rouletted; the suffix's roulette starts from the
-  suffix's own throughput (pt's from the whole path's): other survival probabilities, same mean;
+* prefixes are never rouletted; a suffix's roulette starts at its own x_k (from ``rr_depth`` − 1
+  within the suffix, on the suffix's own throughput), pt's on the whole path's: other survival
+  probabilities, the same mean;
 * the MMIS baseline weighs by targets (the generalized balance heuristic, Eq. 15) rather than
   by source pdfs: a path-tracer suffix kept by RIS over its candidates has no tracked pdf;
-* direct light by NEE at x₁ (``direct=nee``) or, as the paper, by ReSTIR DI (``direct=restir-di``:
-  :mod:`~grisx.render.restir_di` on the same G-buffer owns the paths x₁ → light, as in
-  ReSTIR PT's option; the gather then skips its NEE at x₁). The paper also applies NEE at the
-  prefix vertices; ours are x₁ alone, and x₂'s light is the suffix's (its NEE candidates).
+* direct light by NEE along the prefix (``direct=nee``) or, as the paper, by ReSTIR DI
+  (``direct=restir-di``: :mod:`~grisx.render.restir_di` on the same G-buffer owns the paths
+  x₁ → light, as in ReSTIR PT's option; the prefix's NEE walk then starts at two segments).
 
 Temporal reuse evaluates the previous frame's prefixes and suffixes with this frame's geometry
-(exact for static scenes, as in ReSTIR PT). The reservoir of a pixel holds a prefix (its x₂
+(exact for static scenes, as in ReSTIR PT). The reservoir of a pixel holds a prefix (its x_k
 record, f_p, its reservoir) and a suffix path reservoir: ``stats()["reservoir_bytes_per_pixel"]``
 reports its size beside ReSTIR PT's.
 
@@ -104,6 +106,7 @@ from grisx.errors import InvalidParameterError
 from grisx.params import Param
 from grisx.render.base.path_shift import (
     DIM_BSDF,
+    density_in_range,
     Domain,
     PathReservoir,
     PathSample,
@@ -130,7 +133,7 @@ from grisx.theory.gris import resampling_weight, ucw_from_source_pdf
 from grisx.theory.mis import target_from, two_domain_balance
 from grisx.theory.random import random_subkey, random_uniform
 from grisx.theory.reservoir import Reservoir, confidence_capped, reservoir_empty, reservoir_finalize, reservoir_merge, reservoir_update
-from grisx.theory.shift import reconnection_jacobian
+from grisx.theory.shift import reconnection_jacobian, replay_jacobian
 
 wp.set_module_options({"enable_backward": False})
 
@@ -139,6 +142,8 @@ __all__ = ["Prefix", "SupportReservoir", "SuffixReSTIR", "make_suffix_restir_ker
 #: the gather's MIS (Eq. 22): the generalized balance heuristic over all domains (O(k²) shifts per prefix,
 #: the paper's), or pairs of each borrowed domain with the canonical one (O(k); grisx.theory.conditional)
 GATHER_MIS = {"balance": int(PROXY_TARGET), "pairwise": int(PAIRWISE_TARGET)}
+#: where a prefix ends: the hybrid shift's reconnection rule (the paper's), or always after one bounce (x₂)
+PREFIX_RULES = ("hybrid", "bounce")
 #: where direct light comes from: NEE at the prefix vertex x₁, or ReSTIR DI on the same G-buffer (restir_pt's choice)
 DIRECT_CHOICES = ("nee", "restir-di")
 # random streams of a pixel (pixel_key_of)
@@ -154,9 +159,11 @@ _STREAM_CHOICES = wp.constant(8192)  # + j: reservoir decisions of prefix j's pa
 
 @wp.struct
 class Prefix:
-    """A prefix x₁ → x₂: its end x₂ as the suffix's domain (ω_o toward x₁; ``valid`` 0: it escaped),
-    f_p (x₁'s BSDF·|cos|, π-scaled measure as in path_shift), the direction's density, and the
-    reconnection data of x₂ (cos at x₂ of the segment, its length; ``delta``: sampled from a delta lobe)."""
+    """A prefix x₁ → … → x_k: its end x_k as the suffix's domain (ω_o toward x_{k−1}; ``valid`` 0: no
+    suffix follows), f_p (Π BSDF·|cos|, π-scaled measure as in path_shift), the directions' density,
+    the reconnection data of x_k (cos at x_k of the last segment, its length; ``delta``: that segment
+    sampled from a delta lobe), its seed ``key`` (replay), ``length`` = k − 1 segments and the
+    suffix's budget ``bounces`` (segments after x_k; −1: unbounded)."""
 
     dom: Domain
     f: wp.vec3
@@ -164,6 +171,9 @@ class Prefix:
     cos: float
     dist: float
     delta: int
+    key: wp.uint32
+    length: int
+    bounces: int
 
 
 @wp.struct
@@ -177,10 +187,12 @@ class SupportReservoir:
 
 @wp.struct
 class SuffixSpec:
-    """What the conditional-RIS hooks read: the scene and the suffix shift's params."""
+    """What the conditional-RIS hooks read: the scene, the suffix shift's params, and the prefix rule."""
 
     scene: SceneData
     sp: ShiftParams
+    max_bounces: int  # segments after x₁ (−1: unbounded): a prefix of length k − 1 leaves its suffix the rest
+    hybrid_prefix: int  # 1: the prefix ends at the first rough pair (sp's thresholds); 0: always at x₂
 
 
 @wp.struct
@@ -227,6 +239,8 @@ def prefix_empty() -> Prefix:
     p.dom.valid = 0
     p.f = wp.vec3(0.0)
     p.pdf = 0.0
+    p.length = 0
+    p.bounces = 0
     return p
 
 
@@ -269,43 +283,21 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
 
     @wp.func
     def suffix_shift(spec: SuffixSpec, z_src: Prefix, z_dst: Prefix, x: PathSample) -> SuffixShift:
-        """The conditioned shift T(x^s | z_src → z_dst): path_shift's hybrid shift into z_dst's x₂ (the source data is in x)."""
+        """The conditioned shift T(x^s | z_src → z_dst): path_shift's hybrid shift into z_dst's x_k (the source data is in x).
+
+        Undefined where the suffix is longer than z_dst leaves it (max_depth counts the whole path).
+        """
         s = path_shift(spec.scene, z_dst.dom, x, spec.sp)
         out = SuffixShift()
         out.x = s.path
         out.jacobian = s.jacobian
-        out.valid = s.valid
+        out.valid = s.valid and (z_dst.bounces < 0 or x.length <= z_dst.bounces)
         return out
 
     CRIS = make_conditional_ris(
         SuffixSpec, suffix_target, None, None, suffix_shift, suffix_integrand, prefix_type=Prefix, suffix_type=PathSample, suffix_empty=suffix_none
     )
     module = specialized_module(__name__, kinds)
-
-    @wp.func
-    def sample_prefix(scene: SceneData, x1: Domain, key: wp.uint32) -> Prefix:
-        """A prefix by BSDF sampling at x₁ with the path tracer's uniforms of vertex 1 (its NEE shares ``key``)."""
-        p = prefix_empty()
-        if x1.valid == 0:
-            return p
-        m = vertex_material(scene, x1.material, x1.uv)
-        frame = frame_from_normal(x1.ns)
-        c = path_dim(1, DIM_BSDF)
-        bs = bsdf.sample(m, to_local(frame, x1.wo), random_uniform(key, c), wp.vec2(random_uniform(key, c + 1), random_uniform(key, c + 2)))
-        if bs.valid == 0 or not (bs.pdf > 0.0):
-            return p
-        d = wp.normalize(to_world(frame, bs.wi))
-        si = intersect(scene, spawn_origin(scene, x1.p, x1.ng, d), d, 1.0e30)
-        if si.valid == 0:
-            return p  # escaped: its light is NEE's and the emitter-hit candidate's at x₁
-        s = segment_measure(bs.delta)
-        p.dom = vertex_from_hit(si, -d)
-        p.f = bs.weight * (bs.pdf * s)
-        p.pdf = bs.pdf * s
-        p.dist = wp.length(si.p - x1.p)
-        p.cos = wp.dot(si.ng, x1.p - si.p) / p.dist
-        p.delta = bs.delta
-        return p
 
     @wp.func
     def reconnect_prefix(scene: SceneData, x1: Domain, z: Prefix) -> PrefixShift:
@@ -344,15 +336,86 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         return out
 
     @wp.func
-    def trace_suffix(spec: SuffixSpec, z: Prefix, key: wp.uint32, ukey: wp.uint32, max_bounces: int) -> PathReservoir:
-        """A canonical suffix after z (Alg. 1 line 8): one path-tracer path from x₂, one candidate kept by RIS, confidence 1."""
+    def sample_prefix(spec: SuffixSpec, x1: Domain, key: wp.uint32) -> Prefix:
+        """A prefix from x₁ by BSDF sampling with the path tracer's uniforms (its NEE shares ``key``), no roulette.
+
+        It ends at x_k, the second vertex of the first pair (x_{k−1}, x_k) rougher than the
+        threshold and farther apart than the near field (the hybrid shift's rule), or at x₂ with
+        ``hybrid_prefix`` 0. Invalid (no suffix) where it escapes, fails, or finds no pair within
+        ``max_bounces``: then the NEE walk of the gather owns all of that path's light.
+        """
+        p = prefix_empty()
+        p.key = key
+        if x1.valid == 0:
+            return p
+        v = x1
+        f = wp.vec3(1.0, 1.0, 1.0)
+        pdf = float(1.0)
+        i = int(1)
+        while spec.max_bounces < 0 or i <= spec.max_bounces:
+            m = vertex_material(spec.scene, v.material, v.uv)
+            frame = frame_from_normal(v.ns)
+            c = path_dim(i, DIM_BSDF)
+            bs = bsdf.sample(m, to_local(frame, v.wo), random_uniform(key, c), wp.vec2(random_uniform(key, c + 1), random_uniform(key, c + 2)))
+            if bs.valid == 0 or not (bs.pdf > 0.0):
+                return p
+            s = segment_measure(bs.delta)
+            f = wp.cw_mul(f, bs.weight * (bs.pdf * s))
+            pdf = pdf * bs.pdf * s
+            if not density_in_range(pdf):
+                return p
+            d = wp.normalize(to_world(frame, bs.wi))
+            si = intersect(spec.scene, spawn_origin(spec.scene, v.p, v.ng, d), d, 1.0e30)
+            if si.valid == 0:
+                return p  # escaped: its light is the NEE walk's
+            dist = wp.length(si.p - v.p)
+            rough_pair = bsdf.roughness(m) > spec.sp.rough_threshold and shifts.roughness(spec.scene, si.material) > spec.sp.rough_threshold
+            if spec.hybrid_prefix == 0 or (rough_pair and dist > spec.sp.near_distance):
+                p.dom = vertex_from_hit(si, -d)
+                p.f = f
+                p.pdf = pdf
+                p.dist = dist
+                p.cos = wp.dot(si.ng, v.p - si.p) / dist
+                p.delta = bs.delta
+                p.length = i
+                p.bounces = -1
+                if spec.max_bounces >= 0:
+                    p.bounces = spec.max_bounces - i
+                return p
+            v = vertex_from_hit(si, -d)
+            i += 1
+        return p
+
+    @wp.func
+    def replay_prefix(spec: SuffixSpec, x1: Domain, z: Prefix) -> PrefixShift:
+        """The prefix z replayed from another x₁ (its seed; |J| = p_src / p_dst, Lin et al. 2022 Sec. 7.1); undefined where the
+        replayed prefix has another length (T stays a bijection)."""
+        out = PrefixShift()
+        out.z = sample_prefix(spec, x1, z.key)
+        out.jacobian = 0.0
+        out.valid = False
+        if z.dom.valid != 0 and out.z.dom.valid != 0 and out.z.length == z.length:
+            out.jacobian = replay_jacobian(z.pdf, out.z.pdf)
+            out.valid = out.jacobian > 0.0
+        return out
+
+    @wp.func
+    def shift_prefix(spec: SuffixSpec, x1: Domain, z: Prefix) -> PrefixShift:
+        """The supporting prefix's shift into another pixel: reconnection x₁' → x₂ for one-bounce prefixes, replay for the hybrid rule's."""
+        if spec.hybrid_prefix != 0:
+            return replay_prefix(spec, x1, z)
+        return reconnect_prefix(spec.scene, x1, z)
+
+    @wp.func
+    def trace_suffix(spec: SuffixSpec, z: Prefix, key: wp.uint32, ukey: wp.uint32) -> PathReservoir:
+        """A canonical suffix after z (Alg. 1 line 8): one path-tracer path from x_k, one candidate kept by RIS, confidence 1."""
         pr = PathReservoir()
         pr.res = reservoir_empty()
         pr.path = path_sample_empty()
         pr.estimate = wp.vec3(0.0)
-        if z.dom.valid == 0 or max_bounces == 0:
+        if z.dom.valid == 0 or z.bounces == 0:
             return pr
-        pr = stream(spec.scene, z.dom, key, max_bounces, 1.0, spec.sp, pr, ukey)
+        pr = stream(spec.scene, z.dom, key, z.bounces, 1.0, spec.sp, pr, ukey)
         pr = settle(spec.scene, z.dom, pr, spec.sp)
         pr.res.confidence = 1.0
         return pr
@@ -379,7 +442,6 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         seed: int,
         frame: int,
         history_valid: int,
-        suffix_bounces: int,
         history_cap: float,
         temporal_suffix: int,
         suffix_in_prefix_target: int,
@@ -398,7 +460,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         dom_i = domains[y, x]
         ukey = pixel_key_of(seed, frame, x, y, width, _STREAM_TEMPORAL)
         # the canonical prefix x₁ → x₂ (Alg. 1 line 4), W = 1/p
-        z_can = sample_prefix(scene, dom_i, pixel_key_of(seed, frame, x, y, width, _STREAM_PREFIX))
+        z_can = sample_prefix(spec, dom_i, pixel_key_of(seed, frame, x, y, width, _STREAM_PREFIX))
         r = reservoir_empty()
         z = z_can
         prev = SupportReservoir()
@@ -414,8 +476,8 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             # ---- temporal prefix reuse: GRIS, target f_p (Eq. 19), generalized balance MIS (Eq. 15) ----
             dom_j = domains_prev[nb.y, nb.x]
             c_j = confidence_capped(prev.prefix_res.confidence, history_cap)
-            s_cj = reconnect_prefix(scene, dom_j, z_can)  # the canonical prefix in the old pixel
-            s_t = reconnect_prefix(scene, dom_i, prev.prefix)  # the old prefix in this pixel
+            s_cj = shift_prefix(spec, dom_j, z_can)  # the canonical prefix in the old pixel
+            s_t = shift_prefix(spec, dom_i, prev.prefix)  # the old prefix in this pixel
             t_cj = float(0.0)
             t_ti = float(0.0)
             t_tj = float(0.0)
@@ -450,7 +512,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         res.prefix_res = r
         # ---- temporal suffix reuse: conditional RIS between the canonical and the old suffix (Alg. 1 lines 8–9) ----
         skey = pixel_key_of(seed, frame, x, y, width, _STREAM_SUPPORT_SUFFIX)
-        can = trace_suffix(spec, z, skey, random_subkey(skey, 1), suffix_bounces)
+        can = trace_suffix(spec, z, skey, random_subkey(skey, 1))
         res.suffix = can
         if have_prev != 0 and temporal_suffix != 0 and z.dom.valid != 0:
             row_set(rows, t, 0, z, can.path, can.res, 1.0)
@@ -562,9 +624,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         roulette: int,
         canonical: int,
         mis_mode: int,
-        nee_at_x1: int,
         max_bounces: int,
-        suffix_bounces: int,
         grid: wp.uint64,
         grid_radius: float,
         domains: wp.array2d(dtype=Domain),
@@ -595,16 +655,20 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         n_row = 1 + gather_k + own_suffixes
         for j in range(prefixes):
             pkey = random_subkey(gkey, _STREAM_GATHER_PREFIX + j)
-            # ---- direct light at x₁: NEE and the emitter the prefix direction hits (MIS), as pt ----
-            if max_bounces != 0 and nee_at_x1 != 0:
+            z = sample_prefix(spec, dom, pkey)
+            # ---- light of the paths that end within the prefix: NEE at x₁ … x_{k−1}, emitters hit at x₂ … x_k (MIS), as pt ----
+            # (the same walk: the same uniforms; without a suffix, the whole path is the walk's)
+            walk = max_bounces
+            if z.dom.valid != 0:
+                walk = z.length
+            if walk != 0:
                 d = PathReservoir()
                 d.res = reservoir_empty()
                 d.path = path_sample_empty()
                 d.estimate = wp.vec3(0.0)
-                d = stream(spec.scene, dom, pkey, 1, 1.0, full_sp, d, random_subkey(gkey, _STREAM_CHOICES + j))
-                L += d.estimate * inv_n  # Σ f/p over its two candidates
-            z = sample_prefix(spec.scene, dom, pkey)
-            if z.dom.valid == 0 or suffix_bounces == 0:
+                d = stream(spec.scene, dom, pkey, walk, 1.0, full_sp, d, random_subkey(gkey, _STREAM_CHOICES + j))
+                L += d.estimate * inv_n  # Σ f/p over its candidates
+            if z.dom.valid == 0 or z.bounces == 0:
                 continue
             w_prefix = ucw_from_source_pdf(z.pdf)
             # entry 0: the prefix's own (canonical) suffix domain, α = 0 without it (canonical=false, biased)
@@ -615,7 +679,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
                     row_set(rows, t, 0, z, own_x[t, j], own_res[t, j], 1.0)
                 else:
                     skey = random_subkey(gkey, _STREAM_GATHER_SUFFIX + j)
-                    c = trace_suffix(spec, z, skey, random_subkey(skey, 1), suffix_bounces)
+                    c = trace_suffix(spec, z, skey, random_subkey(skey, 1))
                     row_set(rows, t, 0, z, c.path, c.res, 1.0)
             # entries 1 … k: the suffixes of the k nearest supporting prefixes (Alg. 1 lines 14–15)
             found = int(0)
@@ -654,7 +718,6 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         spec: SuffixSpec,
         seed: int,
         frame: int,
-        suffix_bounces: int,
         domains: wp.array2d(dtype=Domain),
         own_z: wp.array2d(dtype=Prefix),
         own_x: wp.array2d(dtype=PathSample),
@@ -666,9 +729,9 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         gkey = pixel_key_of(seed, frame, x, y, width, _STREAM_GATHER)
         for j in range(own_z.shape[1]):
             # prefix j is the gather's prefix j (same key): its suffix is traced once, here
-            z = sample_prefix(spec.scene, domains[y, x], random_subkey(gkey, _STREAM_GATHER_PREFIX + j))
+            z = sample_prefix(spec, domains[y, x], random_subkey(gkey, _STREAM_GATHER_PREFIX + j))
             skey = random_subkey(gkey, _STREAM_GATHER_SUFFIX + j)
-            c = trace_suffix(spec, z, skey, random_subkey(skey, 1), suffix_bounces)
+            c = trace_suffix(spec, z, skey, random_subkey(skey, 1))
             own_z[t, j] = z
             own_x[t, j] = c.path
             own_res[t, j] = c.res
@@ -695,6 +758,7 @@ class SuffixReSTIR(ScreenSpaceRenderer):
         roulette: bool = True,
         canonical: bool = True,
         gather_mis: str = "balance",
+        prefix: str = "hybrid",
         temporal: bool = True,
         spatial: bool = True,
         suffix_in_prefix_target: bool = False,
@@ -716,6 +780,8 @@ class SuffixReSTIR(ScreenSpaceRenderer):
     ) -> None:
         if direct not in DIRECT_CHOICES:
             raise InvalidParameterError(f"direct must be one of {', '.join(DIRECT_CHOICES)}, not '{direct}'")
+        if prefix not in PREFIX_RULES:
+            raise InvalidParameterError(f"prefix must be one of {', '.join(PREFIX_RULES)}, not '{prefix}'")
         if gather_mis not in GATHER_MIS:
             raise InvalidParameterError(f"gather_mis must be one of {', '.join(GATHER_MIS)}, not '{gather_mis}'")
         if prefixes < 1 or gather_k < 0 or gather_radius < 0.0 or suffixes < 0 or suffixes > prefixes:
@@ -735,13 +801,15 @@ class SuffixReSTIR(ScreenSpaceRenderer):
         self.timer = timer
         # segments after x₁ (-1 unbounded), and after x₂ for a suffix (the prefix is one of them)
         self.max_bounces = -1 if max_depth < 0 else int(max_depth) - 1
-        self.suffix_bounces = -1 if max_depth < 0 else max(int(max_depth) - 2, 0)
         near = float(near_field) * float(built.data.scene_radius)
         common = dict(rough_threshold=rough_threshold, near_distance=near, jacobian_max=max_jacobian, jacobian=jacobian)
-        self.full_sp = shift_params(shift, rr_depth=rr_depth, **common)  # the NEE at x₁ (pt's walk)
+        # the prefix's NEE walk (pt's); with ReSTIR DI it starts at two segments (DI owns x₁ → light)
+        self.full_sp = shift_params(shift, rr_depth=rr_depth, min_bounces=2 if direct == "restir-di" else 1, **common)
         self.spec = SuffixSpec()
         self.spec.scene = built.data
-        self.spec.sp = shift_params(shift, rr_depth=max(int(rr_depth) - 1, 1), **common)  # the suffix domain starts one vertex on
+        self.spec.sp = shift_params(shift, rr_depth=max(int(rr_depth) - 1, 1), **common)  # roulette counted from the suffix's own x_k
+        self.spec.max_bounces = self.max_bounces
+        self.spec.hybrid_prefix = int(prefix == "hybrid")
         n = self.width * self.height
         self.grid_radius = float(gather_radius) * float(built.data.scene_radius)
         if self.grid_radius <= 0.0:
@@ -816,7 +884,7 @@ class SuffixReSTIR(ScreenSpaceRenderer):
                     k["support"],
                     dim=dim,
                     inputs=[
-                        self.spec, self.seed, int(frame), int(self.temporal and self.frames_rendered > 0), self.suffix_bounces, self.history_cap,
+                        self.spec, self.seed, int(frame), int(self.temporal and self.frames_rendered > 0), self.history_cap,
                         int(self.temporal), int(self.suffix_in_prefix_target), self.gbuffer.current, self.gbuffer.previous, dom, dom_prev, history, self.rows,
                     ],
                     outputs=[cur],
@@ -837,7 +905,7 @@ class SuffixReSTIR(ScreenSpaceRenderer):
                 self.grid.build(self.points, self.grid_radius)
         if self.suffixes > 0:
             with self._phase("own_suffixes"):
-                wp.launch(k["own"], dim=dim, inputs=[self.spec, self.seed, int(frame), self.suffix_bounces, dom], outputs=[self.own_z, self.own_x, self.own_res], device=dev)
+                wp.launch(k["own"], dim=dim, inputs=[self.spec, self.seed, int(frame), dom], outputs=[self.own_z, self.own_x, self.own_res], device=dev)
         direct = self.direct  # emission seen at x₁; with ReSTIR DI, emission and direct light
         if self.di is not None:
             direct = self.di.direct_light(frame)
@@ -847,7 +915,7 @@ class SuffixReSTIR(ScreenSpaceRenderer):
                 dim=dim,
                 inputs=[
                     self.spec, self.full_sp, self.seed, int(frame), self.prefixes, self.gather_k, self.suffixes, int(self.roulette), int(self.canonical), self.mis_mode,
-                    int(self.di is None), self.max_bounces, self.suffix_bounces, self.grid.id, self.grid_radius, dom, direct, cur,
+                    self.max_bounces, self.grid.id, self.grid_radius, dom, direct, cur,
                     self.own_z, self.own_x, self.own_res, self.knn_idx, self.knn_dist, self.rows,
                 ],
                 outputs=[self.image, self.nonfinite],
@@ -904,6 +972,7 @@ register(
             Param("neighbors", ..., "spatial neighbours per pixel", kind="int", minimum=0, maximum=16),
             Param("radius", ..., "spatial reuse radius in pixels", minimum=1.0),
             Param("history_cap", ..., "temporal confidence cap of prefixes and suffixes"),
+            Param("prefix", ..., "where a prefix ends: hybrid (at the first pair of rough vertices, the paper's split) or bounce (always at x2)", kind="choice", choices=PREFIX_RULES),
             Param("gather_mis", ..., "gather MIS: balance (Eq. 15 over the k + 1 domains, O(k^2) shifts) or pairwise (each borrowed domain against the canonical, O(k))", kind="choice", choices=tuple(GATHER_MIS)),
             Param("suffix_in_prefix_target", ..., "prefix target f_p times the old suffix's target (seed 001, Sec. S.1.1): biased, for teaching", kind="bool"),
             *_SHARED,
