@@ -8,7 +8,7 @@ Per scene (``--scenes``) and method this script measures, on one device:
 
 * **frame time**: the median seconds per frame after the first (compilation and the empty
   history off the clock), the renderer's own pass times beside it;
-* **per-frame relMSE** (ε = 1e-2) of the frames in the second half of a run under the
+* **per-frame relMSE** (ε = 1e-2) of the last two frames of a run under the
   scene's **camera path**, each against a path-traced reference at that frame's camera
   (``benchmarks/protocol.py``'s helpers; the references' own noise subtracted), and
   **HDR-FLIP** of the last frame; the **gain over pt** at equal time,
@@ -18,9 +18,12 @@ Per scene (``--scenes``) and method this script measures, on one device:
   independent frames, larger where reuse correlates frames (the paper's motivation for
   reusing suffixes only).
 
+The slow rows (more than 8 prefixes, MMIS) run ``--heavy-frames`` (8) frames instead (both
+cameras), evaluated at their own last two frames of the camera path.
+
 Methods: ``pt`` (1 spp), ``restir-pt`` (1 candidate), ``restir-pt`` with more candidates at the
-time of ``suffix-restir`` with 8 prefixes (its candidate count set from the two measured frame
-times: the paper's equal-time setting), ``suffix-restir`` with 8, 32 and 128 prefixes
+time of ``suffix-restir`` with 8 prefixes (the paper's equal-time setting; the candidate count
+from a line through ReSTIR PT's frame time at 1 candidate and at a probe count), ``suffix-restir`` with 8, 32 and 128 prefixes
 (``--prefixes``), the first of them again with the O(k) pairwise gather MIS (``gather_mis=pairwise``),
 and ``mmis-gather`` (64 × 3). The paper's RTX 4090 frame times are recorded
 beside ours (``paper_ms``): 8 prefixes 74 ms, ReSTIR PT 76 ms, 32 prefixes 207 ms, 128 prefixes 736 ms.
@@ -69,8 +72,34 @@ def methods(prefixes: list[int]) -> list[tuple[str, str, dict[str, Any]]]:
     return [(label, m, {"max_depth": MAX_DEPTH, **p}) for label, m, p in rows]
 
 
-def static_correlation(scene: str, method: str, params: dict[str, Any], ref: np.ndarray, ref_var: np.ndarray, args: argparse.Namespace) -> dict[str, float]:
-    """relMSE of the temporal average of ``args.frames`` static frames, and the correlation factor."""
+def equal_time_candidates(scene: str, target: float, t_one: float, args: argparse.Namespace) -> int:
+    """ReSTIR PT's candidate count whose frame time is ``target``: a line through 1 candidate (``t_one``) and a probe run."""
+    c = max(1, int(round(target / t_one)))
+    if c == 1:
+        return 1
+    probe = argparse.Namespace(frames=4, res=(args.width, args.height), device=args.device, seed=args.seed + 5)
+    _, t_c, _ = render_frames(scene, "restir-pt", {"max_depth": MAX_DEPTH, "candidates": c}, None, "moving", probe, [])
+    per_candidate = (t_c - t_one) / (c - 1)
+    return max(1, int(round(1 + (target - t_one) / per_candidate))) if per_candidate > 0 else c
+
+
+def last_frames(frames: int) -> list[int]:
+    """The evaluated frames of a run of ``frames`` frames: its last two (history warmed up)."""
+    return sorted(set(range(frames // 2, frames)))[-2:]
+
+
+def heavy_row(label: str) -> bool:
+    """Whether a row is one of the slow ones (more than 8 prefixes, or MMIS) that run ``--heavy-frames`` frames."""
+    if label.startswith("mmis"):
+        return True
+    if label.startswith("suffix-restir N="):
+        return int(label.split("=")[1].split()[0]) > 8
+    return False
+
+
+def static_correlation(scene: str, method: str, params: dict[str, Any], ref: np.ndarray, ref_var: np.ndarray, args: argparse.Namespace,
+                       frames: int) -> dict[str, float]:
+    """relMSE of the temporal average of ``frames`` static frames, and the correlation factor."""
     from grisx.eval.metrics import RELMSE_EPSILON, relmse
     from grisx.render.driver import METHODS, render
 
@@ -82,13 +111,13 @@ def static_correlation(scene: str, method: str, params: dict[str, Any], ref: np.
         total.append(image.astype(np.float64) if not total else total.pop() + image)
 
     spp = 1 if METHODS[method].uses_spp else None
-    render(scene, method, spp=spp, frames=args.frames, res=(args.width, args.height), device=args.device, seed=args.seed + 11,
+    render(scene, method, spp=spp, frames=frames, res=(args.width, args.height), device=args.device, seed=args.seed + 11,
            params=params, camera="static", on_frame=on_frame)
     noise = reference_relmse(ref, ref_var, RELMSE_EPSILON)
-    average = total[0] / args.frames
+    average = total[0] / frames
     avg = relmse(average, ref) - noise
     frame = float(np.mean(per_frame)) - noise
-    return {"static_frame_relmse": frame, "average_relmse": avg, "correlation_factor": args.frames * avg / frame if frame > 0 else None}
+    return {"static_frame_relmse": frame, "average_relmse": avg, "average_frames": frames, "correlation_factor": frames * avg / frame if frame > 0 else None}
 
 
 def run_scene(scene: str, args: argparse.Namespace) -> list[dict[str, Any]]:
@@ -97,7 +126,6 @@ def run_scene(scene: str, args: argparse.Namespace) -> list[dict[str, Any]]:
     from grisx.render.driver import load_scene
 
     sc = load_scene(scene)
-    eval_frames = sorted(set(range(args.frames // 2, args.frames)))[-4:]  # the last (up to) 4 frames of the camera path
     built = sc.build(args.device)
     built.animate_camera = True
     refs: dict[int, tuple[np.ndarray, np.ndarray]] = {}
@@ -110,7 +138,6 @@ def run_scene(scene: str, args: argparse.Namespace) -> list[dict[str, Any]]:
     static = sc.build(args.device)
     static.animate_camera = False
     static_ref = reference_at(static, args.width, args.height, 0, MAX_DEPTH, args.reference_spp, args.seed + 7920)
-    run = argparse.Namespace(frames=args.frames, res=(args.width, args.height), device=args.device, seed=args.seed)
     specs = methods(args.prefixes)
     records: list[dict[str, Any]] = []
     seconds_of: dict[str, float] = {}
@@ -119,26 +146,30 @@ def run_scene(scene: str, args: argparse.Namespace) -> list[dict[str, Any]]:
         label, method, params = specs[i]
         i += 1
         spp = 1 if REGISTRY[method].uses_spp else None
-        kept, seconds, r = render_frames(scene, method, params, spp, "moving", run, eval_frames)
+        # the slow rows (more than 8 prefixes, MMIS) run --heavy-frames frames, evaluated at their own last frames
+        frames = min(args.frames, args.heavy_frames) if heavy_row(label) else args.frames
+        ev = last_frames(frames)
+        run = argparse.Namespace(frames=frames, res=(args.width, args.height), device=args.device, seed=args.seed)
+        kept, seconds, r = render_frames(scene, method, params, spp, "moving", run, ev)
         seconds_of[label] = seconds
-        last = eval_frames[-1]
+        last = ev[-1]
         rec = {"scene": scene, "method": label, "renderer": method, "params": params, "width": args.width, "height": args.height,
-               "frames": args.frames, "eval_frames": eval_frames, "ms_per_frame": 1e3 * seconds,
-               "ms_per_pass": {k: 1e3 * v / args.frames for k, v in r.pass_seconds.items() if k != "scene_update"},
+               "frames": frames, "eval_frames": ev, "ms_per_frame": 1e3 * seconds,
+               "ms_per_pass": {k: 1e3 * v / frames for k, v in r.pass_seconds.items() if k != "scene_update"},
                "frame_relmse": frame_relmse(kept, ref_for, MAX_DEPTH), "frame_flip": float(flip(kept[last], ref_for(last, MAX_DEPTH)[0])),
                "nonfinite_samples": r.settings.get("nonfinite_samples", 0), "stats": r.settings.get("stats", {}), "paper_ms": PAPER_MS.get(label),
                "last_frame": kept[last]}
-        rec.update(static_correlation(scene, method, params, *static_ref, args))
+        rec.update(static_correlation(scene, method, params, *static_ref, args, rec["frames"]))
         records.append(rec)
-        if label == "suffix-restir N=8" and "restir-pt" in seconds_of:
-            c = max(1, int(round(seconds / seconds_of["restir-pt"])))
+        if label == f"suffix-restir N={args.prefixes[0]}" and "restir-pt" in seconds_of:
+            c = equal_time_candidates(scene, seconds, seconds_of["restir-pt"], args)
             specs.insert(i, (f"restir-pt equal-time (candidates={c})", "restir-pt", {"max_depth": MAX_DEPTH, "candidates": c}))
         print(f"[{scene}] {label:34s} {1e3 * seconds:9.2f} ms  relMSE {rec['frame_relmse']:.4g}  FLIP {rec['frame_flip']:.4f}  "
               f"corr. x{rec['correlation_factor'] or 0:.2f}", file=sys.stderr, flush=True)
     base = next(r for r in records if r["method"] == "pt")
     for rec in records:
         rec["gain_vs_pt"] = base["frame_relmse"] * base["ms_per_frame"] / (rec["frame_relmse"] * rec["ms_per_frame"]) if rec["frame_relmse"] > 0 else None
-    records.append({"scene": scene, "method": "reference", "last_frame": ref_for(eval_frames[-1], MAX_DEPTH)[0]})
+    records.append({"scene": scene, "method": "reference", "last_frame": ref_for(last_frames(args.frames)[-1], MAX_DEPTH)[0]})
     return records
 
 
@@ -175,9 +206,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--width", type=int, default=None, help="default 1920 on CUDA, 64 on CPU")
     ap.add_argument("--height", type=int, default=None, help="default 1080 on CUDA, 36 on CPU")
     ap.add_argument("--frames", type=int, default=32, help="frames per run (the temporal average's length)")
+    ap.add_argument("--heavy-frames", type=int, default=8, help="frames of the slow rows (more than 8 prefixes, MMIS)")
     ap.add_argument("--scenes", default="closed-room,cornell-box", help="comma-separated built-in scenes")
     ap.add_argument("--prefixes", default="8,32,128", help="integration prefixes per pixel of the suffix-restir rows")
-    ap.add_argument("--reference-spp", type=int, default=None, help="reference samples per pixel (default 4096 on CUDA, 256 on CPU)")
+    ap.add_argument("--reference-spp", type=int, default=None, help="reference samples per pixel (default 1024 on CUDA, 256 on CPU; their noise is subtracted)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", type=Path, default=Path(__file__).resolve().parent / "results")
     args = ap.parse_args(argv)
@@ -189,9 +221,9 @@ def main(argv: list[str] | None = None) -> int:
     cuda = dev.is_cuda
     args.width = args.width or (1920 if cuda else 64)
     args.height = args.height or (1080 if cuda else 36)
-    args.reference_spp = args.reference_spp or (4096 if cuda else 256)
+    args.reference_spp = args.reference_spp or (1024 if cuda else 256)
     args.prefixes = [int(n) for n in args.prefixes.split(",") if n]
-    if args.frames < 2 or args.width < 1 or args.height < 1 or not args.prefixes:
+    if args.frames < 2 or args.heavy_frames < 2 or args.width < 1 or args.height < 1 or not args.prefixes:
         print("suffix_restir.py: error: need --frames >= 2, a positive size and at least one prefix count", file=sys.stderr)
         return 2
     args.out.mkdir(parents=True, exist_ok=True)
@@ -202,7 +234,8 @@ def main(argv: list[str] | None = None) -> int:
         "device": str(dev),
         "device_name": dev.name if cuda else platform.processor() or platform.machine(),
         "versions": {"grisx": grisx.__version__, "warp": wp.config.version, "numpy": np.__version__, "python": platform.python_version()},
-        "settings": {"scenes": args.scenes.split(","), "width": args.width, "height": args.height, "frames": args.frames, "max_depth": MAX_DEPTH,
+        "settings": {"scenes": args.scenes.split(","), "width": args.width, "height": args.height, "frames": args.frames,
+                     "heavy_frames": args.heavy_frames, "max_depth": MAX_DEPTH,
                      "prefixes": args.prefixes, "reference_spp": args.reference_spp, "seed": args.seed, "relmse_epsilon": 1e-2,
                      "reference": "pt at each evaluated frame's camera (moving), at frame 0 (static), max_depth 12"},
         "paper_ms_rtx4090": PAPER_MS,
