@@ -739,6 +739,17 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     return {"primary": primary_pass, "support": support_pass, "spatial": spatial_pass, "points": points_pass, "gather": gather_pass, "own": own_suffix_pass}
 
 
+def _rows(n: int, width: int, device: Any) -> Rows:
+    """``n`` rows of ``width`` domains (one per pixel), zeroed: empty domains of confidence 0."""
+    rows = Rows()
+    rows.z = wp.zeros((n, width), dtype=Prefix, device=device)
+    rows.x = wp.zeros((n, width), dtype=PathSample, device=device)
+    rows.res = wp.zeros((n, width), dtype=Reservoir, device=device)
+    rows.conf = wp.zeros((n, width), dtype=float, device=device)
+    rows.targets = wp.zeros((n, width), dtype=float, device=device)
+    return rows
+
+
 def _struct_bytes(struct: Any) -> int:
     return int(ctypes.sizeof(struct.ctype))
 
@@ -828,13 +839,8 @@ class SuffixReSTIR(ScreenSpaceRenderer):
             self.gbuffer = GBuffer(self.width, self.height, dev)
         self.domains = [wp.zeros(shape, dtype=Domain, device=dev) for _ in range(2)]  # current, previous
         self.buffers = [wp.zeros(shape, dtype=SupportReservoir, device=dev) for _ in range(3)]  # 0: history, 1–2: scratch
-        row = max(2, 1 + self.neighbors, 1 + self.gather_k + self.suffixes)
-        self.rows = Rows()
-        self.rows.z = wp.zeros((n, row), dtype=Prefix, device=dev)
-        self.rows.x = wp.zeros((n, row), dtype=PathSample, device=dev)
-        self.rows.res = wp.zeros((n, row), dtype=Reservoir, device=dev)
-        self.rows.conf = wp.zeros((n, row), dtype=float, device=dev)
-        self.rows.targets = wp.zeros((n, row), dtype=float, device=dev)
+        # one row width per pass: conditional RIS and the MIS read every entry of a row
+        self.rows = {name: _rows(n, width, dev) for name, width in (("temporal", 2), ("spatial", 1 + self.neighbors), ("gather", 1 + self.gather_k + self.suffixes))}
         own = max(self.suffixes, 1)
         self.own_z = wp.zeros((n, own), dtype=Prefix, device=dev)
         self.own_x = wp.zeros((n, own), dtype=PathSample, device=dev)
@@ -885,7 +891,7 @@ class SuffixReSTIR(ScreenSpaceRenderer):
                     dim=dim,
                     inputs=[
                         self.spec, self.seed, int(frame), int(self.temporal and self.frames_rendered > 0), self.history_cap,
-                        int(self.temporal), int(self.suffix_in_prefix_target), self.gbuffer.current, self.gbuffer.previous, dom, dom_prev, history, self.rows,
+                        int(self.temporal), int(self.suffix_in_prefix_target), self.gbuffer.current, self.gbuffer.previous, dom, dom_prev, history, self.rows["temporal"],
                     ],
                     outputs=[cur],
                     device=dev,
@@ -895,7 +901,7 @@ class SuffixReSTIR(ScreenSpaceRenderer):
                     wp.launch(
                         k["spatial"],
                         dim=dim,
-                        inputs=[self.spec, self.seed, int(frame), self.neighbors, self.radius, self.history_cap, self.gbuffer.current, dom, cur, self.rows],
+                        inputs=[self.spec, self.seed, int(frame), self.neighbors, self.radius, self.history_cap, self.gbuffer.current, dom, cur, self.rows["spatial"]],
                         outputs=[other],
                         device=dev,
                     )
@@ -916,7 +922,7 @@ class SuffixReSTIR(ScreenSpaceRenderer):
                 inputs=[
                     self.spec, self.full_sp, self.seed, int(frame), self.prefixes, self.gather_k, self.suffixes, int(self.roulette), int(self.canonical), self.mis_mode,
                     self.max_bounces, self.grid.id, self.grid_radius, dom, direct, cur,
-                    self.own_z, self.own_x, self.own_res, self.knn_idx, self.knn_dist, self.rows,
+                    self.own_z, self.own_x, self.own_res, self.knn_idx, self.knn_dist, self.rows["gather"],
                 ],
                 outputs=[self.image, self.nonfinite],
                 device=dev,

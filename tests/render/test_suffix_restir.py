@@ -51,8 +51,9 @@ DEEP = {"max_depth": 32}  # with Russian roulette from the scene's rr_depth
         ("glossy-room", {"max_depth": 8, "prefixes": 8, "prefix": "bounce"}),  # one-bounce prefixes: the suffix shift replays
         ("closed-room", {**DEEP, "prefixes": 8, "gather_mis": "pairwise"}),  # O(k) MIS: each borrowed domain against the canonical
         ("door-ajar", {"prefixes": 8, "gather_mis": "pairwise"}),
+        ("closed-room", {"max_depth": 8, "gather_k": 1, "neighbors": 5}),  # rows of other widths per pass
     ],
-    ids=["closed-room-N8", "closed-room-N8-no-roulette", "closed-room-N1", "door-ajar-N8", "door-ajar-N8-no-roulette", "door-ajar-N1", "closed-room-N8-restir-di", "glossy-room-N8", "glossy-room-N8-one-bounce-prefix", "closed-room-pairwise", "door-ajar-pairwise"],
+    ids=["closed-room-N8", "closed-room-N8-no-roulette", "closed-room-N1", "door-ajar-N8", "door-ajar-N8-no-roulette", "door-ajar-N1", "closed-room-N8-restir-di", "glossy-room-N8", "glossy-room-N8-one-bounce-prefix", "closed-room-pairwise", "door-ajar-pairwise", "closed-room-k1-5-neighbors"],
 )
 def test_unbiased_against_the_path_tracer(scene, params, device):
     # door-ajar's and glossy-room's pixels are heavy-tailed: more runs keep the standard errors honest
