@@ -257,7 +257,7 @@ def prefix_target(z: Prefix) -> float:
 
 @wp.func
 def suffix_target(spec: SuffixSpec, z: Prefix, x: PathSample) -> float:
-    """p̂_i(x^s) = f_ps(X_i^p, x^s) f_s(x^s) (seed 001, Eq. 20): the suffix path's m_t f in z's domain x₂."""
+    """p̂_i(x^s) = f_ps(X_i^p, x^s) f_s(x^s) (seed 001, Eq. 20): the suffix path's m_t f in z's domain x_k."""
     return path_target(x)
 
 
@@ -459,7 +459,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         scene = spec.scene
         dom_i = domains[y, x]
         ukey = pixel_key_of(seed, frame, x, y, width, _STREAM_TEMPORAL)
-        # the canonical prefix x₁ → x₂ (Alg. 1 line 4), W = 1/p
+        # the canonical prefix x₁ → … → x_k (Alg. 1 line 4), W = 1/p
         z_can = sample_prefix(spec, dom_i, pixel_key_of(seed, frame, x, y, width, _STREAM_PREFIX))
         r = reservoir_empty()
         z = z_can
@@ -588,7 +588,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         idx: wp.array(dtype=int),
         dist: wp.array(dtype=float),
     ) -> int:
-        """The ≤ k supporting prefixes whose x₂ are nearest to ``p`` within ``radius`` (FindSpatialKNN), sorted, in ``idx``."""
+        """The ≤ k supporting prefixes whose x_k are nearest to ``p`` within ``radius`` (FindSpatialKNN), sorted, in ``idx``."""
         width = support.shape[1]
         count = int(0)
         query = wp.hash_grid_query(grid, p, radius)
@@ -810,7 +810,7 @@ class SuffixReSTIR(ScreenSpaceRenderer):
         self.jitter = bool(jitter)
         self.seed = int(seed)
         self.timer = timer
-        # segments after x₁ (-1 unbounded), and after x₂ for a suffix (the prefix is one of them)
+        # segments after x₁ (-1 unbounded); a suffix gets what its prefix leaves (Prefix.bounces)
         self.max_bounces = -1 if max_depth < 0 else int(max_depth) - 1
         near = float(near_field) * float(built.data.scene_radius)
         common = dict(rough_threshold=rough_threshold, near_distance=near, jacobian_max=max_jacobian, jacobian=jacobian)
@@ -958,7 +958,7 @@ def _restir_pt_params(*names: str) -> tuple[Param, ...]:
 _SHARED = (
     Param("roulette", ..., "Russian-roulette canonical suffix (seed 001, Eq. 23): one prefix traces it, weighted N; false: every prefix traces one", kind="bool"),
     Param("canonical", ..., "include the canonical suffix domain (false: the borrowed suffixes alone, biased: Eq. 17's coverage lost)", kind="bool"),
-    Param("shift", ..., "suffix shift: hybrid (reconnect x2' -> x3 where both are rough, replay before), reconnection or replay", kind="choice", choices=("hybrid", "reconnection", "replay")),
+    Param("shift", ..., "suffix shift: hybrid (reconnect x_k' -> x_k+1 where both are rough, replay before), reconnection or replay", kind="choice", choices=("hybrid", "reconnection", "replay")),
     *_restir_pt_params("max_depth", "rr_depth", "rough_threshold", "near_field", "jacobian", "max_jacobian", "jitter"),
     *_restir_pt_params("direct"),
 )
