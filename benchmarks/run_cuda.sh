@@ -4,12 +4,13 @@
 # GROUP: theory (toys, conditional, gradient, control_variates, manifold), poisson,
 #        scene (scene.py, pt.py), restir (restir_every_scene.py, restir_gi.py, restir_pt.py),
 #        gradients (gradient_domain.py: seed 000's equal-time comparison at 1920x1080, moving camera),
+#        suffix (suffix_restir.py: Suffix ReSTIR vs ReSTIR PT and MMIS, 1920x1080, camera path),
 #        study (grisx bench render), multigpu (multi_gpu_reference.py: needs 2 GPUs, not in the default groups).
 # Default: all groups. Each script writes its JSON and PNG into OUT_DIR.
 set -euo pipefail
 out=${1:-benchmarks/results/cuda}
 shift || true
-groups=${*:-theory poisson scene restir gradients study}
+groups=${*:-theory poisson scene restir gradients suffix study}
 mkdir -p "$out"
 py=${PYTHON:-python3}
 for g in $groups; do
@@ -31,6 +32,8 @@ for g in $groups; do
       $py benchmarks/restir_pt.py --device cuda --out "$out" ;;
     gradients)
       $py benchmarks/gradient_domain.py --device cuda --out "$out" ;;
+    suffix)
+      $py benchmarks/suffix_restir.py --device cuda --out "$out" ;;
     study)
       $py -m grisx bench render cornell-box door-ajar --method pt --method restir-di --method restir-gi --method restir-pt \
           --budget 5 --res 640x360 --device cuda --out "$out/study" ;;

@@ -88,7 +88,7 @@ from typing import Any
 
 import warp as wp
 
-from grisx.theory.mis import MIS_BALANCE, mis_weight, target_from
+from grisx.theory.mis import MIS_BALANCE, mis_weight, pairwise_mis_canonical_term, pairwise_mis_neighbor, target_from
 from grisx.theory.random import random_uniform
 from grisx.theory.gris import resampling_weight, ris_weight
 from grisx.theory.reservoir import Reservoir, confidence_capped, reservoir_empty, reservoir_finalize, reservoir_update
@@ -100,6 +100,7 @@ __all__ = [
     "canonical_roulette_weight",
     "PROXY_TARGET",
     "PROXY_SOURCE_PDF",
+    "PAIRWISE_TARGET",
     "make_conditional_ris",
 ]
 
@@ -108,6 +109,8 @@ __all__ = [
 #: inputs: the balance heuristic of MMIS, West et al. 2022)
 PROXY_TARGET = wp.constant(0)
 PROXY_SOURCE_PDF = wp.constant(1)
+#: the gather's MIS as pairs (each borrowed domain against the canonical one) over targets: O(k) shifts
+PAIRWISE_TARGET = wp.constant(2)
 
 
 @wp.func
@@ -156,8 +159,26 @@ def canonical_roulette_weight(roulette: int, chosen: wp.bool, count: int) -> flo
     return 0.0
 
 
-def make_conditional_ris(spec_type: Any, target: Any, sample: Any, source_pdf: Any, shift: Any, integrand: Any) -> Any:
+def make_conditional_ris(
+    spec_type: Any,
+    target: Any,
+    sample: Any,
+    source_pdf: Any,
+    shift: Any,
+    integrand: Any,
+    *,
+    prefix_type: Any = float,
+    suffix_type: Any = float,
+    suffix_empty: Any = None,
+) -> Any:
     """Build the conditional-RIS functions for one problem (a namespace of ``wp.func``).
+
+    ``prefix_type`` and ``suffix_type`` are the Warp types of a prefix z and a suffix x (floats
+    for the 1D toys; :mod:`grisx.render.suffix_restir` passes its prefix record and
+    :class:`~grisx.render.base.path_shift.PathSample`), ``suffix_empty() -> suffix_type`` the
+    "no suffix" value (0.0 by default). ``sample`` and ``source_pdf`` may be None where suffixes
+    come from elsewhere (the renderer traces them with the path tracer); then
+    ``canonical_suffix`` is not built and only the target proxy (``PROXY_TARGET``) exists.
 
     Hooks (Warp functions of the problem's ``spec`` struct):
 
@@ -168,7 +189,8 @@ def make_conditional_ris(spec_type: Any, target: Any, sample: Any, source_pdf: A
     ``shift(spec, z_src, z_dst, x) -> ShiftResult``
         the conditioned shift T(x | z_src → z_dst) with |∂T/∂x| and validity;
     ``integrand(spec, z, x) -> float``
-        the full path contribution f(z, x) = f_p f_ps f_s (seed 001, Eq. 18).
+        the full path contribution f(z, x) = f_p f_ps f_s (seed 001, Eq. 18) (any type that a
+        float scales: the renderer's is RGB).
 
     A *domain row* of n inputs is three arrays of length n: ``prefixes[l]`` (the
     supporting prefix Z_l), ``suffixes[l]`` (X_l) and ``reservoirs[l]`` (its
@@ -178,20 +200,31 @@ def make_conditional_ris(spec_type: Any, target: Any, sample: Any, source_pdf: A
 
     Returns an object with the ``wp.func`` attributes ``canonical_suffix``,
     ``carried_target``, ``conditional_mis``, ``conditional_ris``,
-    ``spatial_conditional_ris`` and ``gather_term`` and the struct
-    ``ConditionalReservoir``.
+    ``spatial_conditional_ris``, ``gather_sample``, ``gather_weight_pairwise`` and ``gather_term`` and the structs
+    ``ConditionalReservoir`` and ``GatherSample``.
     """
+    if suffix_empty is None:
+
+        @wp.func
+        def suffix_empty() -> float:
+            return 0.0
 
     @wp.struct
     class ConditionalReservoir:
         """One conditional-RIS result: reservoir (W_{Y|Z} in ``ucw``), its sample y, and the shifts it cost."""
 
         reservoir: Reservoir
-        y: float
+        y: suffix_type
         shifts: int
 
-    @wp.func
-    def canonical_suffix(spec: spec_type, z: float, candidates: int, key: wp.uint32, counter: int) -> ConditionalReservoir:
+    @wp.struct
+    class GatherSample:
+        """One input of Eq. 22 shifted to the integration prefix: Y_i and m_i(Y_i|Z) W_{X^p,Y_i} (0: no term)."""
+
+        y: suffix_type
+        weight: float
+
+    def canonical_suffix(spec: spec_type, z: prefix_type, candidates: int, key: wp.uint32, counter: int) -> ConditionalReservoir:
         """A fresh suffix after prefix z by RIS of M candidates from p(·|z) (seed 001, Sec. 5.1; Alg. 1 line 8).
 
         w = p̂(x|z) / (M p(x|z)) (seed 000, Eq. 6 given z), W_{X|z} = Σ w / p̂(X|z)
@@ -201,7 +234,7 @@ def make_conditional_ris(spec_type: Any, target: Any, sample: Any, source_pdf: A
         """
         out = ConditionalReservoir()
         r = reservoir_empty()
-        y = float(0.0)
+        y = suffix_empty()
         inv_m = 1.0 / float(candidates)
         for c in range(candidates):
             x = sample(spec, z, random_uniform(key, counter + 2 * c))
@@ -216,14 +249,27 @@ def make_conditional_ris(spec_type: Any, target: Any, sample: Any, source_pdf: A
         out.shifts = 0
         return out
 
-    @wp.func
-    def proxy(spec: spec_type, mode: int, z: float, x: float) -> float:
-        if mode == PROXY_SOURCE_PDF:
-            return source_pdf(spec, z, x)
-        return target(spec, z, x)
+    if sample is not None:
+        canonical_suffix = wp.func(canonical_suffix)
+    else:
+        canonical_suffix = None
+
+    if source_pdf is not None:
+
+        @wp.func
+        def proxy(spec: spec_type, mode: int, z: prefix_type, x: suffix_type) -> float:
+            if mode == PROXY_SOURCE_PDF:
+                return source_pdf(spec, z, x)
+            return target(spec, z, x)
+
+    else:
+
+        @wp.func
+        def proxy(spec: spec_type, mode: int, z: prefix_type, x: suffix_type) -> float:
+            return target(spec, z, x)  # PROXY_TARGET only
 
     @wp.func
-    def carried_target(spec: spec_type, mode: int, z_from: float, z: float, y: float) -> float:
+    def carried_target(spec: spec_type, mode: int, z_from: prefix_type, z: prefix_type, y: suffix_type) -> float:
         """p̂_{←j}(y|Z) (seed 001, Eq. 16): the proxy of the domain with prefix ``z_from`` at T⁻¹(y), times |T'⁻¹|."""
         s = shift(spec, z, z_from, y)  # the inverse shift: destination prefix z back to domain j's
         if not s.valid:
@@ -234,11 +280,11 @@ def make_conditional_ris(spec_type: Any, target: Any, sample: Any, source_pdf: A
     def conditional_mis(
         spec: spec_type,
         mode: int,
-        z: float,
-        y: float,
+        z: prefix_type,
+        y: suffix_type,
         source: int,
         canonical: int,
-        prefixes: wp.array(dtype=float),
+        prefixes: wp.array(dtype=prefix_type),
         confidences: wp.array(dtype=float),
         targets: wp.array(dtype=float),
     ) -> float:
@@ -259,10 +305,10 @@ def make_conditional_ris(spec_type: Any, target: Any, sample: Any, source_pdf: A
     @wp.func
     def conditional_ris(
         spec: spec_type,
-        z: float,
+        z: prefix_type,
         canonical: int,
-        prefixes: wp.array(dtype=float),
-        suffixes: wp.array(dtype=float),
+        prefixes: wp.array(dtype=prefix_type),
+        suffixes: wp.array(dtype=suffix_type),
         reservoirs: wp.array(dtype=Reservoir),
         confidences: wp.array(dtype=float),
         targets: wp.array(dtype=float),
@@ -280,7 +326,7 @@ def make_conditional_ris(spec_type: Any, target: Any, sample: Any, source_pdf: A
         n = prefixes.shape[0]
         out = ConditionalReservoir()
         r = reservoir_empty()
-        y = float(0.0)
+        y = suffix_empty()
         shifts = int(0)
         for l in range(n):
             s = shift(spec, prefixes[l], z, suffixes[l])
@@ -304,10 +350,10 @@ def make_conditional_ris(spec_type: Any, target: Any, sample: Any, source_pdf: A
     @wp.func
     def spatial_conditional_ris(
         spec: spec_type,
-        prefixes: wp.array(dtype=float),
-        suffixes: wp.array(dtype=float),
+        prefixes: wp.array(dtype=prefix_type),
+        suffixes: wp.array(dtype=suffix_type),
         reservoirs: wp.array(dtype=Reservoir),
-        next_suffixes: wp.array(dtype=float),
+        next_suffixes: wp.array(dtype=suffix_type),
         next_reservoirs: wp.array(dtype=Reservoir),
         confidences: wp.array(dtype=float),
         targets: wp.array(dtype=float),
@@ -339,36 +385,122 @@ def make_conditional_ris(spec_type: Any, target: Any, sample: Any, source_pdf: A
         return shifts
 
     @wp.func
-    def gather_term(
+    def gather_weight_pairwise(
         spec: spec_type,
-        mode: int,
-        z: float,
+        z: prefix_type,
         prefix_ucw: float,
         source: int,
         canonical: int,
-        prefixes: wp.array(dtype=float),
-        suffixes: wp.array(dtype=float),
+        prefixes: wp.array(dtype=prefix_type),
+        suffixes: wp.array(dtype=suffix_type),
+        reservoirs: wp.array(dtype=Reservoir),
+        confidences: wp.array(dtype=float),
+    ) -> GatherSample:
+        """:func:`gather_sample` with *pairwise* conditional MIS instead of the balance heuristic over all domains.
+
+        Each borrowed domain l pairs with the canonical one (Bitterli 2022's pairwise MIS read given
+        Z, :func:`~grisx.theory.mis.pairwise_mis_neighbor`): a borrowed sample's weight needs only
+        p̂(Y_l|z) and p̂_{←l}(Y_l) = p̂_l(X_l|Z_l) / |T_l'| — no further shift — and the canonical
+        sample's needs one inverse shift per borrowed domain, so a row of k + 1 costs O(k) shifts,
+        not O(k²). The weights still sum to one over the domains that reach y (the pair
+        weights sum to one; a pair whose borrowed domain misses y gives its share to the
+        canonical domain), which is all Eq. 22 asks. Domains of confidence 0 are left out.
+        """
+        out = GatherSample()
+        out.weight = 0.0
+        src = reservoirs[source]
+        s = shift(spec, prefixes[source], z, suffixes[source])
+        out.y = s.x
+        if not s.valid or src.ucw <= 0.0:
+            return out
+        n = prefixes.shape[0]
+        c_c = confidences[canonical]
+        total = c_c
+        k = int(0)
+        for l in range(n):
+            if l != canonical and confidences[l] > 0.0:
+                total += confidences[l]
+                k += 1
+        t_c = target(spec, z, s.x)  # p̂(y|z)
+        m = float(0.0)
+        if source == canonical:
+            if k == 0:
+                m = pairwise_mis_canonical_term(0.0, 0.0, c_c, t_c, 0, total)  # no neighbours: 1
+            for l in range(n):
+                if l != canonical and confidences[l] > 0.0:
+                    t_l = carried_target(spec, PROXY_TARGET, prefixes[l], z, s.x)  # p̂_{←l}(y), Eq. 16
+                    m += pairwise_mis_canonical_term(confidences[l], t_l, c_c, t_c, k, total)
+        else:
+            t_l = target_from(target(spec, prefixes[source], suffixes[source]), 1.0 / s.jacobian)  # p̂_l(x)/|T'|, Eq. 16
+            m = pairwise_mis_neighbor(confidences[source], t_l, c_c, t_c, k, total)
+        out.weight = m * joint_ucw(prefix_ucw, shifted_conditional_ucw(src.ucw, s.jacobian))
+        return out
+
+    @wp.func
+    def gather_sample(
+        spec: spec_type,
+        mode: int,
+        z: prefix_type,
+        prefix_ucw: float,
+        source: int,
+        canonical: int,
+        prefixes: wp.array(dtype=prefix_type),
+        suffixes: wp.array(dtype=suffix_type),
+        reservoirs: wp.array(dtype=Reservoir),
+        confidences: wp.array(dtype=float),
+        targets: wp.array(dtype=float),
+    ) -> GatherSample:
+        """Y_i = T_i(X_i|Z) and m_i(Y_i|Z) W_{X^p, Y_i}: input ``source``'s term of Eq. 22 for prefix z, less f (seed 001).
+
+        W_{X^p,Y_i} = W_{X^p} · W_{X_i|Z} |T_i'| (Thm. 4.1 with the shifted
+        conditional UCW). m_i is :func:`conditional_mis` over the row with ``mode``'s proxy, or,
+        for ``PAIRWISE_TARGET``, :func:`gather_weight_pairwise`'s. Weight 0 where the shift is
+        undefined or W = 0.
+        """
+        if mode == PAIRWISE_TARGET:
+            return gather_weight_pairwise(spec, z, prefix_ucw, source, canonical, prefixes, suffixes, reservoirs, confidences)
+        out = GatherSample()
+        out.weight = 0.0
+        src = reservoirs[source]
+        s = shift(spec, prefixes[source], z, suffixes[source])
+        out.y = s.x
+        if not s.valid or src.ucw <= 0.0:
+            return out
+        m = conditional_mis(spec, mode, z, s.x, source, canonical, prefixes, confidences, targets)
+        out.weight = m * joint_ucw(prefix_ucw, shifted_conditional_ucw(src.ucw, s.jacobian))
+        return out
+
+    @wp.func
+    def gather_term(
+        spec: spec_type,
+        mode: int,
+        z: prefix_type,
+        prefix_ucw: float,
+        source: int,
+        canonical: int,
+        prefixes: wp.array(dtype=prefix_type),
+        suffixes: wp.array(dtype=suffix_type),
         reservoirs: wp.array(dtype=Reservoir),
         confidences: wp.array(dtype=float),
         targets: wp.array(dtype=float),
     ) -> float:
-        """m_i(Y_i|Z) f(X^p, Y_i) W_{X^p, Y_i}: input ``source``'s term of Eq. 22 for prefix z (seed 001).
+        """m_i(Y_i|Z) f(X^p, Y_i) W_{X^p, Y_i}: input ``source``'s term of Eq. 22 for prefix z (seed 001), scalar f.
 
-        W_{X^p,Y_i} = W_{X^p} · W_{X_i|Z} |T_i'| (Thm. 4.1 with the shifted
-        conditional UCW). 0 where the shift is undefined or W = 0.
+        :func:`gather_sample`'s weight times the integrand; 0 where the shift is undefined or W = 0.
         """
-        src = reservoirs[source]
-        s = shift(spec, prefixes[source], z, suffixes[source])
-        if not s.valid or src.ucw <= 0.0:
+        g = gather_sample(spec, mode, z, prefix_ucw, source, canonical, prefixes, suffixes, reservoirs, confidences, targets)
+        if g.weight <= 0.0:
             return 0.0
-        m = conditional_mis(spec, mode, z, s.x, source, canonical, prefixes, confidences, targets)
-        return m * integrand(spec, z, s.x) * joint_ucw(prefix_ucw, shifted_conditional_ucw(src.ucw, s.jacobian))
+        return g.weight * integrand(spec, z, g.y)
 
     class ConditionalRIS:
         pass
 
     ns = ConditionalRIS()
     ns.ConditionalReservoir = ConditionalReservoir
+    ns.GatherSample = GatherSample
+    ns.gather_weight_pairwise = gather_weight_pairwise
+    ns.gather_sample = gather_sample
     ns.canonical_suffix = canonical_suffix
     ns.carried_target = carried_target
     ns.conditional_mis = conditional_mis

@@ -34,21 +34,21 @@ def _load(scene: Any) -> Any:
     return load_scene(scene) if isinstance(scene, str) else scene
 
 
-def reference(scene_name: Any, depth: int, camera: str, frame: int, spp: int = 4096) -> tuple[np.ndarray, np.ndarray]:
+def reference(scene_name: Any, depth: int, camera: str, frame: int, spp: int = 4096, res: tuple[int, int] = RES) -> tuple[np.ndarray, np.ndarray]:
     """The path tracer's image (jittered, as the renderers) and its per-pixel variance of the mean."""
-    key = (scene_name if isinstance(scene_name, str) else id(scene_name), depth, camera, frame, spp)
+    key = (scene_name if isinstance(scene_name, str) else id(scene_name), depth, camera, frame, spp, tuple(res))
     if key not in _REFERENCES:
         built = _load(scene_name).build("cpu")
         built.animate_camera = camera == "moving"
         built.set_frame(float(frame))
-        pt = PathTracer(built, *RES, spp=spp, max_depth=depth, seed=987654)
+        pt = PathTracer(built, *res, spp=spp, max_depth=depth, seed=987654)
         pt.add_samples(frame, spp)
         _REFERENCES[key] = pt.mean().astype(np.float64), pt.variance_of_mean().astype(np.float64)
     return _REFERENCES[key]
 
 
 def check(method: str, params: dict[str, Any] | None = None, *, scene: Any = "cornell-box", camera: str = "static",
-          frames: int = 4, runs: int = 64, k: float = DEFAULT_K, device: str = "cpu") -> ReuseTestResult:
+          frames: int = 4, runs: int = 64, k: float = DEFAULT_K, device: str = "cpu", res: tuple[int, int] = RES) -> ReuseTestResult:
     params = dict(params or {})
     sc = _load(scene)
     depth = _depth(method, params, sc)
@@ -59,8 +59,8 @@ def check(method: str, params: dict[str, Any] | None = None, *, scene: Any = "co
     built.animate_camera = camera == "moving"
 
     def run(seed: int) -> np.ndarray:
-        renderer = METHODS[method].create(RenderContext(built, *RES, dict(resolved), seed, None, method))
-        total = np.zeros(RES[::-1] + (3,))
+        renderer = METHODS[method].create(RenderContext(built, *res, dict(resolved), seed, None, method))
+        total = np.zeros(tuple(res[::-1]) + (3,))
         for f in range(frames):
             built.set_frame(float(f))
             image = renderer.render_frame(f).numpy().astype(np.float64)
@@ -68,5 +68,5 @@ def check(method: str, params: dict[str, Any] | None = None, *, scene: Any = "co
         assert renderer.nonfinite_samples == 0
         return total / frames if camera == "static" else total
 
-    ref, var = reference(scene, depth, camera, frames - 1 if camera == "moving" else 0)
+    ref, var = reference(scene, depth, camera, frames - 1 if camera == "moving" else 0, res=res)
     return reuse_unbiasedness_test(run, ref, var, runs, block=8, k=k)

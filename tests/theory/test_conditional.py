@@ -47,6 +47,8 @@ UNBIASED = [
     ("final-gather", "gather", {"roulette": False}),
     ("final-gather", "gather", {"prefixes": 8, "k": 3, "passes": 2}),
     ("final-gather", "gather", {"prefixes": 1, "support": 1, "passes": 0}),
+    ("final-gather", "gather", {"mis": "pairwise"}),
+    ("final-gather", "gather", {"mis": "pairwise", "prefixes": 8, "k": 3, "passes": 2, "roulette": False}),
     ("final-gather", "mmis", {}),
     ("final-gather", "mmis", {"suffixes": 3, "roulette": False}),
 ]

@@ -56,6 +56,10 @@ VOCABULARY = {
     "symmetric": ("bool", "gradient-domain methods: both pixels' base paths with MIS (seed 000, Eq. 3-4); false: the one-sided, biased Eq. 2"),
     "poisson_alpha": ("float", "gradient-domain methods: weight alpha of the primal term of the screened Poisson reconstruction"),
     "direct": ("choice", "where direct light comes from: nee (the method's own paths) or restir-di (ReSTIR DI on the same G-buffer)"),
+    "prefixes": ("int", "integration prefixes per pixel and frame, each connected to suffixes (seed 001, Eq. 23)"),
+    "gather_k": ("int", "supporting prefixes (nearest in world space) whose suffixes each integration prefix borrows"),
+    "roulette": ("bool", "Russian-roulette canonical suffix of the final gather (seed 001, Eq. 23); false: one per prefix"),
+    "canonical": ("bool", "false: leave the canonical sample out of the MIS (biased: coverage lost, seed 001 Eq. 17)"),
 }
 #: names that mean one of the above and must not be used for it
 SYNONYMS = {
@@ -67,7 +71,7 @@ SYNONYMS = {
 }
 
 #: the renderer modules, each of which registers its methods when imported
-PLUGINS = ("grisx.render.views", "grisx.render.pt", "grisx.render.restir_di", "grisx.render.restir_gi", "grisx.render.restir_pt", "grisx.render.restcv", "grisx.render.decoupled", "grisx.render.area_restir", "grisx.render.gpt", "grisx.render.restir_gpt")
+PLUGINS = ("grisx.render.views", "grisx.render.pt", "grisx.render.restir_di", "grisx.render.restir_gi", "grisx.render.restir_pt", "grisx.render.restcv", "grisx.render.decoupled", "grisx.render.area_restir", "grisx.render.gpt", "grisx.render.restir_gpt", "grisx.render.suffix_restir")
 
 
 @dataclasses.dataclass

@@ -92,6 +92,7 @@ import warp as wp
 
 from grisx.errors import InvalidParameterError
 from grisx.theory.conditional import (
+    PAIRWISE_TARGET,
     PROXY_SOURCE_PDF,
     PROXY_TARGET,
     canonical_roulette_weight,
@@ -405,6 +406,7 @@ def nearest_after(z: float, prefixes: wp.array(dtype=float), d_prev: float, j_pr
 def final_gather_kernel(
     spec: PathsSpec,
     mmis: int,
+    pairwise: int,
     prefixes: int,
     neighbors: int,
     roulette: int,
@@ -443,6 +445,8 @@ def final_gather_kernel(
     if mmis != 0:
         suffix_candidates = 1  # independent suffixes with known pdfs: no conditional RIS
         mode = PROXY_SOURCE_PDF
+    elif pairwise != 0:
+        mode = PAIRWISE_TARGET  # each borrowed domain against the canonical one: O(k) shifts
     # ---- supporting prefixes and their suffixes (Alg. 1 lines 4–10) ----
     for j in range(support):
         p = prefix_ris(spec.center, candidates, prefix_key, 2 * candidates * j)
@@ -501,7 +505,10 @@ def final_gather_kernel(
         contribution = float(0.0)
         for l in range(1, row):
             term = CRIS.gather_term(spec, mode, z, w_prefix, l, 0, row_z[t], row_x[t], row_res[t], row_conf[t], row_targets[t])
-            shifts += float(row)
+            if mode == PAIRWISE_TARGET:
+                shifts += 1.0  # its own shift; the pair's targets need no other
+            else:
+                shifts += float(row)
             if term > 0.0:
                 borrowed += 1.0
             contribution += term
@@ -687,13 +694,14 @@ class FinalGather(ToyProblem):
         Param("suffixes", 1, "mmis: independent suffixes borrowed per prefix", kind="int", minimum=1, maximum=32),
         Param("roulette", True, "trace the canonical suffix for one random prefix (x N) instead of all", kind="bool"),
         Param("canonical", True, "include the canonical suffix domain (false: biased, borrowed supports do not cover)", kind="bool"),
+        Param("mis", "balance", "gather MIS: balance (Eq. 15 over all domains, O(k^2) shifts) or pairwise (each against the canonical, O(k))", kind="choice", choices=("balance", "pairwise")),
         Param("support", 8, "supporting prefixes S (reservoirs with suffixes)", kind="int", minimum=1, maximum=64),
         Param("candidates", 4, "RIS candidates M of supporting prefixes and (gather) suffixes; mmis suffixes are single samples", kind="int", minimum=1, maximum=256),
         Param("passes", 1, "spatial conditional-RIS passes among the supporting suffixes", kind="int", minimum=0, maximum=8),
         Param("cap", 20.0, "confidence cap of the supporting suffix reservoirs (0 = none)", kind="float", minimum=0.0),
     )
     methods = (
-        Method("gather", "ReSTIR suffixes borrowed by N prefixes, generalized balance MIS (Eq. 23)", ("prefixes", "k", "roulette", "canonical", "support", "candidates", "passes", "cap")),
+        Method("gather", "ReSTIR suffixes borrowed by N prefixes, generalized balance MIS (Eq. 23)", ("prefixes", "k", "roulette", "canonical", "mis", "support", "candidates", "passes", "cap")),
         Method("mmis", "independent suffixes, balance heuristic of their pdfs (marginal MIS)", ("prefixes", "suffixes", "roulette", "canonical", "support", "candidates")),
     )
     biased_variants = (
@@ -744,6 +752,7 @@ class FinalGather(ToyProblem):
             inputs=[
                 _spec(GATHER_CENTER),
                 int(method == "mmis"),
+                int(params.get("mis", "balance") == "pairwise"),
                 int(params["prefixes"]),
                 row - 1,
                 int(bool(params["roulette"])),
