@@ -354,6 +354,7 @@ def _render(args: argparse.Namespace) -> int:
             "seed": args.seed,
             "params": s["params"],
             "nonfinite_samples": s.get("nonfinite_samples", 0),
+            **({"statistics": s["statistics"]} if "statistics" in s else {}),
             "output": written,
         }, default=_plain))
     else:

@@ -52,6 +52,12 @@ VOCABULARY = {
     "spatial_cv": ("bool", "spatial control variates (seed 002, Eq. 8) on or off"),
     "light_candidates": ("int", "ReSTIR DI: initial light-sampled candidates per pixel"),
     "bsdf_candidates": ("int", "ReSTIR DI: initial BSDF-sampled candidates per pixel"),
+    "max_trials": ("int", "SMS: cap on Bernoulli trials per caustic solution (0 = unbounded; any cap loses energy)"),
+    "chain": ("int", "SMS: most specular vertices of a caustic chain"),
+    "tiles": ("int", "SMS: N, the sample space cut into N x N tiles with 3 x 3 trust regions"),
+    "prior": ("bool", "SMS: per-frame prior over tiles from presampled walks per pixel block"),
+    "presamples": ("int", "SMS: unrestricted walks per pixel block, caster and frame that build the prior"),
+    "block": ("int", "SMS: prior blocks are B x B pixels"),
     "direct": ("choice", "where direct light comes from: nee (the method's own paths) or restir-di (ReSTIR DI on the same G-buffer)"),
 }
 #: names that mean one of the above and must not be used for it
@@ -63,7 +69,7 @@ SYNONYMS = {
 }
 
 #: the renderer modules, each of which registers its methods when imported
-PLUGINS = ("grisx.render.views", "grisx.render.pt", "grisx.render.restir_di", "grisx.render.restir_gi", "grisx.render.restir_pt", "grisx.render.restcv", "grisx.render.decoupled")
+PLUGINS = ("grisx.render.views", "grisx.render.pt", "grisx.render.restir_di", "grisx.render.restir_gi", "grisx.render.restir_pt", "grisx.render.restcv", "grisx.render.decoupled", "grisx.render.sms")
 
 
 @dataclasses.dataclass
