@@ -54,21 +54,23 @@ from grisx.device import specialized_module
 from grisx.errors import InvalidParameterError
 from grisx.params import Param
 from grisx.render.base.registry import RenderMethod, register, renderer_params
-from grisx.render.base.trace import make_trace_path
+from grisx.render.base.trace import PathRadiance, make_trace_path
 from grisx.render.pt import PathTracer, _scale, add_sample, pixel_ray, sample_key
 from grisx.scene.bsdf import make_bsdf
 from grisx.scene.camera import CameraData, camera_ray
 from grisx.scene.caustics import CHAIN_MAX, CausticSpec, make_caustic_spec, make_caustics, set_view
 from grisx.scene.frame import frame_from_normal, to_local, to_world
-from grisx.scene.lights import emitter_radiance, sample_light
+from grisx.scene.lights import sample_light
 from grisx.scene.material import MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, material_kind
-from grisx.scene.scene import SceneData, SurfaceInteraction, intersect, segment_occluded, spawn_origin, surface_material
-from grisx.theory.manifold import NEWTON_MAX_ITERATIONS, PRIOR_ALPHA, prior_add_tile, seed_space, tile_of
+from grisx.scene.scene import SceneData, SurfaceInteraction, intersect, spawn_origin, surface_material
+from grisx.theory.gris import resampling_weight
+from grisx.theory.manifold import NEWTON_MAX_ITERATIONS, PRIOR_ALPHA, prior_add_tile, reuse_neighbor, seed_space, tile_of
+from grisx.theory.reservoir import Reservoir, reservoir_empty, reservoir_finalize, reservoir_update
 from grisx.theory.random import random_key, random_subkey, random_uniform
 
 wp.set_module_options({"enable_backward": False})
 
-__all__ = ["SMSRenderer", "caster_objects", "STAT_NAMES", "make_sms_kernels"]
+__all__ = ["SMSRenderer", "SMSReSTIR", "CausticSample", "ShadingPoint", "caster_objects", "STAT_NAMES", "make_sms_kernels", "sms_statistics"]
 
 #: per-frame tallies (summed over pixels and samples), the order of the ``stats`` array
 STAT_NAMES = (
@@ -82,6 +84,9 @@ STAT_NAMES = (
     "prior_successes",
     "newton_prior",
     "prior_tiles",
+    "shift_walks",  # sms-restir: manifold walks of the shifts (2 per shift: there and back)
+    "shifts_valid",
+    "newton_shift",
 )
 _N_STATS = len(STAT_NAMES)
 
@@ -90,6 +95,49 @@ def caster_objects(scene: Any) -> list[int]:
     """Object ids of a scene's caustic casters: objects with a delta (smooth conductor or dielectric) material."""
     kinds = (int(MATERIAL_CONDUCTOR), int(MATERIAL_DIELECTRIC))
     return [i for i, o in enumerate(scene.objects) if material_kind(scene.materials[o.material]) in kinds]
+
+
+@wp.struct
+class CausticSample:
+    """A kept SMS sample x̂ = (solution u*, caster O, emitter point x_n): what a reservoir holds (Sec. 5.2)."""
+
+    u: wp.vec2
+    caster: int
+    xn: wp.vec3
+    xn_n: wp.vec3
+    light_tri: int
+
+
+@wp.struct
+class ShadingPoint:
+    """A pixel's x₁ this frame: the surface, the direction back, the camera path's throughput, its depth."""
+
+    si: SurfaceInteraction
+    wo: wp.vec3
+    beta: wp.vec3
+    depth: int
+    valid: int
+
+
+@wp.struct
+class SMSPass:
+    """What every sample pass reads: camera, casters, seed and frame, depth, trial cap, seed space and the prior."""
+
+    cam: CameraData
+    casters: wp.array(dtype=int)
+    seed: int
+    frame: int
+    max_depth: int
+    rr_depth: int
+    jitter: int
+    max_trials: int
+    tiles: int
+    alpha: float
+    block: int
+    blocks_x: int
+    prior_tiles: wp.array2d(dtype=int)
+    prior_count: wp.array(dtype=int)
+    stats: wp.array(dtype=wp.float64)
 
 
 @wp.func
@@ -113,28 +161,6 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
     module = specialized_module(f"{__name__}.chain{chain}", kinds)
 
     @wp.func
-    def caustic_value(spec: CausticSpec, view: int, u: wp.vec2, x1: SurfaceInteraction, wo: wp.vec3, light_tri: int, x1_depth: int, max_depth: int) -> wp.vec3:
-        """f(x̂) of seed 003's Eq. 13 for solution u of ``view``: f_s ⊙ Tr ⊙ L_e · |∂ω₁/∂A(x_n)| · V."""
-        zero = wp.vec3(0.0, 0.0, 0.0)
-        ch = caustics.shoot(spec, view, u)
-        if ch.valid == 0:
-            return zero
-        if max_depth >= 0 and x1_depth + ch.length + 2 > max_depth:
-            return zero  # the path tracer's max_depth: x₁'s depth, k delta vertices, the emitter
-        xn = spec.xn[view]
-        nn = spec.xn_n[view]
-        le = emitter_radiance(spec.scene.lights, light_tri, nn, -ch.d_out)
-        if wp.length_sq(le) <= 0.0:
-            return zero
-        if segment_occluded(spec.scene, ch.last, ch.last_ng, xn, nn):
-            return zero
-        m = surface_material(spec.scene, x1)
-        frame = frame_from_normal(x1.ns)
-        f = bsdf.eval(m, to_local(frame, wo), to_local(frame, ch.d1))
-        g = caustics.geometry(spec, view, u)
-        return wp.cw_mul(f, wp.cw_mul(ch.throughput, le)) * g
-
-    @wp.func
     def first_non_delta(scene: SceneData, o: wp.vec3, d: wp.vec3, key: wp.uint32) -> SurfaceInteraction:
         """The first non-delta vertex along a camera ray (delta lobes sampled as the path tracer does)."""
         si = intersect(scene, o, d, 1.0e30)
@@ -153,6 +179,63 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
             si = intersect(scene, o, d, 1.0e30)
         si.valid = 0
         return si
+
+    @wp.func
+    def sms_candidate(spec: CausticSpec, p: SMSPass, view: int, x1: ShadingPoint, x: int, y: int, skey: wp.uint32) -> wp.vec4:
+        """One SMS sample at x₁ into ``view``: (u*₀, u*₁, W = K/P(C) / (p_A(x_n) P(O)), found); caster and x_n in the view."""
+        casters = p.casters
+        stats = p.stats
+        out = wp.vec4(0.0, 0.0, 0.0, 0.0)
+        n_casters = casters.shape[0]
+        ci = wp.min(int(random_uniform(skey, 0) * float(n_casters)), n_casters - 1)
+        ls = sample_light(spec.scene.lights, x1.si.p, random_uniform(skey, 1), wp.vec2(random_uniform(skey, 2), random_uniform(skey, 3)))
+        if ls.tri < 0 or not (ls.pdf_area > 0.0):
+            return out
+        set_view(spec, view, x1.si, x1.wo, x1.depth, casters[ci], ls.p, ls.n, ls.tri)
+        row = ((y // p.block) * p.blocks_x + x // p.block) * n_casters + ci
+        space = seed_space(p.tiles, p.alpha, p.prior_count[row])  # Eq. 7 (p_U when no prior)
+        s = SMS.sample(spec, view, space, p.prior_tiles[row], random_subkey(skey, 4), p.max_trials)
+        _tally(stats, 0, 1.0)
+        _tally(stats, 2, float(s.newton_sample))
+        if s.found:
+            _tally(stats, 1, 1.0)
+            _tally(stats, 3, float(s.trials))
+            _tally(stats, 4, float(s.newton_bernoulli))
+            if s.capped:
+                _tally(stats, 5, 1.0)
+            out = wp.vec4(s.u[0], s.u[1], s.ucw * float(n_casters) / ls.pdf_area, 1.0)  # Eq. 1, 5: f W / (p_A P(O))
+        return out
+
+    @wp.func
+    def shading_point(r: PathRadiance, casters: wp.array(dtype=int)) -> ShadingPoint:
+        sp = ShadingPoint()
+        sp.si = r.x1
+        sp.wo = r.x1_wo
+        sp.beta = r.x1_beta
+        sp.depth = r.x1_depth
+        sp.valid = int(r.x1_valid != 0 and casters.shape[0] > 0)
+        return sp
+
+    @wp.func
+    def camera_path(spec: CausticSpec, p: SMSPass, x: int, y: int, sample: int) -> PathRadiance:
+        """The path tracer's sample of pixel (x, y), without the paths SMS owns (x₁ recorded)."""
+        key = sample_key(p.seed, p.frame, y * p.cam.width + x, sample)
+        ray = pixel_ray(p.cam, key, x, y, p.jitter)
+        return trace_path(spec.scene, ray.o, ray.d, random_subkey(key, 1), p.max_depth, p.rr_depth, 0, -1, 0)
+
+    @wp.func
+    def view_sample(spec: CausticSpec, view: int, u: wp.vec2) -> CausticSample:
+        c = CausticSample()
+        c.u = u
+        c.caster = spec.caster[view]
+        c.xn = spec.xn[view]
+        c.xn_n = spec.xn_n[view]
+        c.light_tri = spec.light_tri[view]
+        return c
+
+    @wp.func
+    def set_sample_view(spec: CausticSpec, view: int, x1: ShadingPoint, y: CausticSample):
+        set_view(spec, view, x1.si, x1.wo, x1.depth, y.caster, y.xn, y.xn_n, y.light_tri)
 
     @wp.kernel(module=module)
     def prior_pass(
@@ -188,7 +271,7 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
             ls = sample_light(spec.scene.lights, si.p, random_uniform(jkey, 2), wp.vec2(random_uniform(jkey, 3), random_uniform(jkey, 4)))
             if ls.tri < 0:
                 continue
-            set_view(spec, view, si, casters[ci], ls.p, ls.n)
+            set_view(spec, view, si, -ray.d, 0, casters[ci], ls.p, ls.n, ls.tri)
             w = SMS.walk(spec, view, wp.vec2(random_uniform(jkey, 5), random_uniform(jkey, 6)), 0, NEWTON_MAX_ITERATIONS)
             _tally(stats, 6, 1.0)
             _tally(stats, 8, float(w.iterations))
@@ -201,60 +284,143 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
     @wp.kernel(module=module)
     def sample_pass(
         spec: CausticSpec,
-        cam: CameraData,
-        casters: wp.array(dtype=int),
-        seed: int,
-        frame: int,
+        p: SMSPass,
         sample: int,
-        max_depth: int,
-        rr_depth: int,
-        jitter: int,
-        max_trials: int,
-        tiles: int,
-        alpha: float,
-        block: int,
-        blocks_x: int,
-        prior_tiles: wp.array2d(dtype=int),
-        prior_count: wp.array(dtype=int),
         total: wp.array2d(dtype=wp.vec3d),
         total_sq: wp.array2d(dtype=wp.vec3d),
         nonfinite: wp.array(dtype=wp.int32),
-        stats: wp.array(dtype=wp.float64),
     ):
         y, x = wp.tid()
-        pixel = y * cam.width + x
-        key = sample_key(seed, frame, pixel, sample)
-        ray = pixel_ray(cam, key, x, y, jitter)
-        # ---- the path tracer, without the paths SMS owns ----
-        r = trace_path(spec.scene, ray.o, ray.d, random_subkey(key, 1), max_depth, rr_depth, 0, -1, 0)
+        pixel = y * p.cam.width + x
+        r = camera_path(spec, p, x, y, sample)
         L = r.total
-        n_casters = casters.shape[0]
-        if r.x1_valid != 0 and n_casters > 0:
+        sp = shading_point(r, p.casters)
+        if sp.valid != 0:
             # ---- caustic next-event estimation at x₁ (seed 003, Eq. 1) ----
-            skey = random_subkey(key, 2)
-            x1 = r.x1
-            ci = wp.min(int(random_uniform(skey, 0) * float(n_casters)), n_casters - 1)
-            ls = sample_light(spec.scene.lights, x1.p, random_uniform(skey, 1), wp.vec2(random_uniform(skey, 2), random_uniform(skey, 3)))
-            if ls.tri >= 0 and ls.pdf_area > 0.0:
-                view = pixel
-                set_view(spec, view, x1, casters[ci], ls.p, ls.n)
-                row = ((y // block) * blocks_x + x // block) * n_casters + ci
-                space = seed_space(tiles, alpha, prior_count[row])  # Eq. 7 (p_U when no prior)
-                s = SMS.sample(spec, view, space, prior_tiles[row], random_subkey(skey, 4), max_trials)
-                _tally(stats, 0, 1.0)
-                _tally(stats, 2, float(s.newton_sample))
-                if s.found:
-                    _tally(stats, 1, 1.0)
-                    _tally(stats, 3, float(s.trials))
-                    _tally(stats, 4, float(s.newton_bernoulli))
-                    if s.capped:
-                        _tally(stats, 5, 1.0)
-                    f = caustic_value(spec, view, s.u, x1, r.x1_wo, ls.tri, r.x1_depth, max_depth)
-                    # f W / (p_A(x_n) P(O)), W = K / P(C) (Eq. 1, 5)
-                    L += wp.cw_mul(r.x1_beta, f) * (s.ucw * float(n_casters) / ls.pdf_area)
+            c = sms_candidate(spec, p, pixel, sp, x, y, random_subkey(sample_key(p.seed, p.frame, pixel, sample), 2))
+            if c[3] > 0.0:
+                L += wp.cw_mul(sp.beta, caustics.value(spec, pixel, wp.vec2(c[0], c[1]))) * c[2]
         add_sample(total, total_sq, nonfinite, y, x, L)
 
-    out = {"prior_pass": prior_pass, "sample_pass": sample_pass, "caustic_value": caustic_value, "first_non_delta": first_non_delta, "caustics": caustics}
+    @wp.kernel(module=module)
+    def restir_initial(
+        spec: CausticSpec,
+        p: SMSPass,
+        radiance: wp.array(dtype=wp.vec3),
+        points: wp.array(dtype=ShadingPoint),
+        res: wp.array(dtype=Reservoir),
+        samples: wp.array(dtype=CausticSample),
+    ):
+        y, x = wp.tid()
+        q = y * p.cam.width + x
+        r = camera_path(spec, p, x, y, 0)
+        radiance[q] = r.total
+        sp = shading_point(r, p.casters)
+        points[q] = sp
+        # ---- initial candidate: one SMS sample, a reservoir of one (Eq. 10 with m = 1, T = id) ----
+        rc = reservoir_empty()
+        smp = CausticSample()
+        if sp.valid != 0:
+            rc = reservoir_update(rc, 0.0, 0.0, 1.0, 0.0)  # the domain exists: confidence 1, found or not
+            c = sms_candidate(spec, p, q, sp, x, y, random_subkey(sample_key(p.seed, p.frame, q, 0), 2))
+            if c[3] > 0.0:
+                u = wp.vec2(c[0], c[1])
+                p_hat = caustics.target(spec, q, u)
+                rc = reservoir_empty()
+                rc = reservoir_update(rc, resampling_weight(1.0, p_hat, c[2], 1.0), p_hat, 1.0, 0.0)
+                smp = view_sample(spec, q, u)
+        res[q] = reservoir_finalize(rc)
+        samples[q] = smp
+
+    @wp.kernel(module=module)
+    def restir_reuse(
+        spec: CausticSpec,
+        seed: int,
+        frame: int,
+        width: int,
+        height: int,
+        spatial: int,
+        radius: float,
+        cap: float,
+        points: wp.array(dtype=ShadingPoint),
+        points_n: wp.array(dtype=ShadingPoint),
+        res: wp.array(dtype=Reservoir),
+        samples: wp.array(dtype=CausticSample),
+        res_n: wp.array(dtype=Reservoir),
+        samples_n: wp.array(dtype=CausticSample),
+        res_out: wp.array(dtype=Reservoir),
+        samples_out: wp.array(dtype=CausticSample),
+        stats: wp.array(dtype=wp.float64),
+    ):
+        # ---- temporal (the same pixel last frame) or spatial (one neighbour in a disc) reuse, Sec. 5.2 ----
+        y, x = wp.tid()
+        q = y * width + x
+        pixels = width * height
+        res_out[q] = res[q]
+        samples_out[q] = samples[q]
+        pc = points[q]
+        if pc.valid == 0:
+            return
+        key = random_subkey(sample_key(seed, frame, q, 0), 10 + spatial)
+        nb = q
+        if spatial != 0:
+            rr = radius * wp.sqrt(random_uniform(key, 8))
+            phi = 6.283185307179586 * random_uniform(key, 9)
+            nx = x + int(wp.round(rr * wp.cos(phi)))
+            ny = y + int(wp.round(rr * wp.sin(phi)))
+            nb = -1
+            if nx >= 0 and nx < width and ny >= 0 and ny < height and (nx != x or ny != y):
+                nb = ny * width + nx
+        present = int(0)
+        if nb >= 0:
+            present = points_n[nb].valid
+        absent = reuse_neighbor(reservoir_empty(), wp.vec2(0.0, 0.0), 0, 0, 0, 0)
+        n0 = absent
+        y_c = samples[q]
+        set_sample_view(spec, q, pc, y_c)  # canonical: x₁ here, y_c's caster and x_n
+        if present != 0:
+            pn = points_n[nb]
+            y_n = samples_n[nb]
+            set_sample_view(spec, pixels + q, pc, y_n)  # T_i(y_n) lands here
+            set_sample_view(spec, 2 * pixels + q, pn, y_c)  # y_c carried into the neighbour's domain
+            set_sample_view(spec, 3 * pixels + q, pn, y_n)  # y_n in its own domain
+            n0 = reuse_neighbor(res_n[nb], y_n.u, 3 * pixels + q, pixels + q, 2 * pixels + q, 1)
+        out = SMS.reuse(spec, res[q], y_c.u, q, n0, absent, cap, key)
+        _tally(stats, 10, float(out.walks))
+        _tally(stats, 11, float(out.valid))
+        _tally(stats, 12, float(out.newton))
+        kept = y_c
+        if out.source == 0:
+            kept = samples_n[nb]
+        kept.u = out.y
+        res_out[q] = out.r
+        samples_out[q] = kept
+
+    @wp.kernel(module=module)
+    def restir_shade(
+        spec: CausticSpec,
+        width: int,
+        radiance: wp.array(dtype=wp.vec3),
+        points: wp.array(dtype=ShadingPoint),
+        res: wp.array(dtype=Reservoir),
+        samples: wp.array(dtype=CausticSample),
+        total: wp.array2d(dtype=wp.vec3d),
+        total_sq: wp.array2d(dtype=wp.vec3d),
+        nonfinite: wp.array(dtype=wp.int32),
+    ):
+        # ---- shading: the path tracer's part + β ⊙ f(y) W_y (Eq. 11) ----
+        y, x = wp.tid()
+        q = y * width + x
+        L = radiance[q]
+        pc = points[q]
+        r = res[q]
+        if pc.valid != 0 and r.ucw > 0.0:
+            smp = samples[q]
+            set_sample_view(spec, q, pc, smp)
+            L += wp.cw_mul(pc.beta, caustics.value(spec, q, smp.u)) * r.ucw
+        add_sample(total, total_sq, nonfinite, y, x, L)
+
+    out = {"prior_pass": prior_pass, "sample_pass": sample_pass, "restir_initial": restir_initial, "restir_reuse": restir_reuse, "restir_shade": restir_shade, "first_non_delta": first_non_delta, "caustics": caustics}
     _KERNELS[key] = out
     return out
 
@@ -302,7 +468,8 @@ class SMSRenderer(PathTracer):
         n_rows = self.blocks_x * self.blocks_y * max(len(self.casters_host), 1)
         self.prior_tiles = wp.zeros((n_rows, max(self.presamples, 1)), dtype=int, device=dev)
         self.prior_count = wp.zeros(n_rows, dtype=int, device=dev)
-        self.spec = make_caustic_spec(built, self.width * self.height + n_rows, self.chain)
+        self.spec = make_caustic_spec(built, self.width * self.height + n_rows, self.chain, self.max_depth)
+        self.prior_view_base = self.width * self.height
         self.stats = wp.zeros(_N_STATS, dtype=wp.float64, device=dev)
         self.frames = 0
 
@@ -320,25 +487,30 @@ class SMSRenderer(PathTracer):
         wp.launch(
             self.kernels_["prior_pass"],
             dim=(self.blocks_y, self.blocks_x, len(self.casters_host)),
-            inputs=[self.spec, cam, self.casters, self.seed, int(frame), self.block, self.tiles, self.presamples, self.blocks_x, self.width * self.height],
+            inputs=[self.spec, cam, self.casters, self.seed, int(frame), self.block, self.tiles, self.presamples, self.blocks_x, self.prior_view_base],
             outputs=[self.prior_tiles, self.prior_count, self.stats],
             device=self.built.device,
         )
+
+    def pass_record(self, frame: int, cam: CameraData) -> SMSPass:
+        p = SMSPass()
+        p.cam = cam
+        p.casters = self.casters
+        p.seed, p.frame = self.seed, int(frame)
+        p.max_depth, p.rr_depth, p.jitter, p.max_trials = self.max_depth, self.rr_depth, self.jitter, self.max_trials
+        p.tiles, p.alpha, p.block, p.blocks_x = self.tiles, PRIOR_ALPHA if self.prior else 0.0, self.block, self.blocks_x
+        p.prior_tiles, p.prior_count, p.stats = self.prior_tiles, self.prior_count, self.stats
+        return p
 
     def add_samples(self, frame: int, count: int, first_sample: int | None = None) -> None:
         cam = self.built.camera_data(float(frame), self.width, self.height)
         with self._timed("prior"):
             self.build_prior(frame, cam)
+        p = self.pass_record(frame, cam)
         with self._timed("manifold_sampling"):
             for _ in range(count):
-                wp.launch(
-                    self.kernels_["sample_pass"],
-                    dim=(self.height, self.width),
-                    inputs=[self.spec, cam, self.casters, self.seed, int(frame), self.samples, self.max_depth, self.rr_depth, self.jitter, self.max_trials,
-                            self.tiles, PRIOR_ALPHA if self.prior else 0.0, self.block, self.blocks_x, self.prior_tiles, self.prior_count],
-                    outputs=[self.total, self.total_sq, self.nonfinite, self.stats],
-                    device=self.built.device,
-                )
+                wp.launch(self.kernels_["sample_pass"], dim=(self.height, self.width), inputs=[self.spec, p, self.samples],
+                          outputs=[self.total, self.total_sq, self.nonfinite], device=self.built.device)
                 self.samples += 1
 
     def render_frame(self, frame: int) -> wp.array:
@@ -351,6 +523,81 @@ class SMSRenderer(PathTracer):
     def statistics(self) -> dict[str, float]:
         """Seed 003's Table 1 columns over everything rendered so far (per frame where it says so)."""
         return sms_statistics(dict(zip(STAT_NAMES, self.stats.numpy().tolist())), max(self.frames, 1))
+
+
+class SMSReSTIR(SMSRenderer):
+    """``sms-restir``: sms-partitioned samples, then temporal and spatial GRIS through manifold shifts (Sec. 5).
+
+    Per frame: the path tracer (without SMS's paths) and one SMS candidate per pixel; temporal reuse of
+    the same pixel's reservoir from the last frame (its x₁ then; skipped while objects move, whose last
+    frame's geometry is gone); one spatial neighbour uniform in a ``radius``-pixel disc; pairwise MIS
+    and the confidence cap ``history_cap`` (seed 003: 20) through :meth:`ManifoldSampler.reuse`.
+    """
+
+    def __init__(self, built: Any, width: int, height: int, *, temporal: bool = True, spatial: bool = True, radius: float = 30.0,
+                 history_cap: float = 20.0, tiles: int = 16, **kw: Any) -> None:
+        super().__init__(built, width, height, tiles=tiles, **kw)
+        self.temporal, self.spatial = bool(temporal), bool(spatial)
+        self.radius, self.history_cap = float(radius), float(history_cap)
+        n = self.width * self.height
+        dev = built.device
+        # views: 4 per pixel (canonical, a neighbour's sample here, ours there, the neighbour's own) + prior rows
+        n_rows = self.prior_count.shape[0]
+        self.spec = make_caustic_spec(built, 4 * n + n_rows, self.chain, self.max_depth)
+        self.prior_view_base = 4 * n
+        self.radiance = wp.zeros(n, dtype=wp.vec3, device=dev)
+        self.points = wp.zeros(n, dtype=ShadingPoint, device=dev)
+        self.points_prev = wp.zeros(n, dtype=ShadingPoint, device=dev)
+        self.res = [wp.zeros(n, dtype=Reservoir, device=dev) for _ in range(4)]  # initial, temporal, final, last frame's
+        self.smp = [wp.zeros(n, dtype=CausticSample, device=dev) for _ in range(4)]
+        self.history = False
+
+    def kernels(self) -> list[Any]:
+        k = self.kernels_
+        return [k["prior_pass"], k["restir_initial"], k["restir_reuse"], k["restir_shade"], _scale]
+
+    def _reuse(self, frame: int, spatial: int, points_n: wp.array, src: int, nb: int, dst: int) -> None:
+        wp.launch(
+            self.kernels_["restir_reuse"],
+            dim=(self.height, self.width),
+            inputs=[self.spec, self.seed, int(frame), self.width, self.height, spatial, self.radius, self.history_cap, self.points, points_n,
+                    self.res[src], self.smp[src], self.res[nb], self.smp[nb]],
+            outputs=[self.res[dst], self.smp[dst], self.stats],
+            device=self.built.device,
+        )
+
+    def render_frame(self, frame: int) -> wp.array:
+        self.reset()
+        dev = self.built.device
+        cam = self.built.camera_data(float(frame), self.width, self.height)
+        with self._timed("prior"):
+            self.build_prior(frame, cam)
+        with self._timed("manifold_sampling"):
+            wp.launch(self.kernels_["restir_initial"], dim=(self.height, self.width), inputs=[self.spec, self.pass_record(frame, cam)],
+                      outputs=[self.radiance, self.points, self.res[0], self.smp[0]], device=dev)
+        cur = 0
+        # ---- temporal reuse (static geometry: the last frame's x₁ still lies on it) ----
+        if self.temporal and self.history and not self.built.features.animated_objects:
+            with self._timed("temporal"):
+                self._reuse(frame, 0, self.points_prev, 0, 3, 1)
+            cur = 1
+        # ---- spatial reuse ----
+        if self.spatial:
+            with self._timed("spatial"):
+                self._reuse(frame, 1, self.points, cur, cur, 2)
+            cur = 2
+        with self._timed("shade"):
+            wp.launch(self.kernels_["restir_shade"], dim=(self.height, self.width),
+                      inputs=[self.spec, self.width, self.radiance, self.points, self.res[cur], self.smp[cur]],
+                      outputs=[self.total, self.total_sq, self.nonfinite], device=dev)
+            wp.copy(self.res[3], self.res[cur])
+            wp.copy(self.smp[3], self.smp[cur])
+            wp.copy(self.points_prev, self.points)
+        self.history = True
+        self.samples = 1
+        self.frames += 1
+        wp.launch(_scale, dim=self.total.shape, inputs=[self.total, wp.float64(1.0)], outputs=[self.image], device=dev)
+        return self.image
 
 
 def sms_statistics(t: dict[str, float], frames: int) -> dict[str, float]:
@@ -377,13 +624,13 @@ def sms_statistics(t: dict[str, float], frames: int) -> dict[str, float]:
     return out
 
 
-def _create(tiles_default: int):
+def _create(tiles_default: int, cls: type = SMSRenderer):
     def create(ctx: Any) -> SMSRenderer:
         p = dict(ctx.params)
-        names = {q.name for q in _PARAMS_ALL}
+        names = {q.name for q in (*_PARAMS_ALL, *_PARAMS_RESTIR)}
         kw = {k: v for k, v in p.items() if k in names}
         kw.setdefault("tiles", tiles_default)
-        return SMSRenderer(ctx.built, ctx.width, ctx.height, spp=p["spp"], seed=ctx.seed, timer=ctx.timer, **kw)
+        return cls(ctx.built, ctx.width, ctx.height, spp=p["spp"], seed=ctx.seed, timer=ctx.timer, **kw)
 
     return create
 
@@ -404,6 +651,13 @@ _PARTITION = (
     Param("block", ..., "B: prior blocks are B × B pixels", kind="int", minimum=1, maximum=256),
 )
 _PARAMS_ALL = renderer_params(SMSRenderer, *_COMMON, *_PARTITION)
+_PARAMS_RESTIR = renderer_params(
+    SMSReSTIR,
+    Param("temporal", ..., "reuse the previous frame's reservoir of the pixel (manifold shift)", kind="bool"),
+    Param("spatial", ..., "reuse one neighbour's reservoir per frame (manifold shift)", kind="bool"),
+    Param("radius", ..., "spatial reuse radius in pixels (seed 003: 30)", kind="float", minimum=1.0, maximum=1024.0),
+    Param("history_cap", ..., "cap on the confidence M a reservoir carries (seed 003: 20)", kind="float", minimum=0.0),
+)
 
 register(
     RenderMethod(
@@ -421,5 +675,13 @@ register(
         _create(16),
         params=_PARAMS_ALL,
         uses_spp=True,
+    )
+)
+register(
+    RenderMethod(
+        "sms-restir",
+        "sms-partitioned samples reused by temporal + spatial GRIS through manifold shifts, pairwise MIS (seed 003, Eq. 10-13)",
+        _create(16, SMSReSTIR),
+        params=(*_PARAMS_ALL, *_PARAMS_RESTIR),
     )
 )

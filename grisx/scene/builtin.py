@@ -226,8 +226,9 @@ def reflective_plane() -> Scene:
     white = s.add_material(Diffuse(0.8))
     _add(s, rectangle(), ground, compose(rotate((1, 0, 0), -90), scale(2.0)), name="ground")
     _add(s, rectangle(), wall, compose(translate((0, 1.0, -1.2)), scale((2, 1, 1))), name="wall")
-    _add(s, rectangle(), metal, compose(translate((0.3, 0.45, 0.2)), rotate((0, 1, 0), -20), rotate((1, 0, 0), -75), scale((0.4, 0.4, 1))), name="metal-plane")
-    _panel(s, (-0.4, 1.4, 0.8), (0.04, 0.04), compose(rotate((0, 1, 0), 150), rotate((1, 0, 0), 40)), white, emission=(500, 480, 440), name="light")
+    # the plane stands at the back tilted 23.6° down, so the light in front is reflected onto the floor
+    _add(s, rectangle(), metal, compose(translate((0.3, 0.6, -0.6)), rotate((1, 0, 0), 23.6), scale((0.4, 0.4, 1))), name="metal-plane")
+    _panel(s, (-0.4, 1.4, 0.8), (0.04, 0.04), compose(rotate((0, 1, 0), 153.4), rotate((1, 0, 0), 26.7)), white, emission=(500, 480, 440), name="light")
     _camera(s, 45, [((0, 1.6, 2.8), (0, 0.5, -0.4), (0, 1, 0)), ((-0.8, 1.5, 2.6), (0, 0.5, -0.4), (0, 1, 0))])
     s.film = Film(256, 192)
     s.defaults = {"spp": 256, "max_depth": 8}

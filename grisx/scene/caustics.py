@@ -65,7 +65,9 @@ import warp as wp
 from grisx.scene.bsdf import make_bsdf
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.material import MATERIAL_DIELECTRIC, Material
-from grisx.scene.scene import SceneData, SurfaceInteraction, intersect, spawn_origin, surface_material
+from grisx.scene.lights import emitter_radiance
+from grisx.scene.scene import SceneData, SurfaceInteraction, intersect, segment_occluded, spawn_origin, surface_material
+from grisx.theory.gris import luminance
 from grisx.theory.manifold import ManifoldSampler, make_manifold_sampler
 
 wp.set_module_options({"enable_backward": False})
@@ -110,11 +112,17 @@ class CausticSpec:
 
     scene: SceneData
     chain_max: int
+    max_depth: int  # the path tracer's: x₁'s depth + k + 2 segments at most (−1 unbounded)
     x1: wp.array(dtype=wp.vec3)  # shading point x₁
     x1_ng: wp.array(dtype=wp.vec3)  # its geometric normal (ray offsets)
     caster: wp.array(dtype=int)  # object O whose seed space U parametrizes x₂
     xn: wp.array(dtype=wp.vec3)  # the emitter point x_n
     xn_n: wp.array(dtype=wp.vec3)  # the emitter triangle's normal at x_n
+    # what f (Eq. 13) needs beyond the constraint
+    x1_si: wp.array(dtype=SurfaceInteraction)  # x₁ (its material and shading frame)
+    x1_wo: wp.array(dtype=wp.vec3)  # unit, x₁ → the previous path vertex
+    x1_depth: wp.array(dtype=int)  # segments before the one that reached x₁
+    light_tri: wp.array(dtype=int)  # the emitter triangle of x_n
 
 
 @wp.struct
@@ -155,13 +163,20 @@ class CausticChain:
 
 
 @wp.func
-def set_view(spec: CausticSpec, view: int, x1: SurfaceInteraction, caster: int, xn: wp.vec3, xn_n: wp.vec3):
-    """Write problem row ``view``: shading point ``x1``, caster object, emitter point and its normal."""
+def set_view(
+    spec: CausticSpec, view: int, x1: SurfaceInteraction, wo: wp.vec3, x1_depth: int, caster: int, xn: wp.vec3, xn_n: wp.vec3, light_tri: int
+):
+    """Write problem row ``view``: shading point ``x1`` (seen from ``wo``, at depth ``x1_depth``), caster
+    object, emitter point, its normal and triangle."""
     spec.x1[view] = x1.p
     spec.x1_ng[view] = x1.ng
+    spec.x1_si[view] = x1
+    spec.x1_wo[view] = wo
+    spec.x1_depth[view] = x1_depth
     spec.caster[view] = caster
     spec.xn[view] = xn
     spec.xn_n[view] = xn_n
+    spec.light_tri[view] = light_tri
 
 
 # ---- the seed space U of a caster --------------------------------------------------------
@@ -242,14 +257,17 @@ class CausticFuncs:
 
     ``shoot(spec, view, u) -> CausticChain``; ``constraint(spec, view, u) -> vec2`` (C);
     ``jacobian(spec, view, u) -> mat22`` (∂C/∂u); ``geometry(spec, view, u) -> float``
-    (|∂ω₁/∂A(x_n)|, 0 if singular); ``sms``: the :class:`~grisx.theory.manifold.ManifoldSampler`
-    built over them.
+    (|∂ω₁/∂A(x_n)|, 0 if singular); ``value(spec, view, u) -> vec3`` (f of Eq. 13) and
+    ``target`` (p̂ = lum f); ``sms``: the :class:`~grisx.theory.manifold.ManifoldSampler`
+    built over them (with ``reuse``: manifold-shift GRIS).
     """
 
     shoot: Any
     constraint: Any
     jacobian: Any
     geometry: Any
+    value: Any
+    target: Any
     sms: ManifoldSampler
     probe: Any  # kernel of :func:`solve_chains`
 
@@ -344,7 +362,34 @@ def _make_caustics(kinds: frozenset[int]) -> CausticFuncs:
             return 0.0
         return ch.seed_jacobian / det  # |∂ω₁/∂A(x_n)| = |∂ω₁/∂u| / |∂x_n/∂u|
 
-    sms = make_manifold_sampler(CausticSpec, constraint, jacobian)
+    @wp.func
+    def value(spec: CausticSpec, view: int, u: wp.vec2) -> wp.vec3:
+        """f(x̂) of seed 003's Eq. 13 for solution u of ``view``: f_s ⊙ Tr ⊙ L_e · |∂ω₁/∂A(x_n)| · V."""
+        zero = wp.vec3(0.0, 0.0, 0.0)
+        ch = shoot(spec, view, u)
+        if ch.valid == 0:
+            return zero
+        if spec.max_depth >= 0 and spec.x1_depth[view] + ch.length + 2 > spec.max_depth:
+            return zero  # the path tracer's max_depth: x₁'s depth, k delta vertices, the emitter
+        xn = spec.xn[view]
+        nn = spec.xn_n[view]
+        le = emitter_radiance(spec.scene.lights, spec.light_tri[view], nn, -ch.d_out)
+        if wp.length_sq(le) <= 0.0:
+            return zero
+        if segment_occluded(spec.scene, ch.last, ch.last_ng, xn, nn):
+            return zero
+        x1 = spec.x1_si[view]
+        m = surface_material(spec.scene, x1)
+        frame = frame_from_normal(x1.ns)
+        f = bsdf.eval(m, to_local(frame, spec.x1_wo[view]), to_local(frame, ch.d1))
+        return wp.cw_mul(f, wp.cw_mul(ch.throughput, le)) * geometry(spec, view, u)
+
+    @wp.func
+    def target(spec: CausticSpec, view: int, u: wp.vec2) -> float:
+        """p̂ = lum f(x̂) (seed 003, Sec. 5.2)."""
+        return luminance(value(spec, view, u))
+
+    sms = make_manifold_sampler(CausticSpec, constraint, jacobian, target)
 
     @wp.kernel
     def probe(
@@ -382,7 +427,7 @@ def _make_caustics(kinds: frozenset[int]) -> CausticFuncs:
             vertices[i, 5] = si.ng
         vertices[i, 6] = wp.vec3(float(ch.length), float(ch.valid), 0.0)
 
-    return CausticFuncs(shoot, constraint, jacobian, geometry, sms, probe)
+    return CausticFuncs(shoot, constraint, jacobian, geometry, value, target, sms, probe)
 
 
 def make_caustics(kinds: Iterable[int]) -> CausticFuncs:
@@ -390,13 +435,18 @@ def make_caustics(kinds: Iterable[int]) -> CausticFuncs:
     return _make_caustics(frozenset(int(k) for k in kinds))
 
 
-def make_caustic_spec(built: Any, views: int, chain_max: int = CHAIN_MAX) -> CausticSpec:
+def make_caustic_spec(built: Any, views: int, chain_max: int = CHAIN_MAX, max_depth: int = -1) -> CausticSpec:
     """A :class:`CausticSpec` over ``built`` with ``views`` rows (zeroed) on its device."""
     dev = built.device
     s = CausticSpec()
     s.scene = built.data
     s.chain_max = int(chain_max)
+    s.max_depth = int(max_depth)
     n = max(int(views), 1)
+    s.x1_si = wp.zeros(n, dtype=SurfaceInteraction, device=dev)
+    s.x1_wo = wp.zeros(n, dtype=wp.vec3, device=dev)
+    s.x1_depth = wp.zeros(n, dtype=int, device=dev)
+    s.light_tri = wp.zeros(n, dtype=int, device=dev)
     s.x1 = wp.zeros(n, dtype=wp.vec3, device=dev)
     s.x1_ng = wp.zeros(n, dtype=wp.vec3, device=dev)
     s.caster = wp.zeros(n, dtype=int, device=dev)

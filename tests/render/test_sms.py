@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from reuse_checks import check
 
 from grisx.render.driver import METHODS, RenderContext, load_scene, method_params, render
 from grisx.render.pt import PathTracer
@@ -176,13 +177,43 @@ def test_capped_bernoulli_trials_are_caught():
     assert not result.passed, result
 
 
+def test_sms_on_a_mirror_agrees_with_the_path_tracer():
+    ref, ref_var = _pt_reference("reflective-plane")
+    image, var, stats = _sms_image("sms-partitioned", {"chain": 1}, scene="reflective-plane", spp=256)
+    result = image_agreement_test(image, var, ref, ref_var, block=8)
+    print("reflective-plane image z", result.image.z, stats)
+    assert stats["success_rate"] > 0.0
+    assert result.passed, result
+
+
+# ---- sms-restir: independent runs (its pixels are correlated) -----------------------------------------
+
+
+@pytest.mark.parametrize(
+    "params,camera,runs",
+    [({}, "static", 256), ({}, "moving", 128), ({"temporal": False}, "static", 128), ({"prior": False, "tiles": 8}, "static", 128)],
+    ids=["static", "moving-camera", "spatial-only", "no-prior-8-tiles"],
+)
+def test_sms_restir_is_unbiased(params, camera, runs):
+    result = check("sms-restir", params, scene="caustic-slab", camera=camera, frames=4, runs=runs, reference_spp=32768)
+    print("sms-restir", params, camera, "image z", result.image.z, "max block |z|", np.max(np.abs(result.blocks.z)))
+    assert result.passed, result
+
+
+def test_sms_restir_with_capped_trials_is_caught():
+    # 3 × 3 tiles: the trust region is all of U, so trials are SMS's (~9 per solution) and a cap of 2 loses energy
+    result = check("sms-restir", {"tiles": 3, "prior": False, "max_trials": 2}, scene="caustic-slab", frames=4, runs=512, k=BIASED_K, reference_spp=32768)
+    print("sms-restir capped image z", result.image.z, "max block |z|", np.max(np.abs(result.blocks.z)))
+    assert not result.passed, result
+
+
 # ---- every built-in scene ---------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("method", ["sms", "sms-partitioned"])
+@pytest.mark.parametrize("method", ["sms", "sms-partitioned", "sms-restir"])
 def test_every_builtin_scene_renders_finite(method):
     for name in BUILTIN_SCENES:
-        out = render(name, method, res=(8, 6), spp=1)
+        out = render(name, method, res=(8, 6), frames=2)
         assert np.all(np.isfinite(out.image)), name
         assert out.settings["nonfinite_samples"] == 0, name
         assert "success_rate" in out.settings["statistics"]
