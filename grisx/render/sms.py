@@ -618,9 +618,10 @@ def sms_statistics(t: dict[str, float], frames: int) -> dict[str, float]:
         "prior_success_rate": ratio(t["prior_successes"], t["prior_walks"]),
         "prior_tiles_per_frame": t["prior_tiles"] / frames,
     }
-    for k in ("shift_walks", "shifts_valid", "newton_shift"):
-        if k in t:
-            out[k + "_per_frame"] = t[k] / frames
+    if t.get("shift_walks", 0.0) > 0.0:  # sms-restir: the manifold shifts (2 walks each)
+        out["shift_success_rate"] = ratio(t["shifts_valid"], t["shift_walks"] / 2.0)
+        out["shift_walks_per_sample"] = ratio(t["shift_walks"], t["samples"])
+        out["newton_shift_per_sample"] = ratio(t["newton_shift"], t["samples"])
     return out
 
 

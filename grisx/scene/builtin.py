@@ -14,6 +14,7 @@ path's first key). ``grisx scenes`` lists them:
 ``caustic-slab``       a bumpy double-refractive glass slab over a plane, one small light (seed 003)
 ``reflective-plane``   a bumpy metal plane throwing a caustic on a floor and wall, one small light (seed 003)
 ``pool``               a wavy water surface over a tiled floor under a sky with a small, bright sun (seed 003)
+``swimming-pool``      ``pool`` with a distant area-light sun (SMS's caustics) under a sunless sky
 ``glossy-room``        a room with a glossy floor (seed 004, Fig. 9)
 ``many-lights``        hundreds of small coloured emitters over a floor
 ``closed-room``        a closed room of bright walls (albedo 0.85) and one small light: long paths matter
@@ -254,9 +255,8 @@ def _sky(width: int = 512, height: int = 256, sun_dir: tuple = (0.4, 0.75, -0.5)
     return img.astype(np.float32)
 
 
-def pool() -> Scene:
-    s = Scene("pool")
-    s.description = "a wavy water surface over a tiled floor under a sky with a small, bright sun (seed 003)"
+def _pool_basin(s: Scene) -> None:
+    """The pool's tiled floor, walls and wavy water (shared by ``pool`` and ``swimming-pool``)."""
     tiles = np.ones((256, 256, 3), np.float32) * np.array([0.55, 0.75, 0.8], np.float32)
     grout = (np.arange(256) % 32) < 2
     tiles[grout, :] = 0.9
@@ -273,11 +273,38 @@ def pool() -> Scene:
     }.items():
         _add(s, rectangle(), wall, m, name=name)
     _add(s, rectangle(), water, compose(translate((0, -0.15, 0)), rotate((1, 0, 0), -90), scale(2.0)), name="water")
+
+
+def pool() -> Scene:
+    s = Scene("pool")
+    s.description = "a wavy water surface over a tiled floor under a sky with a small, bright sun (seed 003)"
+    _pool_basin(s)
     s.set_environment(EnvMap(image=_sky(), scale=1.0))
+    _pool_camera(s)
+    return s
+
+
+def swimming_pool() -> Scene:
+    """``pool`` with its sun as a small, distant area light (1° across) and the sky without it: the sun's
+    caustics through the water are then SMS's (area emitters), the sky's stay with the path tracer."""
+    s = Scene("swimming-pool")
+    s.description = "the wavy pool lit by a distant area-light sun under a sunless sky: caustics for SMS (seed 003)"
+    _pool_basin(s)
+    s.set_environment(EnvMap(image=_sky(sun_radius_deg=0.0), scale=1.0))
+    sun = np.array([0.4, 0.75, -0.5]) / np.linalg.norm([0.4, 0.75, -0.5])
+    white = s.add_material(Diffuse(0.8))
+    # a quad 20 units away along the sun direction, facing the pool: half-size 0.175 ≈ 1° across
+    yaw = np.degrees(np.arctan2(-sun[0], -sun[2]))
+    pitch = np.degrees(np.arcsin(sun[1]))
+    _panel(s, tuple(20.0 * sun), (0.175, 0.175), compose(rotate((0, 1, 0), yaw), rotate((1, 0, 0), pitch)), white, emission=(34000, 30600, 25800), name="sun")
+    _pool_camera(s)
+    return s
+
+
+def _pool_camera(s: Scene) -> None:
     _camera(s, 55, [((0, 1.8, 3.4), (0, -0.8, 0), (0, 1, 0)), ((1.5, 1.6, 3.0), (0, -0.8, 0), (0, 1, 0))])
     s.film = Film(320, 240)
     s.defaults = {"spp": 256, "max_depth": 16}
-    return s
 
 
 def glossy_room() -> Scene:
@@ -352,6 +379,7 @@ BUILTIN_SCENES: dict[str, Callable[[], Scene]] = {
     "metal-rack": metal_rack,
     "caustic-slab-plane": caustic_slab_plane,
     "pool": pool,
+    "swimming-pool": swimming_pool,
     "caustic-slab": caustic_slab,
     "reflective-plane": reflective_plane,
     "glossy-room": glossy_room,
