@@ -217,3 +217,24 @@ def test_every_builtin_scene_renders_finite(method):
         assert np.all(np.isfinite(out.image)), name
         assert out.settings["nonfinite_samples"] == 0, name
         assert "success_rate" in out.settings["statistics"]
+
+
+def test_without_casters_sms_is_the_path_tracer_bit_for_bit():
+    # no delta surfaces: SMS owns no path, adds nothing, and the path tracer's samples are pt's own
+    a = render("cornell-box", "pt", res=(8, 8), spp=2, seed=5).image
+    for method in ("sms", "sms-partitioned"):
+        b = render("cornell-box", method, res=(8, 8), spp=2, seed=5)
+        np.testing.assert_array_equal(a, b.image)
+        assert b.settings["statistics"]["samples_per_frame"] == 0
+
+
+@pytest.mark.parametrize(
+    "method,params,text",
+    [("sms", {"max_trials": -1}, "max_trials"), ("sms-partitioned", {"tiles": 2}, "tiles"), ("sms", {"chain": 5}, "chain"),
+     ("sms-restir", {"radius": 0.0}, "radius"), ("sms-partitioned", {"presamples": 0}, "presamples")],
+)
+def test_bad_parameters_raise_named_errors(method, params, text):
+    from grisx.errors import GrisxError
+
+    with pytest.raises(GrisxError, match=text):
+        render("caustic-slab", method, res=(4, 4), params=params)
