@@ -24,22 +24,35 @@ Methods:
 ``sms-partitioned``  N × N tiles (``tiles``, 16), walks stopped outside the 3 × 3 trust region R(u)
                      (periodic), W = K / P(C) with trials in C(u*) (Eq. 4–6); with ``prior`` a
                      per-frame prior over tiles from ``presamples`` unrestricted walks per
-                     ``block`` × ``block`` pixel block and caster (Eq. 7–9, α = 0.8).
+                     ``block`` × ``block`` pixel block and caster (Eq. 7–9, α = 0.8);
+``sms-restir``       one ``sms-partitioned`` sample per pixel and frame as a reservoir x̂ = (u*, O, x_n)
+                     with p̂ = lum f(x̂) and W = K / (P(C) p_A P(O)); temporal reuse of the pixel's
+                     reservoir of the last frame (confidence cap ``history_cap`` 20) and one spatial
+                     neighbour uniform in a ``radius`` 30 px disc, both through the **manifold shift**
+                     (a ≤ 5-step walk from the neighbour's u* in this pixel's problem with the same O and
+                     x_n, checked by the walk back; Jacobian 1) and pairwise MIS (Eq. 10–11) —
+                     :meth:`grisx.theory.manifold.ManifoldSampler.reuse`, the toy's very function. The
+                     path tracer's part of the pixel is its own fresh sample each frame.
 
 ``max_trials`` caps the Bernoulli trials (128 as the paper; 0 = unbounded): any cap loses the
 energy f (1 − P)^cap of each solution, so a small cap (``max_trials=2``) is the biased ablation
 of Fig. 7. Every formula (seed pdf, P(C), α', W, the walk) is :mod:`grisx.theory.manifold`'s,
 shared with the ``sms-toy`` toy problem.
 
-Per-frame statistics (seed 003, Table 1) come back in ``render --json`` under ``statistics``:
-success rate, Newton iterations per sample, Bernoulli trials per solution, Newton iterations per
-solution, the prior's walks, and the stage times (``prior``, ``manifold_sampling``).
+Statistics (seed 003, Table 1) come back in ``render --json`` under ``statistics``, over all frames
+rendered: success rate, Newton iterations per sample, Bernoulli trials per solution, Newton
+iterations per solution, capped solutions, the prior's walks and (``sms-restir``) the shifts'
+success rate and cost; the stage times are ``seconds``' ``prior``, ``manifold_sampling`` (which
+includes the path tracer's sample of the pixel), ``temporal``, ``spatial`` and ``shade``.
 
-Simplified against the paper (said plainly): one emitter point and caster per sample, drawn
-without the α mix over light–object pairs of Sec. 4.2 (the prior is per block *and* caster, built
-with light points drawn per presample); delta casters only; area lights only (the pool's sun in
-an environment map stays with the path tracer); the chain is shot from x₁ with a numerical
-Jacobian (:mod:`grisx.scene.caustics`).
+Simplified against the paper (said plainly): one emitter point and caster per sample, the caster
+uniform and the light by power, without the α mix over light–object pairs of Sec. 4.2 (the prior
+is per block *and* caster, built with light points drawn per presample); delta casters only (no
+offset manifolds for glossy casters); area lights only (``pool``'s sun in an environment map stays
+with the path tracer; ``swimming-pool`` has it as an area light); the chain is shot from x₁ with a
+numerical Jacobian (:mod:`grisx.scene.caustics`); ``sms-restir``'s temporal neighbour is the same
+pixel (no reprojection: unbiased under a moving camera, less effective) and temporal reuse is off
+while objects move.
 """
 
 from __future__ import annotations
