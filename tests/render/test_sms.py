@@ -4,7 +4,7 @@ The ladder: Newton solutions on a bumpy slab obey Snell's law at both vertices a
 mirror the law of reflection (checked in float64 from the vertices, not from the
 constraint the walk solved); the walk's Jacobian agrees with finite differences of the
 constraint at another step; the generalized geometry term of a flat mirror is the closed
-form cos θ_n / (ℓ₁ + ℓ₂)²; then ``sms`` and ``sms-partitioned`` (prior on and off) agree
+form cos θ_n / (ℓ₁ + ℓ₂)²; the manifold shift between nearby shading points round-trips; then ``sms`` and ``sms-partitioned`` (prior on and off) agree
 with ``pt`` on ``caustic-slab`` (image and 8×8 blocks, k = 4, pixels independent), while
 the known-biased sibling ``max_trials=2`` (E[min(K, 2)] < 1/P: energy lost on every hard
 solution) fails the same check beyond 6σ. ``sms-restir`` is tested over independent runs
@@ -238,3 +238,27 @@ def test_bad_parameters_raise_named_errors(method, params, text):
 
     with pytest.raises(GrisxError, match=text):
         render("caustic-slab", method, res=(4, 4), params=params)
+
+
+def test_manifold_shift_between_nearby_shading_points_round_trips():
+    # seed 003, Sec. 5.2: T(x) = the ≤ 5-step walk seeded at x in the new problem; defined when the walk back returns x
+    built, caster, x1, xn, seeds = _slab_problem(256, seed=7)
+    base = solve_chains(built, x1, (0, 1, 0), caster, xn, (0, -1, 0), seeds)
+    u_star = base["u"][base["converged"] == 1]
+    assert len(u_star) >= 5
+    x1b = x1 + np.array([0.02, 0.0, 0.01])
+    there = solve_chains(built, x1b, (0, 1, 0), caster, xn, (0, -1, 0), u_star, max_iterations=5)
+    moved = there["converged"] == 1
+    assert moved.mean() > 0.8, moved.mean()
+    back = solve_chains(built, x1, (0, 1, 0), caster, xn, (0, -1, 0), there["u"][moved], max_iterations=5)
+    assert np.all(back["converged"] == 1)
+    d = np.abs(back["u"] - u_star[moved])
+    d = np.minimum(d, 1.0 - d)
+    assert np.all(np.hypot(d[:, 0], d[:, 1]) < 1e-4)  # the same solution (the uniqueness threshold)
+    assert np.all(np.linalg.norm(there["c"][moved], axis=1) < 1e-5)
+
+
+def test_sms_restir_shifts_mostly_succeed():
+    out = render("caustic-slab", "sms-restir", res=(24, 18), frames=3, accumulate=True)
+    st = out.settings["statistics"]
+    assert st["shift_success_rate"] > 0.3 and st["shift_walks_per_sample"] > 0.1, st
