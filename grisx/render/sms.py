@@ -150,12 +150,16 @@ class SMSPass:
     blocks_x: int
     prior_tiles: wp.array2d(dtype=int)
     prior_count: wp.array(dtype=int)
-    stats: wp.array(dtype=wp.float64)
+    stats: wp.array2d(dtype=wp.float64)
+
+
+#: rows of the tally array: a thread adds into row (its index mod this), so atomics on a GPU rarely collide
+STAT_ROWS = 256
 
 
 @wp.func
-def _tally(stats: wp.array(dtype=wp.float64), i: int, value: float):
-    wp.atomic_add(stats, i, wp.float64(value))
+def _tally(stats: wp.array2d(dtype=wp.float64), thread: int, i: int, value: float):
+    wp.atomic_add(stats, thread % stats.shape[0], i, wp.float64(value))
 
 
 _KERNELS: dict[Any, Any] = {}
@@ -208,14 +212,14 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
         row = ((y // p.block) * p.blocks_x + x // p.block) * n_casters + ci
         space = seed_space(p.tiles, p.alpha, p.prior_count[row])  # Eq. 7 (p_U when no prior)
         s = SMS.sample(spec, view, space, p.prior_tiles[row], random_subkey(skey, 4), p.max_trials)
-        _tally(stats, 0, 1.0)
-        _tally(stats, 2, float(s.newton_sample))
+        _tally(stats, view, 0, 1.0)
+        _tally(stats, view, 2, float(s.newton_sample))
         if s.found:
-            _tally(stats, 1, 1.0)
-            _tally(stats, 3, float(s.trials))
-            _tally(stats, 4, float(s.newton_bernoulli))
+            _tally(stats, view, 1, 1.0)
+            _tally(stats, view, 3, float(s.trials))
+            _tally(stats, view, 4, float(s.newton_bernoulli))
             if s.capped:
-                _tally(stats, 5, 1.0)
+                _tally(stats, view, 5, 1.0)
             out = wp.vec4(s.u[0], s.u[1], s.ucw * float(n_casters) / ls.pdf_area, 1.0)  # Eq. 1, 5: f W / (p_A P(O))
         return out
 
@@ -264,7 +268,7 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
         view_base: int,
         prior_tiles: wp.array2d(dtype=int),
         prior_count: wp.array(dtype=int),
-        stats: wp.array(dtype=wp.float64),
+        stats: wp.array2d(dtype=wp.float64),
     ):
         # ---- per-frame prior: unrestricted walks from random pixels of a B × B block (seed 003, Sec. 4.1) ----
         by, bx, ci = wp.tid()
@@ -286,13 +290,13 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
                 continue
             set_view(spec, view, si, -ray.d, 0, casters[ci], ls.p, ls.n, ls.tri)
             w = SMS.walk(spec, view, wp.vec2(random_uniform(jkey, 5), random_uniform(jkey, 6)), 0, NEWTON_MAX_ITERATIONS)
-            _tally(stats, 6, 1.0)
-            _tally(stats, 8, float(w.iterations))
+            _tally(stats, row, 6, 1.0)
+            _tally(stats, row, 8, float(w.iterations))
             if w.converged:
-                _tally(stats, 7, 1.0)
+                _tally(stats, row, 7, 1.0)
                 count = prior_add_tile(prior_tiles[row], count, tile_of(w.u, tiles))
         prior_count[row] = count
-        _tally(stats, 9, float(count))
+        _tally(stats, row, 9, float(count))
 
     @wp.kernel(module=module)
     def sample_pass(
@@ -363,7 +367,7 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
         samples_n: wp.array(dtype=CausticSample),
         res_out: wp.array(dtype=Reservoir),
         samples_out: wp.array(dtype=CausticSample),
-        stats: wp.array(dtype=wp.float64),
+        stats: wp.array2d(dtype=wp.float64),
     ):
         # ---- temporal (the same pixel last frame) or spatial (one neighbour in a disc) reuse, Sec. 5.2 ----
         y, x = wp.tid()
@@ -399,9 +403,9 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
             set_sample_view(spec, 3 * pixels + q, pn, y_n)  # y_n in its own domain
             n0 = reuse_neighbor(res_n[nb], y_n.u, 3 * pixels + q, pixels + q, 2 * pixels + q, 1)
         out = SMS.reuse(spec, res[q], y_c.u, q, n0, absent, cap, key)
-        _tally(stats, 10, float(out.walks))
-        _tally(stats, 11, float(out.valid))
-        _tally(stats, 12, float(out.newton))
+        _tally(stats, q, 10, float(out.walks))
+        _tally(stats, q, 11, float(out.valid))
+        _tally(stats, q, 12, float(out.newton))
         kept = y_c
         if out.source == 0:
             kept = samples_n[nb]
@@ -483,7 +487,7 @@ class SMSRenderer(PathTracer):
         self.prior_count = wp.zeros(n_rows, dtype=int, device=dev)
         self.spec = make_caustic_spec(built, self.width * self.height + n_rows, self.chain, self.max_depth)
         self.prior_view_base = self.width * self.height
-        self.stats = wp.zeros(_N_STATS, dtype=wp.float64, device=dev)
+        self.stats = wp.zeros((STAT_ROWS, _N_STATS), dtype=wp.float64, device=dev)
         self.frames = 0
 
     def kernels(self) -> list[Any]:
@@ -535,7 +539,7 @@ class SMSRenderer(PathTracer):
 
     def statistics(self) -> dict[str, float]:
         """Seed 003's Table 1 columns over everything rendered so far (per frame where it says so)."""
-        return sms_statistics(dict(zip(STAT_NAMES, self.stats.numpy().tolist())), max(self.frames, 1))
+        return sms_statistics(dict(zip(STAT_NAMES, self.stats.numpy().sum(axis=0).tolist())), max(self.frames, 1))
 
 
 class SMSReSTIR(SMSRenderer):
