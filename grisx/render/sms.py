@@ -6,17 +6,18 @@ The image is the path tracer's, split by *who owns which path*:
   1 … ``chain`` delta vertices, each left by its canonical lobe (refraction at a
   dielectric, reflection at a conductor), the first on a caster object O with the
   direction from x₁ inside O's seed square, then a point x_n on an emitter triangle
-  (:func:`grisx.scene.caustics.caustic_owned`). At x₁ it picks a caster (uniformly,
-  P(O) = 1/#casters) and an emitter point (``sample_light``, area density p_A), runs
+  (:func:`grisx.scene.caustics.caustic_owned`) or escaping to the environment. At x₁ it picks a
+  caster (uniformly, P(O) = 1/#casters) and an emitter point or environment direction
+  (``sample_light``, density p_A per area or per solid angle), runs
   a manifold walk from a seed u ~ p (Eq. 7) and, if it converges to a solution u*,
   estimates 1/P(u*) by Bernoulli trials (Eq. 1–3) and adds
   β(x₁) ⊙ f(x̂) · W / (p_A(x_n) P(O)), f of Eq. 13 (generalized geometry term included);
 * **the path tracer owns the rest** (:func:`grisx.render.base.trace.make_trace_path`
   with ``caustic_chain``): the very same ``trace_path`` as ``pt``, whose emitter hits
   on SMS-owned paths add nothing. Nothing is counted twice, nothing dropped, so
-  ``pt`` and every method here estimate the same image; caustics from the
-  environment or point lights, through a dielectric's reflection lobe, or longer
-  than ``chain``, stay (noisy) with the path tracer.
+  ``pt`` and every method here estimate the same image; caustics through a
+  dielectric's reflection lobe, longer than ``chain``, or starting outside a caster's
+  seed square stay (noisy) with the path tracer (point lights: nobody reaches them).
 
 Methods:
 
@@ -48,8 +49,7 @@ includes the path tracer's sample of the pixel), ``temporal``, ``spatial`` and `
 Simplified against the paper (said plainly): one emitter point and caster per sample, the caster
 uniform and the light by power, without the α mix over light–object pairs of Sec. 4.2 (the prior
 is per block *and* caster, built with light points drawn per presample); delta casters only (no
-offset manifolds for glossy casters); area lights only (``pool``'s sun in an environment map stays
-with the path tracer; ``swimming-pool`` has it as an area light); the chain is shot from x₁ with a
+offset manifolds for glossy casters); the chain is shot from x₁ with a
 numerical Jacobian (:mod:`grisx.scene.caustics`); ``sms-restir``'s temporal neighbour is the same
 pixel (no reprojection: unbiased under a moving camera, less effective) and temporal reuse is off
 while objects move.
@@ -206,8 +206,8 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
         n_casters = casters.shape[0]
         ci = wp.min(int(random_uniform(skey, 0) * float(n_casters)), n_casters - 1)
         ls = sample_light(spec.scene.lights, x1.si.p, random_uniform(skey, 1), wp.vec2(random_uniform(skey, 2), random_uniform(skey, 3)))
-        if ls.tri < 0 or not (ls.pdf_area > 0.0):
-            return out
+        if ls.light < 0 or ls.delta != 0 or not (ls.pdf_area > 0.0):
+            return out  # point lights: no chain reaches a delta light (the path tracer's neither)
         set_view(spec, view, x1.si, x1.wo, x1.depth, casters[ci], ls.p, ls.n, ls.tri)
         row = ((y // p.block) * p.blocks_x + x // p.block) * n_casters + ci
         space = seed_space(p.tiles, p.alpha, p.prior_count[row])  # Eq. 7 (p_U when no prior)
@@ -286,7 +286,7 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
             if si.valid == 0:
                 continue
             ls = sample_light(spec.scene.lights, si.p, random_uniform(jkey, 2), wp.vec2(random_uniform(jkey, 3), random_uniform(jkey, 4)))
-            if ls.tri < 0:
+            if ls.light < 0 or ls.delta != 0:
                 continue
             set_view(spec, view, si, -ray.d, 0, casters[ci], ls.p, ls.n, ls.tri)
             w = SMS.walk(spec, view, wp.vec2(random_uniform(jkey, 5), random_uniform(jkey, 6)), 0, NEWTON_MAX_ITERATIONS)

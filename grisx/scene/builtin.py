@@ -14,7 +14,7 @@ path's first key). ``grisx scenes`` lists them:
 ``caustic-slab``       a bumpy double-refractive glass slab over a plane, one small light (seed 003)
 ``reflective-plane``   a bumpy metal plane throwing a caustic on a floor and wall, one small light (seed 003)
 ``pool``               a wavy water surface over a tiled floor under a sky with a small, bright sun (seed 003)
-``swimming-pool``      ``pool`` with a distant area-light sun (SMS's caustics) under a sunless sky
+``swimming-pool``      ``pool`` with a distant area-light sun under a sunless sky
 ``glossy-room``        a room with a glossy floor (seed 004, Fig. 9)
 ``many-lights``        hundreds of small coloured emitters over a floor
 ``closed-room``        a closed room of bright walls (albedo 0.85) and one small light: long paths matter
@@ -285,10 +285,10 @@ def pool() -> Scene:
 
 
 def swimming_pool() -> Scene:
-    """``pool`` with its sun as a small, distant area light (1° across) and the sky without it: the sun's
-    caustics through the water are then SMS's (area emitters), the sky's stay with the path tracer."""
+    """``pool`` with its sun as a small, distant area light (1° across) and the sky without it: the same
+    caustics from an area emitter instead of the environment (SMS handles both)."""
     s = Scene("swimming-pool")
-    s.description = "the wavy pool lit by a distant area-light sun under a sunless sky: caustics for SMS (seed 003)"
+    s.description = "the wavy pool lit by a distant area-light sun under a sunless sky (seed 003, area-light variant)"
     _pool_basin(s)
     s.set_environment(EnvMap(image=_sky(sun_radius_deg=0.0), scale=1.0))
     sun = np.array([0.4, 0.75, -0.5]) / np.linalg.norm([0.4, 0.75, -0.5])

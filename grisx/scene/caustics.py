@@ -25,7 +25,9 @@ from x₁, as footnote 2 recommends, so the map is continuous):
 * **the constraint** C(u) = q(u) − x_n in an orthonormal frame of that plane
   (world units): C = 0 exactly when the chain is admissible (every vertex obeys
   the law of reflection/refraction with the bumped shading normal and the last
-  segment reaches x_n). Its Jacobian ∂C/∂u is taken by central differences of
+  segment reaches x_n). For the **environment** x_n is a sampled direction ω_n
+  and C(u) is the last direction's tangential part about ω_n (its antipode is
+  refused), so |det ∂C/∂u| is per solid angle at ω_n. Its Jacobian ∂C/∂u is taken by central differences of
   the shot (step 1e-3 in U); walks are :func:`grisx.theory.manifold.make_manifold_sampler`'s;
 * **generalized geometry term** (Jakob & Marschner 2012): a change of variables
   from ω₁ to the area of x_n, |∂ω₁/∂A(x_n)| = |∂ω₁/∂u| / |det ∂C/∂u| — for one
@@ -39,10 +41,10 @@ from x₁, as footnote 2 recommends, so the map is continuous):
 **Which paths a chain owns** (:func:`caustic_owned`): a camera path whose first
 non-delta vertex is x₁, followed by 1 … ``chain_max`` delta vertices, each left
 by its canonical lobe, the first on object O with ω₁ inside O's seed space from
-x₁, then a hit on an emitter triangle. The path tracer built with
+x₁, then a hit on an emitter triangle or the escape to the environment. The path tracer built with
 ``make_trace_path(kinds, caustic_chain=K)`` drops exactly those emitter hits and
-SMS adds them, so the two together estimate the path tracer's image. Environment
-and point lights, non-canonical lobes (a dielectric's reflection), longer chains
+SMS adds them, so the two together estimate the path tracer's image. Point
+lights (no path tracer reaches them through a delta chain either), non-canonical lobes (a dielectric's reflection), longer chains
 and directions outside the seed square stay with the path tracer.
 
 Simplifications (stated, not hidden): delta casters only (no offset manifolds
@@ -65,8 +67,8 @@ import warp as wp
 from grisx.scene.bsdf import make_bsdf
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.material import MATERIAL_DIELECTRIC, Material
-from grisx.scene.lights import emitter_radiance
-from grisx.scene.scene import SceneData, SurfaceInteraction, intersect, segment_occluded, spawn_origin, surface_material
+from grisx.scene.lights import emitter_radiance, environment_eval
+from grisx.scene.scene import SceneData, SurfaceInteraction, intersect, occluded, segment_occluded, spawn_origin, surface_material
 from grisx.theory.gris import luminance
 from grisx.theory.manifold import ManifoldSampler, make_manifold_sampler
 
@@ -116,13 +118,13 @@ class CausticSpec:
     x1: wp.array(dtype=wp.vec3)  # shading point x₁
     x1_ng: wp.array(dtype=wp.vec3)  # its geometric normal (ray offsets)
     caster: wp.array(dtype=int)  # object O whose seed space U parametrizes x₂
-    xn: wp.array(dtype=wp.vec3)  # the emitter point x_n
+    xn: wp.array(dtype=wp.vec3)  # the emitter point x_n (the direction ω_n for the environment)
     xn_n: wp.array(dtype=wp.vec3)  # the emitter triangle's normal at x_n
     # what f (Eq. 13) needs beyond the constraint
     x1_si: wp.array(dtype=SurfaceInteraction)  # x₁ (its material and shading frame)
     x1_wo: wp.array(dtype=wp.vec3)  # unit, x₁ → the previous path vertex
     x1_depth: wp.array(dtype=int)  # segments before the one that reached x₁
-    light_tri: wp.array(dtype=int)  # the emitter triangle of x_n
+    light_tri: wp.array(dtype=int)  # the emitter triangle of x_n; −1: the environment, x_n a direction
 
 
 @wp.struct
@@ -318,9 +320,19 @@ def _make_caustics(kinds: frozenset[int]) -> CausticFuncs:
             out.length = k + 1
         if out.length == 0:
             return out
-        # ---- where the last segment meets the emitter's plane ----
         xn = spec.xn[view]
         nn = spec.xn_n[view]
+        if spec.light_tri[view] < 0:
+            # ---- the environment: x_n is a direction ω_n, C = d_out's tangential part about ω_n ----
+            if wp.dot(d, xn) <= 0.0:
+                return out  # the antipode also has a zero tangential part: not a solution
+            ef = frame_from_normal(xn)
+            out.c = wp.vec2(wp.dot(d, ef.s), wp.dot(d, ef.t))
+            out.d_out = d
+            out.throughput = beta
+            out.valid = 1
+            return out
+        # ---- where the last segment meets the emitter's plane ----
         denom = wp.dot(d, nn)
         if wp.abs(denom) < 1.0e-8:
             return out
@@ -373,11 +385,19 @@ def _make_caustics(kinds: frozenset[int]) -> CausticFuncs:
             return zero  # the path tracer's max_depth: x₁'s depth, k delta vertices, the emitter
         xn = spec.xn[view]
         nn = spec.xn_n[view]
-        le = emitter_radiance(spec.scene.lights, spec.light_tri[view], nn, -ch.d_out)
-        if wp.length_sq(le) <= 0.0:
-            return zero
-        if segment_occluded(spec.scene, ch.last, ch.last_ng, xn, nn):
-            return zero
+        le = wp.vec3(0.0, 0.0, 0.0)
+        if spec.light_tri[view] < 0:
+            le = environment_eval(spec.scene.lights, xn)  # x_n = ω_n: visible if the ray escapes
+            if wp.length_sq(le) <= 0.0:
+                return zero
+            if occluded(spec.scene, spawn_origin(spec.scene, ch.last, ch.last_ng, xn), xn, 1.0e30):
+                return zero
+        else:
+            le = emitter_radiance(spec.scene.lights, spec.light_tri[view], nn, -ch.d_out)
+            if wp.length_sq(le) <= 0.0:
+                return zero
+            if segment_occluded(spec.scene, ch.last, ch.last_ng, xn, nn):
+                return zero
         x1 = spec.x1_si[view]
         m = surface_material(spec.scene, x1)
         frame = frame_from_normal(x1.ns)
@@ -456,13 +476,15 @@ def make_caustic_spec(built: Any, views: int, chain_max: int = CHAIN_MAX, max_de
 
 
 def solve_chains(
-    built: Any, x1: Any, x1_ng: Any, caster: int, xn: Any, xn_n: Any, seeds: Any, *, chain_max: int = CHAIN_MAX, max_iterations: int = 20
+    built: Any, x1: Any, x1_ng: Any, caster: int, xn: Any, xn_n: Any, seeds: Any, *, chain_max: int = CHAIN_MAX, max_iterations: int = 20,
+    light_tri: int = 0,
 ) -> dict[str, np.ndarray]:
     """Manifold walks from ``seeds`` (n, 2) for n problems (x₁, its normal, x_n, its normal: (n, 3) each) on ``caster``.
 
     Returns the end ``u``, ``converged``, C(u), ∂C/∂u, |∂ω₁/∂A(x_n)| (``geometry``), and per walk
     ``vertices`` (n, 7, 3): x₂, its shading and geometric normals, x_{k+1}, its normals, (k, valid, 0).
-    For tests and the tutorial (the renderers call the same functions in their kernels).
+    ``light_tri`` < 0 makes x_n a direction of the environment. For tests and the tutorial (the
+    renderers call the same functions in their kernels).
     """
     seeds = np.asarray(seeds, dtype=np.float32).reshape(-1, 2)
     n = len(seeds)
@@ -477,6 +499,7 @@ def solve_chains(
     spec.caster.assign(np.full(n, int(caster), dtype=np.int32))
     spec.xn.assign(rows(xn))
     spec.xn_n.assign(rows(xn_n))
+    spec.light_tri.assign(np.full(n, int(light_tri), dtype=np.int32))
     funcs = make_caustics(built.features.material_kinds)
     out = {
         "u": wp.zeros(n, dtype=wp.vec2, device=dev),

@@ -138,7 +138,7 @@ def _make_trace_path(kinds: frozenset[int], caustic_chain: int) -> Any:
                             light_pdf = light_pdf_emitter(scene.lights, si.tri, prev_p, si.p, si.ng)
                         w = technique_mis(0, 0, prev_delta, light_pdf, prev_pdf)
                 if chain_max > 0:
-                    if chain_state == 1 and chain_len >= 1 and si.valid != 0:
+                    if chain_state == 1 and chain_len >= 1:  # an emitter triangle or the environment
                         if caustic_owned(scene, x1_p, d1, chain_obj) != 0:
                             w = 0.0  # SMS's caustic next-event estimate owns this path
                 L += wp.cw_mul(beta, le) * w
