@@ -28,7 +28,7 @@ Methods:
                      ``block`` × ``block`` pixel block and caster (Eq. 7–9, α = 0.8);
 ``sms-restir``       one ``sms-partitioned`` sample per pixel and frame as a reservoir x̂ = (u*, O, x_n)
                      with p̂ = lum f(x̂) and W = K / (P(C) p_A P(O)); temporal reuse of the pixel's
-                     reservoir of the last frame (confidence cap ``history_cap`` 20) and one spatial
+                     reservoir of the last frame, found by reprojecting x₁ (confidence cap ``history_cap`` 20), and one spatial
                      neighbour uniform in a ``radius`` 30 px disc, both through the **manifold shift**
                      (a ≤ 5-step walk from the neighbour's u* in this pixel's problem with the same O and
                      x_n, checked by the walk back; Jacobian 1) and pairwise MIS (Eq. 10–11) —
@@ -50,9 +50,8 @@ Simplified against the paper (said plainly): one emitter point and caster per sa
 uniform and the light by power, without the α mix over light–object pairs of Sec. 4.2 (the prior
 is per block *and* caster, built with light points drawn per presample); delta casters only (no
 offset manifolds for glossy casters); the chain is shot from x₁ with a
-numerical Jacobian (:mod:`grisx.scene.caustics`); ``sms-restir``'s temporal neighbour is the same
-pixel (no reprojection: unbiased under a moving camera, less effective) and temporal reuse is off
-while objects move.
+numerical Jacobian (:mod:`grisx.scene.caustics`); ``sms-restir``'s temporal neighbour is found by
+reprojecting x₁ (not a G-buffer similarity test) and temporal reuse is off while objects move.
 """
 
 from __future__ import annotations
@@ -70,7 +69,8 @@ from grisx.render.base.registry import RenderMethod, register, renderer_params
 from grisx.render.base.trace import PathRadiance, make_trace_path
 from grisx.render.pt import PathTracer, _scale, add_sample, pixel_ray, sample_key
 from grisx.scene.bsdf import make_bsdf
-from grisx.scene.camera import CameraData, camera_ray
+from grisx.render.base.reuse import spatial_neighbor
+from grisx.scene.camera import CameraData, camera_project, camera_ray
 from grisx.scene.caustics import CHAIN_MAX, CausticSpec, make_caustic_spec, make_caustics, set_view
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.lights import sample_light
@@ -352,6 +352,7 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
     @wp.kernel(module=module)
     def restir_reuse(
         spec: CausticSpec,
+        cam_prev: CameraData,
         seed: int,
         frame: int,
         width: int,
@@ -369,7 +370,7 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
         samples_out: wp.array(dtype=CausticSample),
         stats: wp.array2d(dtype=wp.float64),
     ):
-        # ---- temporal (the same pixel last frame) or spatial (one neighbour in a disc) reuse, Sec. 5.2 ----
+        # ---- temporal (where x₁ was seen last frame) or spatial (one neighbour in a disc) reuse, Sec. 5.2 ----
         y, x = wp.tid()
         q = y * width + x
         pixels = width * height
@@ -379,15 +380,15 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
         if pc.valid == 0:
             return
         key = random_subkey(sample_key(seed, frame, q, 0), 10 + spatial)
-        nb = q
+        nb = int(-1)
         if spatial != 0:
-            rr = radius * wp.sqrt(random_uniform(key, 8))
-            phi = 6.283185307179586 * random_uniform(key, 9)
-            nx = x + int(wp.round(rr * wp.cos(phi)))
-            ny = y + int(wp.round(rr * wp.sin(phi)))
-            nb = -1
-            if nx >= 0 and nx < width and ny >= 0 and ny < height and (nx != x or ny != y):
-                nb = ny * width + nx
+            n = spatial_neighbor(x, y, width, height, radius, wp.vec2(random_uniform(key, 8), random_uniform(key, 9)))
+            if n.valid != 0:
+                nb = n.y * width + n.x
+        else:
+            proj = camera_project(cam_prev, pc.si.p)  # x₁ reprojected into the last frame's camera
+            if proj.valid != 0 and proj.inside != 0:
+                nb = wp.min(int(proj.pixel[1]), height - 1) * width + wp.min(int(proj.pixel[0]), width - 1)
         present = int(0)
         if nb >= 0:
             present = points_n[nb].valid
@@ -546,8 +547,9 @@ class SMSReSTIR(SMSRenderer):
     """``sms-restir``: sms-partitioned samples, then temporal and spatial GRIS through manifold shifts (Sec. 5).
 
     Per frame: the path tracer (without SMS's paths) and one SMS candidate per pixel; temporal reuse of
-    the same pixel's reservoir from the last frame (its x₁ then; skipped while objects move, whose last
-    frame's geometry is gone); one spatial neighbour uniform in a ``radius``-pixel disc; pairwise MIS
+    the reservoir of the pixel where x₁ was seen in the last frame (x₁ reprojected into its camera; that
+    pixel's x₁ then is the neighbour's domain; skipped while objects move, whose last frame's geometry is
+    gone); one spatial neighbour uniform in a ``radius``-pixel disc (clamped to the film); pairwise MIS
     and the confidence cap ``history_cap`` (seed 003: 20) through :meth:`ManifoldSampler.reuse`.
     """
 
@@ -574,10 +576,11 @@ class SMSReSTIR(SMSRenderer):
         return [k["prior_pass"], k["restir_initial"], k["restir_reuse"], k["restir_shade"], _scale]
 
     def _reuse(self, frame: int, spatial: int, points_n: wp.array, src: int, nb: int, dst: int) -> None:
+        cam_prev = self.built.camera_data(float(frame - 1), self.width, self.height)
         wp.launch(
             self.kernels_["restir_reuse"],
             dim=(self.height, self.width),
-            inputs=[self.spec, self.seed, int(frame), self.width, self.height, spatial, self.radius, self.history_cap, self.points, points_n,
+            inputs=[self.spec, cam_prev, self.seed, int(frame), self.width, self.height, spatial, self.radius, self.history_cap, self.points, points_n,
                     self.res[src], self.smp[src], self.res[nb], self.smp[nb]],
             outputs=[self.res[dst], self.smp[dst], self.stats],
             device=self.built.device,
