@@ -1,7 +1,8 @@
 """Caustic chains on real geometry: the specular constraint that seed 003's manifold walks solve in a scene.
 
 A *caustic chain* joins a shading point x₁ (the first non-delta vertex of a
-camera path) to a point x_n on an area emitter through k = 1 … ``chain_max``
+camera path) to a point x_n on an area emitter (or a direction of the
+environment) through k = 1 … ``chain_max``
 delta vertices x₂ … x_{k+1} (seed 003, Sec. 3.1). It is fixed by a 2D seed
 u ∈ U = [0, 1)² (the paper's primary sample space of x₂, here a *direction*
 from x₁, as footnote 2 recommends, so the map is continuous):
@@ -27,8 +28,9 @@ from x₁, as footnote 2 recommends, so the map is continuous):
   the law of reflection/refraction with the bumped shading normal and the last
   segment reaches x_n). For the **environment** x_n is a sampled direction ω_n
   and C(u) is the last direction's tangential part about ω_n (its antipode is
-  refused), so |det ∂C/∂u| is per solid angle at ω_n. Its Jacobian ∂C/∂u is taken by central differences of
-  the shot (step 1e-3 in U); walks are :func:`grisx.theory.manifold.make_manifold_sampler`'s;
+  refused), so |det ∂C/∂u| is per solid angle at ω_n. ∂C/∂u is taken by
+  central differences of the shot (step 1e-3 in U); the walks are
+  :func:`grisx.theory.manifold.make_manifold_sampler`'s;
 * **generalized geometry term** (Jakob & Marschner 2012): a change of variables
   from ω₁ to the area of x_n, |∂ω₁/∂A(x_n)| = |∂ω₁/∂u| / |det ∂C/∂u| — for one
   flat mirror exactly cos θ_n / (ℓ₁ + ℓ₂)² of the mirrored light — so a solution
@@ -36,16 +38,18 @@ from x₁, as footnote 2 recommends, so the map is continuous):
 
       f(x̂) = f_s(x₁, ω_o, ω₁) ⊙ Tr(chain) ⊙ L_e(x_n → x_{k+1}) · |∂ω₁/∂A(x_n)| · V(x_{k+1} ↔ x_n),
 
-  and f(x̂) W / p_A(x_n) estimates the emitter integral of Eq. 12 over solutions.
+  and f(x̂) W / p_A(x_n) estimates the emitter integral of Eq. 12 over solutions
+  (p per solid angle and |∂ω₁/∂ω_n| for the environment).
 
 **Which paths a chain owns** (:func:`caustic_owned`): a camera path whose first
 non-delta vertex is x₁, followed by 1 … ``chain_max`` delta vertices, each left
 by its canonical lobe, the first on object O with ω₁ inside O's seed space from
-x₁, then a hit on an emitter triangle or the escape to the environment. The path tracer built with
-``make_trace_path(kinds, caustic_chain=K)`` drops exactly those emitter hits and
-SMS adds them, so the two together estimate the path tracer's image. Point
-lights (no path tracer reaches them through a delta chain either), non-canonical lobes (a dielectric's reflection), longer chains
-and directions outside the seed square stay with the path tracer.
+x₁, then a hit on an emitter triangle or the escape to the environment. The
+path tracer built with ``make_trace_path(kinds, caustic_chain=K)`` drops exactly
+those emissions and SMS adds them, so the two together estimate the path
+tracer's image. Non-canonical lobes (a dielectric's reflection), longer chains
+and directions outside the seed square stay with the path tracer; point lights
+are reached by neither through a delta chain.
 
 Simplifications (stated, not hidden): delta casters only (no offset manifolds
 for glossy casters, Sec. 5.3); a numerical (central-difference) Jacobian
