@@ -32,7 +32,7 @@ for g in $groups; do
       $py -m grisx bench render cornell-box door-ajar --method pt --method restir-di --method restir-gi --method restir-pt \
           --budget 5 --res 640x360 --device cuda --out "$out/study" ;;
     caustics)
-      $py benchmarks/sms_scenes.py --device cuda --width 1920 --height 1080 --frames 16 --budget 5 --ref-spp 4096 --out "$out" ;;
+      $py benchmarks/sms_scenes.py --device cuda --width 1920 --height 1080 --frames 16 --budget 5 --ref-spp 4096 --ref-method sms-partitioned --out "$out" ;;
     multigpu)
       $py benchmarks/multi_gpu_reference.py --devices cuda:0,cuda:1 --spp 4096 --out "$out/multi_gpu" ;;
     *) echo "run_cuda.sh: unknown group '$g'" >&2; exit 2 ;;
