@@ -356,7 +356,7 @@ def _render(args: argparse.Namespace) -> int:
             "seed": args.seed,
             "params": s["params"],
             "nonfinite_samples": s.get("nonfinite_samples", 0),
-            **({"stats": s["stats"]} if "stats" in s else {}),  # the renderer's own (e.g. reservoir bytes per pixel)
+            **({"statistics": s["statistics"]} if "statistics" in s else {}),
             "output": written,
         }, default=_plain))
     else:

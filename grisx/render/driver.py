@@ -231,8 +231,8 @@ def render(
         "features": built.features.to_dict(),
         "triangles": built.num_triangles,
     }
-    if hasattr(renderer, "stats"):
-        settings["stats"] = renderer.stats()  # e.g. reservoir bytes per pixel
+    if hasattr(renderer, "statistics"):
+        settings["statistics"] = renderer.statistics()  # a method's own tallies (e.g. seed 003's Table 1)
     if hasattr(renderer, "nonfinite_samples"):
         settings["nonfinite_samples"] = renderer.nonfinite_samples  # dropped NaN/Inf samples; 0 expected
     return RenderResult(

@@ -41,13 +41,13 @@ from grisx.device import specialized_module
 from grisx.render.base.trace import STRATEGIES, make_trace_path
 from grisx.params import Param
 from grisx.render.base.registry import RenderMethod, register, renderer_params
-from grisx.scene.camera import CameraData, camera_ray, sample_camera
+from grisx.scene.camera import CameraData, CameraRay, camera_ray, sample_camera
 from grisx.scene.scene import SceneData, finite_or_dropped
 from grisx.theory.random import random_key, random_subkey
 
 wp.set_module_options({"enable_backward": False})
 
-__all__ = ["PathTracer", "make_path_tracer_kernel", "create_path_tracer", "variance_of_mean"]
+__all__ = ["PathTracer", "make_path_tracer_kernel", "create_path_tracer", "variance_of_mean", "sample_key", "pixel_ray", "add_sample"]
 
 
 
@@ -74,21 +74,37 @@ def make_path_tracer_kernel(kinds: frozenset[int]) -> Any:
         nonfinite: wp.array(dtype=wp.int32),
     ):
         y, x = wp.tid()
-        pixel = y * cam.width + x
-        key = random_subkey(random_subkey(random_key(seed, frame), pixel), sample)
-        # counters 0–3 of the key are the camera's (box filter over the pixel and the lens; jitter = 0: the
-        # pixel centre through the lens centre, as an unjittered G-buffer sees it); paths use subkey 1
-        cs = sample_camera(cam, key, x, y, jitter)
-        ray = camera_ray(cam, cs.pixel[0], cs.pixel[1], cs.lens)
+        key = sample_key(seed, frame, y * cam.width + x, sample)
+        ray = pixel_ray(cam, key, x, y, jitter)
         L = trace_path(scene, ray.o, ray.d, random_subkey(key, 1), max_depth, rr_depth, strategy, -1, 0).total
-        L = finite_or_dropped(L, nonfinite)
-        # float64 sums: a float32 running sum of n similar samples rounds the same way every time and
-        # drifts by ~n·ulp (−1.8e-4 of the mean after 20,000 spp; tests/render/test_hostile.py)
-        Ld = wp.vec3d(wp.float64(L[0]), wp.float64(L[1]), wp.float64(L[2]))
-        total[y, x] = total[y, x] + Ld
-        total_sq[y, x] = total_sq[y, x] + wp.cw_mul(Ld, Ld)
+        add_sample(total, total_sq, nonfinite, y, x, L)
 
     return sample_pass
+
+
+@wp.func
+def sample_key(seed: int, frame: int, pixel: int, sample: int) -> wp.uint32:
+    """The key of sample ``sample`` of ``pixel`` in ``frame``: stream (seed, frame) → pixel → sample."""
+    return random_subkey(random_subkey(random_key(seed, frame), pixel), sample)
+
+
+@wp.func
+def pixel_ray(cam: CameraData, key: wp.uint32, x: int, y: int, jitter: int) -> CameraRay:
+    """The camera ray of pixel (x, y) from counters 0–3 of ``key`` (box filter over the pixel and the lens;
+    jitter = 0: the pixel centre through the lens centre, as an unjittered G-buffer sees it); paths use subkey 1."""
+    cs = sample_camera(cam, key, x, y, jitter)
+    return camera_ray(cam, cs.pixel[0], cs.pixel[1], cs.lens)
+
+
+@wp.func
+def add_sample(total: wp.array2d(dtype=wp.vec3d), total_sq: wp.array2d(dtype=wp.vec3d), nonfinite: wp.array(dtype=wp.int32), y: int, x: int, L: wp.vec3):
+    """Add one sample (NaN/Inf dropped and counted) to a pixel's running sum and sum of squares."""
+    L = finite_or_dropped(L, nonfinite)
+    # float64 sums: a float32 running sum of n similar samples rounds the same way every time and
+    # drifts by ~n·ulp (−1.8e-4 of the mean after 20,000 spp; tests/render/test_hostile.py)
+    Ld = wp.vec3d(wp.float64(L[0]), wp.float64(L[1]), wp.float64(L[2]))
+    total[y, x] = total[y, x] + Ld
+    total_sq[y, x] = total_sq[y, x] + wp.cw_mul(Ld, Ld)
 
 
 @wp.kernel

@@ -862,8 +862,8 @@ class SuffixReSTIR(ScreenSpaceRenderer):
     def kernels(self) -> list[Any]:
         return list(self.k.values())
 
-    def stats(self) -> dict[str, Any]:
-        """Render stats (the driver's ``settings["stats"]``): bytes of a pixel's reservoir (prefix + suffix) against ReSTIR PT's path reservoir."""
+    def statistics(self) -> dict[str, Any]:
+        """Render statistics (the driver's ``settings["statistics"]``): bytes of a pixel's reservoir (prefix + suffix) against ReSTIR PT's path reservoir."""
         return {
             "reservoir_bytes_per_pixel": _struct_bytes(SupportReservoir) if self.reuses else 0,
             "restir_pt_reservoir_bytes_per_pixel": _struct_bytes(PathReservoir),

@@ -11,7 +11,10 @@ path's first key). ``grisx scenes`` lists them:
 ``checker-grid``       a black/white grid with sharp edges under an area light (seed 000, Fig. 6)
 ``metal-rack``         glossy metal bars lit by two lights (seed 000, Fig. 9)
 ``caustic-slab-plane`` a bumpy two-sided glass slab and a wavy metal plane, two small coloured lights (seed 003, Fig. 1)
+``caustic-slab``       a bumpy double-refractive glass slab over a plane, one small light (seed 003)
+``reflective-plane``   a bumpy metal plane throwing a caustic on a floor and wall, one small light (seed 003)
 ``pool``               a wavy water surface over a tiled floor under a sky with a small, bright sun (seed 003)
+``swimming-pool``      ``pool`` with a distant area-light sun under a sunless sky
 ``glossy-room``        a room with a glossy floor (seed 004, Fig. 9)
 ``many-lights``        hundreds of small coloured emitters over a floor
 ``closed-room``        a closed room of bright walls (albedo 0.85) and one small light: long paths matter
@@ -200,6 +203,39 @@ def caustic_slab_plane() -> Scene:
     return s
 
 
+def caustic_slab() -> Scene:
+    s = Scene("caustic-slab")
+    s.description = "a bumpy double-refractive glass slab over a diffuse plane under one small light (seed 003, after Zeltner et al. 2020)"
+    ground = s.add_material(Diffuse(0.7), "ground")
+    glass = s.add_material(Dielectric(int_ior=1.5, bump_amplitude=0.004, bump_frequency=12.0), "slab")
+    white = s.add_material(Diffuse(0.8))
+    _add(s, rectangle(), ground, compose(rotate((1, 0, 0), -90), scale(1.5)), name="ground")
+    _add(s, cube(), glass, compose(translate((0.0, 0.45, 0.0)), rotate((0, 0, 1), 8), scale((0.45, 0.04, 0.45))), name="slab")
+    _panel(s, (0.1, 1.6, 0.05), (0.04, 0.04), rotate((1, 0, 0), 90), white, emission=(600, 560, 500), name="light")
+    _camera(s, 40, [((0, 2.6, 1.9), (0, 0.0, -0.05), (0, 1, 0)), ((0.8, 2.4, 1.8), (0, 0.0, 0), (0, 1, 0))])
+    s.film = Film(256, 192)
+    s.defaults = {"spp": 256, "max_depth": 8}
+    return s
+
+
+def reflective_plane() -> Scene:
+    s = Scene("reflective-plane")
+    s.description = "a bumpy metal plane throwing a caustic onto a diffuse floor and wall under one small light (seed 003)"
+    ground = s.add_material(Diffuse(0.7), "ground")
+    wall = s.add_material(Diffuse(0.6), "wall")
+    metal = s.add_material(Conductor(specular_reflectance=(0.95, 0.93, 0.88), bump_amplitude=0.003, bump_frequency=10.0), "metal")
+    white = s.add_material(Diffuse(0.8))
+    _add(s, rectangle(), ground, compose(rotate((1, 0, 0), -90), scale(2.0)), name="ground")
+    _add(s, rectangle(), wall, compose(translate((0, 1.0, -1.2)), scale((2, 1, 1))), name="wall")
+    # the plane stands at the back tilted 23.6° down, so the light in front is reflected onto the floor
+    _add(s, rectangle(), metal, compose(translate((0.3, 0.6, -0.6)), rotate((1, 0, 0), 23.6), scale((0.4, 0.4, 1))), name="metal-plane")
+    _panel(s, (-0.4, 1.4, 0.8), (0.04, 0.04), compose(rotate((0, 1, 0), 153.4), rotate((1, 0, 0), 26.7)), white, emission=(500, 480, 440), name="light")
+    _camera(s, 45, [((0, 1.6, 2.8), (0, 0.5, -0.4), (0, 1, 0)), ((-0.8, 1.5, 2.6), (0, 0.5, -0.4), (0, 1, 0))])
+    s.film = Film(256, 192)
+    s.defaults = {"spp": 256, "max_depth": 8}
+    return s
+
+
 def _sky(width: int = 512, height: int = 256, sun_dir: tuple = (0.4, 0.75, -0.5), sun_radius_deg: float = 1.5) -> np.ndarray:
     """An equirectangular sky (Mitsuba's envmap mapping, +y up) with a small, very bright sun."""
     u = (np.arange(width) + 0.5) / width
@@ -219,9 +255,8 @@ def _sky(width: int = 512, height: int = 256, sun_dir: tuple = (0.4, 0.75, -0.5)
     return img.astype(np.float32)
 
 
-def pool() -> Scene:
-    s = Scene("pool")
-    s.description = "a wavy water surface over a tiled floor under a sky with a small, bright sun (seed 003)"
+def _pool_basin(s: Scene) -> None:
+    """The pool's tiled floor, walls and wavy water (shared by ``pool`` and ``swimming-pool``)."""
     tiles = np.ones((256, 256, 3), np.float32) * np.array([0.55, 0.75, 0.8], np.float32)
     grout = (np.arange(256) % 32) < 2
     tiles[grout, :] = 0.9
@@ -238,11 +273,38 @@ def pool() -> Scene:
     }.items():
         _add(s, rectangle(), wall, m, name=name)
     _add(s, rectangle(), water, compose(translate((0, -0.15, 0)), rotate((1, 0, 0), -90), scale(2.0)), name="water")
+
+
+def pool() -> Scene:
+    s = Scene("pool")
+    s.description = "a wavy water surface over a tiled floor under a sky with a small, bright sun (seed 003)"
+    _pool_basin(s)
     s.set_environment(EnvMap(image=_sky(), scale=1.0))
+    _pool_camera(s)
+    return s
+
+
+def swimming_pool() -> Scene:
+    """``pool`` with its sun as a small, distant area light (1° across) and the sky without it: the same
+    caustics from an area emitter instead of the environment (SMS handles both)."""
+    s = Scene("swimming-pool")
+    s.description = "the wavy pool lit by a distant area-light sun under a sunless sky (seed 003, area-light variant)"
+    _pool_basin(s)
+    s.set_environment(EnvMap(image=_sky(sun_radius_deg=0.0), scale=1.0))
+    sun = np.array([0.4, 0.75, -0.5]) / np.linalg.norm([0.4, 0.75, -0.5])
+    white = s.add_material(Diffuse(0.8))
+    # a quad 20 units away along the sun direction, facing the pool: half-size 0.175 ≈ 1° across
+    yaw = np.degrees(np.arctan2(-sun[0], -sun[2]))
+    pitch = np.degrees(np.arcsin(sun[1]))
+    _panel(s, tuple(20.0 * sun), (0.175, 0.175), compose(rotate((0, 1, 0), yaw), rotate((1, 0, 0), pitch)), white, emission=(34000, 30600, 25800), name="sun")
+    _pool_camera(s)
+    return s
+
+
+def _pool_camera(s: Scene) -> None:
     _camera(s, 55, [((0, 1.8, 3.4), (0, -0.8, 0), (0, 1, 0)), ((1.5, 1.6, 3.0), (0, -0.8, 0), (0, 1, 0))])
     s.film = Film(320, 240)
     s.defaults = {"spp": 256, "max_depth": 16}
-    return s
 
 
 def glossy_room() -> Scene:
@@ -317,6 +379,9 @@ BUILTIN_SCENES: dict[str, Callable[[], Scene]] = {
     "metal-rack": metal_rack,
     "caustic-slab-plane": caustic_slab_plane,
     "pool": pool,
+    "swimming-pool": swimming_pool,
+    "caustic-slab": caustic_slab,
+    "reflective-plane": reflective_plane,
     "glossy-room": glossy_room,
     "many-lights": many_lights,
     "closed-room": closed_room,

@@ -174,6 +174,8 @@ class SceneData:
     lights: LightSet
     ray_epsilon: float  # scaled to the scene's size
     scene_radius: float
+    object_center: wp.array(dtype=wp.vec3)  # per object: centre of its bounding sphere, this frame (caustics' seed space)
+    object_radius: wp.array(dtype=float)  # per object: radius of that sphere
 
 
 @wp.struct
@@ -619,6 +621,14 @@ class BuiltScene:
         # it, camera included) renders the same image (an absolute floor made a millimetre-sized box 1% darker)
         d.ray_epsilon = 1.0e-4 * radius + 1.0e-6 * extent
         d.scene_radius = radius
+        # bounding spheres (box centre, farthest vertex) of the objects: the seed space of a caustic chain
+        # (grisx.scene.caustics) is the square that covers an object's sphere as seen from the shading point
+        centers = np.array([0.5 * (o.vertices.min(axis=0) + o.vertices.max(axis=0)) for o in objs], dtype=np.float64)
+        radii = np.array([float(np.max(np.linalg.norm(o.vertices - c, axis=1))) for o, c in zip(objs, centers)])
+        self._object_centers = centers
+        self.object_center = wp.array(centers.astype(f32), dtype=wp.vec3, device=dev)
+        d.object_center = self.object_center
+        d.object_radius = wp.array(np.maximum(radii, 1.0e-6).astype(f32), dtype=float, device=dev)
         self.data = d
 
         n_obj = len(objs)
@@ -650,6 +660,8 @@ class BuiltScene:
             return False
         self._host_transforms = new
         self.object_transforms.assign(new.astype(np.float32))
+        moved_centers = np.einsum("nij,nj->ni", new[:, :3, :3], self._object_centers) + new[:, :3, 3]
+        self.object_center.assign(moved_centers.astype(np.float32))
         wp.launch(
             _move_vertices,
             dim=self.num_vertices,

@@ -80,7 +80,9 @@ from typing import Any
 
 import warp as wp
 
+from grisx.theory.mis import pairwise_mis_canonical_term, pairwise_mis_neighbor, target_from
 from grisx.theory.random import random_subkey, random_uniform
+from grisx.theory.reservoir import Reservoir, confidence_capped, reservoir_empty, reservoir_finalize, reservoir_merge, reservoir_update
 
 # grisx never differentiates through its kernels: skip adjoint code (halves compile time)
 wp.set_module_options({"enable_backward": False})
@@ -97,6 +99,9 @@ __all__ = [
     "BernoulliTrials",
     "SMSSample",
     "ManifoldShift",
+    "ManifoldReuse",
+    "ReuseNeighbor",
+    "reuse_neighbor",
     "SeedSpace",
     "ManifoldSampler",
     "make_manifold_sampler",
@@ -174,6 +179,32 @@ class ManifoldShift:
     jacobian: float
     valid: wp.bool
     iterations: int
+
+
+@wp.struct
+class ReuseNeighbor:
+    """A neighbour's reservoir for manifold-shift GRIS: its sample y solves problem ``view``; ``to_here``
+    is the view of y's problem at the canonical pixel (where T_i takes y), ``from_here`` the view of the
+    canonical sample's problem in the neighbour's domain (for m_c); ``present`` = 0: no neighbour."""
+
+    r: Reservoir
+    y: wp.vec2
+    view: int
+    to_here: int
+    from_here: int
+    present: int
+
+
+@wp.struct
+class ManifoldReuse:
+    """Result of one reuse pass: the merged reservoir, its sample and the shifts' cost."""
+
+    r: Reservoir
+    y: wp.vec2
+    source: int  # where y came from: −1 the canonical sample, 0 or 1 that neighbour
+    walks: int
+    newton: int
+    valid: int
 
 
 @wp.struct
@@ -396,6 +427,19 @@ def trial_cap(max_trials: int) -> int:
 # ---- functions built over a problem's constraint ----------------------------------------
 
 
+@wp.func
+def reuse_neighbor(r: Reservoir, y: wp.vec2, view: int, to_here: int, from_here: int, present: int) -> ReuseNeighbor:
+    """A :class:`ReuseNeighbor` record (``present`` = 0 for an absent neighbour; its other fields are then unread)."""
+    n = ReuseNeighbor()
+    n.r = r
+    n.y = y
+    n.view = view
+    n.to_here = to_here
+    n.from_here = from_here
+    n.present = present
+    return n
+
+
 @dataclasses.dataclass(frozen=True)
 class ManifoldSampler:
     """SMS over one constraint: the Warp functions :func:`make_manifold_sampler` builds.
@@ -410,16 +454,21 @@ class ManifoldSampler:
     ``shift(spec, src_view, dst_view, x) -> ManifoldShift``
         manifold shift of solution x of ``src_view`` into ``dst_view`` with the
         back-walk invertibility check, ≤ 5 iterations each (Sec. 5.2–5.3).
+    ``reuse(spec, r_c, y_c, view_c, n0, n1, cap, key) -> ManifoldReuse``
+        (with a ``target``) GRIS of the canonical reservoir with ≤ 2 :class:`ReuseNeighbor`
+        records through manifold shifts and pairwise MIS (Eq. 10–11); confidence capped.
     """
 
     walk: Any
     bernoulli: Any
     sample: Any
     shift: Any
+    reuse: Any = None
 
 
-def make_manifold_sampler(spec_type: Any, constraint: Any, constraint_jacobian: Any) -> ManifoldSampler:
-    """Build the SMS functions for ``constraint(spec, view, u) -> vec2`` and its ∂C/∂u ``-> mat22``."""
+def make_manifold_sampler(spec_type: Any, constraint: Any, constraint_jacobian: Any, target: Any = None) -> ManifoldSampler:
+    """Build the SMS functions for ``constraint(spec, view, u) -> vec2`` and its ∂C/∂u ``-> mat22``;
+    with ``target(spec, view, u) -> float`` (p̂ of solution u of a view, Eq. 13) also ``reuse``."""
 
     @wp.func
     def walk(spec: spec_type, view: int, u0: wp.vec2, tiles: int, max_iterations: int) -> ManifoldWalk:
@@ -522,4 +571,75 @@ def make_manifold_sampler(spec_type: Any, constraint: Any, constraint_jacobian: 
             out.valid = True
         return out
 
-    return ManifoldSampler(walk=walk, bernoulli=bernoulli, sample=sample, shift=shift)
+    if target is None:
+        return ManifoldSampler(walk=walk, bernoulli=bernoulli, sample=sample, shift=shift)
+
+    @wp.func
+    def _pick_neighbor(n: int, n0: ReuseNeighbor, n1: ReuseNeighbor) -> ReuseNeighbor:
+        if n == 0:
+            return n0
+        return n1
+
+    @wp.func
+    def reuse(
+        spec: spec_type, r_c: Reservoir, y_c: wp.vec2, view_c: int, n0: ReuseNeighbor, n1: ReuseNeighbor, cap: float, key: wp.uint32
+    ) -> ManifoldReuse:
+        # Pairwise MIS (seed 003, Sec. 5.2): each neighbour costs 4 manifold walks — its sample
+        # shifted here and back, the canonical sample shifted there and back.
+        out = ManifoldReuse()
+        out.walks = 0
+        out.newton = 0
+        out.valid = 0
+        k = int(0)
+        total = r_c.confidence
+        for n in range(2):
+            nb = _pick_neighbor(n, n0, n1)
+            if nb.present != 0:
+                k += 1
+                total += nb.r.confidence
+        # canonical MIS weight m_c(y_c) = Σ_i pair terms (needs p̂_{←i}(y_c): y_c shifted into domain i)
+        m_c = float(0.0)
+        if k == 0:
+            m_c = 1.0
+        for n in range(2):
+            nb = _pick_neighbor(n, n0, n1)
+            if nb.present != 0:
+                carried = float(0.0)
+                if r_c.ucw > 0.0:
+                    s = shift(spec, view_c, nb.from_here, y_c)
+                    out.walks += 2
+                    out.newton += s.iterations
+                    if s.valid:
+                        out.valid += 1
+                        carried = target_from(target(spec, nb.from_here, s.u), s.jacobian)
+                m_c += pairwise_mis_canonical_term(nb.r.confidence, carried, r_c.confidence, r_c.target, k, total)
+        r = reservoir_merge(reservoir_empty(), r_c, m_c, r_c.target, 1.0, random_uniform(key, 0))
+        y = y_c
+        out.source = -1
+        for n in range(2):
+            nb = _pick_neighbor(n, n0, n1)
+            if nb.present != 0:
+                merged = False
+                if nb.r.ucw > 0.0:
+                    s = shift(spec, nb.view, nb.to_here, nb.y)  # seed 003, Sec. 5.2: T_i
+                    out.walks += 2
+                    out.newton += s.iterations
+                    if s.valid:
+                        out.valid += 1
+                        p_hat = target(spec, nb.to_here, s.u)
+                        # p̂_{←i}(T(x)) = p̂_i(x) |∂T⁻¹/∂y| with Jacobian 1
+                        m = pairwise_mis_neighbor(nb.r.confidence, target_from(nb.r.target, s.jacobian), r_c.confidence, p_hat, k, total)
+                        r = reservoir_merge(r, nb.r, m, p_hat, s.jacobian, random_uniform(key, 1 + n))  # Eq. 10
+                        merged = True
+                        if r.selected:
+                            y = s.u
+                            out.source = n
+                if not merged:
+                    r = reservoir_update(r, 0.0, 0.0, nb.r.confidence, 0.0)  # confidence stays deterministic
+        r = reservoir_finalize(r)  # Eq. 11
+        r.confidence = confidence_capped(r.confidence, cap)
+        out.r = r
+        out.y = y
+        return out
+
+    return ManifoldSampler(walk=walk, bernoulli=bernoulli, sample=sample, shift=shift, reuse=reuse)

@@ -48,7 +48,8 @@ def reference(scene_name: Any, depth: int, camera: str, frame: int, spp: int = 4
 
 
 def check(method: str, params: dict[str, Any] | None = None, *, scene: Any = "cornell-box", camera: str = "static",
-          frames: int = 4, runs: int = 64, k: float = DEFAULT_K, device: str = "cpu", res: tuple[int, int] = RES) -> ReuseTestResult:
+          frames: int = 4, runs: int = 64, k: float = DEFAULT_K, device: str = "cpu", res: tuple[int, int] = RES, reference_spp: int = 4096,
+          reference_image: tuple[np.ndarray, np.ndarray] | None = None) -> ReuseTestResult:
     params = dict(params or {})
     sc = _load(scene)
     depth = _depth(method, params, sc)
@@ -68,5 +69,8 @@ def check(method: str, params: dict[str, Any] | None = None, *, scene: Any = "co
         assert renderer.nonfinite_samples == 0
         return total / frames if camera == "static" else total
 
-    ref, var = reference(scene, depth, camera, frames - 1 if camera == "moving" else 0, res=res)
+    if reference_image is not None:  # another estimator's image and per-pixel variance of its mean (pixels independent)
+        ref, var = reference_image
+    else:
+        ref, var = reference(scene, depth, camera, frames - 1 if camera == "moving" else 0, res=res, spp=reference_spp)
     return reuse_unbiasedness_test(run, ref, var, runs, block=8, k=k)

@@ -146,7 +146,7 @@ def test_params_are_checked_and_stats_reported():
     with pytest.raises(InvalidParameterError, match="suffixes"):
         render("closed-room", "mmis-gather", res=(8, 8), params={"prefixes": 2, "suffixes": 3})
     out = render("closed-room", "suffix-restir", res=(8, 6), params={"max_depth": 4})
-    stats = out.settings["stats"]
+    stats = out.settings["statistics"]
     assert stats["reservoir_bytes_per_pixel"] > stats["restir_pt_reservoir_bytes_per_pixel"]  # prefix and suffix
 
 

@@ -55,6 +55,12 @@ VOCABULARY = {
     "reconstruction": ("choice", "gradient-domain methods: the screened Poisson reconstruction of the frame, l2 or l1 (grisx.poisson)"),
     "symmetric": ("bool", "gradient-domain methods: both pixels' base paths with MIS (seed 000, Eq. 3-4); false: the one-sided, biased Eq. 2"),
     "poisson_alpha": ("float", "gradient-domain methods: weight alpha of the primal term of the screened Poisson reconstruction"),
+    "max_trials": ("int", "SMS: cap on Bernoulli trials per caustic solution (0 = unbounded; any cap loses energy)"),
+    "chain": ("int", "SMS: most specular vertices of a caustic chain"),
+    "tiles": ("int", "SMS: N, the sample space cut into N x N tiles with 3 x 3 trust regions"),
+    "prior": ("bool", "SMS: per-frame prior over tiles from presampled walks per pixel block"),
+    "presamples": ("int", "SMS: unrestricted walks per pixel block, caster and frame that build the prior"),
+    "block": ("int", "SMS: prior blocks are B x B pixels"),
     "direct": ("choice", "where direct light comes from: nee (the method's own paths) or restir-di (ReSTIR DI on the same G-buffer)"),
     "prefixes": ("int", "integration prefixes per pixel and frame, each connected to suffixes (seed 001, Eq. 23)"),
     "gather_k": ("int", "supporting prefixes (nearest in world space) whose suffixes each integration prefix borrows"),
@@ -71,7 +77,7 @@ SYNONYMS = {
 }
 
 #: the renderer modules, each of which registers its methods when imported
-PLUGINS = ("grisx.render.views", "grisx.render.pt", "grisx.render.restir_di", "grisx.render.restir_gi", "grisx.render.restir_pt", "grisx.render.restcv", "grisx.render.decoupled", "grisx.render.area_restir", "grisx.render.gpt", "grisx.render.restir_gpt", "grisx.render.suffix_restir")
+PLUGINS = ("grisx.render.views", "grisx.render.pt", "grisx.render.restir_di", "grisx.render.restir_gi", "grisx.render.restir_pt", "grisx.render.restcv", "grisx.render.decoupled", "grisx.render.area_restir", "grisx.render.gpt", "grisx.render.restir_gpt", "grisx.render.suffix_restir", "grisx.render.sms")
 
 
 @dataclasses.dataclass

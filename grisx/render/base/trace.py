@@ -9,16 +9,17 @@ heuristic, Mitsuba's ``max_depth``, Russian roulette from ``rr_depth``
 
 from __future__ import annotations
 
+import functools
 from typing import Any
 
 import warp as wp
 
-from grisx.render.base.screen import kernel_cache
 from grisx.scene.bsdf import cosine_hemisphere_pdf, make_bsdf, sample_cosine_hemisphere
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.lights import emitter_radiance, environment_eval, environment_pdf, light_pdf_emitter, sample_light
 from grisx.scene.material import MATERIAL_ROUGH_DIELECTRIC
-from grisx.scene.scene import SceneData, intersect, light_occluded, spawn_origin, surface_material
+from grisx.scene.caustics import canonical_lobe, caustic_owned
+from grisx.scene.scene import SceneData, SurfaceInteraction, intersect, light_occluded, spawn_origin, surface_material
 from grisx.theory.mis import technique_mis
 from grisx.theory.roulette import roulette_survival
 from grisx.theory.random import random_uniform
@@ -53,10 +54,15 @@ class PathRadiance:
     bs_li: wp.vec3  # everything the path gathers after it, divided by that sample's pdf (not by f)
     bs_li_prefix: wp.vec3  # the part of bs_li within the first prefix_depth segments
     recorded: int  # 1: the records above describe the path
+    # caustic_chain > 0 (grisx.render.sms): the first non-delta vertex x₁, where SMS adds its caustic NEE
+    x1_valid: int
+    x1: SurfaceInteraction
+    x1_wo: wp.vec3  # unit, x₁ → the previous vertex
+    x1_beta: wp.vec3  # path throughput at x₁ (its BSDF not included)
+    x1_depth: int  # segments before the one that reached x₁ (the loop's depth there)
 
 
-@kernel_cache
-def make_trace_path(kinds: frozenset[int]) -> Any:
+def make_trace_path(kinds: frozenset[int], caustic_chain: int = 0) -> Any:
     """``trace_path(scene, o, d, key, max_depth, rr_depth, strategy, prefix_depth, record) -> PathRadiance``
     for the material kinds ``kinds`` (cached): the radiance arriving at o from direction d, emission at
     the first hit included. Renderers that need the path tracer's estimate at a point (ReSTIR GI's
@@ -65,9 +71,19 @@ def make_trace_path(kinds: frozenset[int]) -> Any:
     ``prefix`` is the estimate truncated to ``prefix_depth`` segments (Mitsuba's max_depth), from the
     same path: a renderer that needs both (direct light and the rest; one bounce and all of them)
     traces once. ``prefix_depth`` < 0: ``prefix`` = ``total``. ``record`` = 1 fills the first hit's
-    technique records of :class:`PathRadiance` (the path itself is the same)."""
-    kinds = frozenset(kinds)
+    technique records of :class:`PathRadiance` (the path itself is the same).
+
+    ``caustic_chain`` = K > 0 (specular manifold sampling, :mod:`grisx.render.sms`): the paths that SMS
+    owns (:func:`grisx.scene.caustics.caustic_owned`: x₁ the first non-delta vertex, then 1 … K delta
+    vertices left by their canonical lobes, the first on a caster whose seed square holds the direction
+    from x₁, then an emitter triangle) add no emission here, and x₁ is recorded for SMS's own estimate."""
+    return _make_trace_path(frozenset(int(k) for k in kinds), int(caustic_chain))
+
+
+@functools.cache
+def _make_trace_path(kinds: frozenset[int], caustic_chain: int) -> Any:
     bsdf = make_bsdf(kinds)
+    chain_max = caustic_chain
 
     @wp.func
     def trace_path(
@@ -81,6 +97,14 @@ def make_trace_path(kinds: frozenset[int]) -> Any:
         out.bs_li = zero
         out.bs_li_prefix = zero
         out.recorded = 0
+        out.x1_valid = 0
+        out.x1_depth = -1
+        # SMS ownership (caustic_chain > 0): 0 before x₁, 1 while the chain after x₁ may still be SMS's, 2 never
+        chain_state = int(0)
+        chain_len = int(0)
+        chain_obj = int(-1)
+        x1_p = wp.vec3(0.0, 0.0, 0.0)
+        d1 = wp.vec3(0.0, 0.0, 0.0)
         have_prefix = int(0)
         gamma = wp.vec3(0.0, 0.0, 0.0)  # record: the throughput after the first hit's BSDF sample, over its pdf
         use_nee = strategy != 2
@@ -113,6 +137,10 @@ def make_trace_path(kinds: frozenset[int]) -> Any:
                         else:
                             light_pdf = light_pdf_emitter(scene.lights, si.tri, prev_p, si.p, si.ng)
                         w = technique_mis(0, 0, prev_delta, light_pdf, prev_pdf)
+                if chain_max > 0:
+                    if chain_state == 1 and chain_len >= 1:  # an emitter triangle or the environment
+                        if caustic_owned(scene, x1_p, d1, chain_obj) != 0:
+                            w = 0.0  # SMS's caustic next-event estimate owns this path
                 L += wp.cw_mul(beta, le) * w
                 if record != 0:
                     out.bs_li += wp.cw_mul(gamma, le) * w
@@ -127,6 +155,25 @@ def make_trace_path(kinds: frozenset[int]) -> Any:
             m = surface_material(scene, si)
             frame = frame_from_normal(si.ns)
             wo = to_local(frame, -d)
+            if chain_max > 0:
+                if chain_state == 0:
+                    if bsdf.is_delta(m) == 0:  # x₁: the first non-delta vertex
+                        chain_state = 1
+                        x1_p = si.p
+                        out.x1_valid = 1
+                        out.x1 = si
+                        out.x1_wo = -d
+                        out.x1_beta = beta
+                        out.x1_depth = depth
+                elif chain_state == 1:
+                    if bsdf.is_delta(m) == 0:
+                        chain_state = 2
+                    else:
+                        chain_len += 1
+                        if chain_len == 1:
+                            chain_obj = si.object
+                        if chain_len > chain_max:
+                            chain_state = 2
             # record: a view-independent first vertex (cosine-weighted continuation), where the BSDF allows
             view_free = int(0)
             if record != 0 and depth == 0 and bsdf.is_delta(m) == 0 and m.kind != MATERIAL_ROUGH_DIELECTRIC and wo[2] != 0.0:
@@ -179,6 +226,12 @@ def make_trace_path(kinds: frozenset[int]) -> Any:
                         gamma = wp.vec3(1.0 / bs.pdf, 1.0 / bs.pdf, 1.0 / bs.pdf)
                 else:
                     gamma = wp.cw_mul(gamma, bs.weight)
+            if chain_max > 0:
+                if chain_state == 1:
+                    if chain_len == 0:
+                        d1 = wp.normalize(to_world(frame, bs.wi))
+                    elif canonical_lobe(m, wo, bs.wi) == 0:
+                        chain_state = 2
             beta = wp.cw_mul(beta, bs.weight)
             if wp.max(beta) <= 0.0:
                 break

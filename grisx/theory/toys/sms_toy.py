@@ -59,6 +59,9 @@ import warp as wp
 
 from grisx.theory.manifold import (
     NEWTON_MAX_ITERATIONS,
+    ManifoldReuse,
+    ReuseNeighbor,
+    reuse_neighbor,
     PRIOR_ALPHA,
     conditional_alpha,
     conditional_probability,
@@ -70,14 +73,12 @@ from grisx.theory.manifold import (
     tile_of,
     wrap_unit,
 )
-from grisx.theory.mis import pairwise_mis_canonical_term, pairwise_mis_neighbor, target_from
 from grisx.theory.random import random_key, random_subkey, random_uniform
 from grisx.theory.reservoir import (
     Reservoir,
     confidence_capped,
     reservoir_empty,
     reservoir_finalize,
-    reservoir_merge,
     reservoir_update,
 )
 from grisx.theory.gris import resampling_weight
@@ -162,7 +163,7 @@ def sms_toy_throughput(spec: SMSToySpec, view: int, u: wp.vec2) -> float:
 
 
 #: the SMS functions of the core, built over this constraint
-SMS = make_manifold_sampler(SMSToySpec, sms_toy_constraint, sms_toy_jacobian)
+SMS = make_manifold_sampler(SMSToySpec, sms_toy_constraint, sms_toy_jacobian, sms_toy_throughput)
 
 
 # ---- views and their closed-form solutions ---------------------------------------------
@@ -207,19 +208,11 @@ def _counter_add(counters: wp.array2d(dtype=float), t: int, c: int, value: float
 
 
 @wp.func
-def _neighbor(n: int, nb0: int, nb1: int) -> int:
-    if n == 0:
-        return nb0
-    return nb1
-
-
-@wp.struct
-class _Reuse:
-    r: Reservoir
-    y: wp.vec2
-    walks: int
-    newton: int
-    valid: int
+def _toy_neighbor(res_row: wp.array(dtype=Reservoir), y_row: wp.array(dtype=wp.vec2), nb: int, view_base: int, view_c: int) -> ReuseNeighbor:
+    """Pixel ``nb`` of a row as a reuse neighbour (−1: none); a toy view is a pixel, so y_i lands in view_c."""
+    if nb < 0:
+        return reuse_neighbor(reservoir_empty(), wp.vec2(0.0, 0.0), 0, 0, 0, 0)
+    return reuse_neighbor(res_row[nb], y_row[nb], view_base + nb, view_c, view_base + nb, 1)
 
 
 @wp.func
@@ -235,70 +228,15 @@ def _pairwise_reuse(
     view_base: int,
     cap: float,
     key: wp.uint32,
-) -> _Reuse:
-    """GRIS of the canonical reservoir with ≤ 2 neighbours (pixels ``nb0``, ``nb1`` of ``res_row``; −1 = none).
-
-    Pairwise MIS (seed 003, Sec. 5.2): each neighbour costs 4 manifold walks — its
-    sample shifted here and back, the canonical sample shifted there and back.
-    """
-    out = _Reuse()
-    out.walks = 0
-    out.newton = 0
-    out.valid = 0
-    k = int(0)
-    total = r_c.confidence
-    for n in range(2):
-        nb = _neighbor(n, nb0, nb1)
-        if nb >= 0:
-            k += 1
-            total += res_row[nb].confidence
-    # canonical MIS weight m_c(y_c) = Σ_i pair terms (needs p̂_{←i}(y_c): shift y_c into view i)
-    m_c = float(0.0)
-    if k == 0:
-        m_c = 1.0
-    for n in range(2):
-        nb = _neighbor(n, nb0, nb1)
-        if nb >= 0:
-            carried = float(0.0)
-            if r_c.ucw > 0.0:
-                s = SMS.shift(spec, view_c, view_base + nb, y_c)
-                out.walks += 2
-                out.newton += s.iterations
-                if s.valid:
-                    out.valid += 1
-                    carried = target_from(sms_toy_throughput(spec, view_base + nb, s.u), s.jacobian)
-            m_c += pairwise_mis_canonical_term(res_row[nb].confidence, carried, r_c.confidence, r_c.target, k, total)
-    r = reservoir_merge(reservoir_empty(), r_c, m_c, r_c.target, 1.0, random_uniform(key, 0))
-    y = y_c
-    for n in range(2):
-        nb = _neighbor(n, nb0, nb1)
-        if nb >= 0:
-            src = res_row[nb]
-            merged = False
-            if src.ucw > 0.0:
-                s = SMS.shift(spec, view_base + nb, view_c, y_row[nb])  # seed 003, Sec. 5.2: T_i
-                out.walks += 2
-                out.newton += s.iterations
-                if s.valid:
-                    out.valid += 1
-                    p_hat = sms_toy_throughput(spec, view_c, s.u)
-                    # p̂_{←i}(T(x)) = p̂_i(x) |∂T⁻¹/∂y| with Jacobian 1
-                    m = pairwise_mis_neighbor(src.confidence, target_from(src.target, s.jacobian), r_c.confidence, p_hat, k, total)
-                    r = reservoir_merge(r, src, m, p_hat, s.jacobian, random_uniform(key, 1 + n))  # Eq. 10
-                    merged = True
-                    if r.selected:
-                        y = s.u
-            if not merged:
-                r = reservoir_update(r, 0.0, 0.0, src.confidence, 0.0)  # confidence stays deterministic
-    r = reservoir_finalize(r)  # Eq. 11
-    r.confidence = confidence_capped(r.confidence, cap)
-    out.r = r
-    out.y = y
-    return out
+) -> ManifoldReuse:
+    """GRIS of the canonical reservoir with ≤ 2 neighbours (pixels ``nb0``, ``nb1`` of ``res_row``; −1 = none)."""
+    n0 = _toy_neighbor(res_row, y_row, nb0, view_base, view_c)
+    n1 = _toy_neighbor(res_row, y_row, nb1, view_base, view_c)
+    return SMS.reuse(spec, r_c, y_c, view_c, n0, n1, cap, key)
 
 
 @wp.func
-def _count_reuse(counters: wp.array2d(dtype=float), t: int, out: _Reuse):
+def _count_reuse(counters: wp.array2d(dtype=float), t: int, out: ManifoldReuse):
     _counter_add(counters, t, 10, float(out.walks))
     _counter_add(counters, t, 11, float(out.newton))
     _counter_add(counters, t, 12, float(out.valid))

@@ -1,0 +1,708 @@
+"""Caustics by specular manifold sampling (SMS), with sample-space partitioning and per-frame priors (seed 003).
+
+The image is the path tracer's, split by *who owns which path*:
+
+* **SMS owns** every camera path whose first non-delta vertex is x₁, followed by
+  1 … ``chain`` delta vertices, each left by its canonical lobe (refraction at a
+  dielectric, reflection at a conductor), the first on a caster object O with the
+  direction from x₁ inside O's seed square, then a point x_n on an emitter triangle
+  (:func:`grisx.scene.caustics.caustic_owned`) or escaping to the environment. At x₁ it picks a
+  caster (uniformly, P(O) = 1/#casters) and an emitter point or environment direction
+  (``sample_light``, density p_A per area or per solid angle), runs
+  a manifold walk from a seed u ~ p (Eq. 7) and, if it converges to a solution u*,
+  estimates 1/P(u*) by Bernoulli trials (Eq. 1–3) and adds
+  β(x₁) ⊙ f(x̂) · W / (p_A(x_n) P(O)), f of Eq. 13 (generalized geometry term included);
+* **the path tracer owns the rest** (:func:`grisx.render.base.trace.make_trace_path`
+  with ``caustic_chain``): the very same ``trace_path`` as ``pt``, whose emitter hits
+  on SMS-owned paths add nothing. Nothing is counted twice, nothing dropped, so
+  ``pt`` and every method here estimate the same image; caustics through a
+  dielectric's reflection lobe, longer than ``chain``, or starting outside a caster's
+  seed square stay (noisy) with the path tracer (point lights: nobody reaches them).
+
+Methods:
+
+``sms``              Zeltner et al. 2020: uniform seed in U, unrestricted walk, W = K Bernoulli trials;
+``sms-partitioned``  N × N tiles (``tiles``, 16), walks stopped outside the 3 × 3 trust region R(u)
+                     (periodic), W = K / P(C) with trials in C(u*) (Eq. 4–6); with ``prior`` a
+                     per-frame prior over tiles from ``presamples`` unrestricted walks per
+                     ``block`` × ``block`` pixel block and caster (Eq. 7–9, α = 0.8);
+``sms-restir``       one ``sms-partitioned`` sample per pixel and frame as a reservoir x̂ = (u*, O, x_n)
+                     with p̂ = lum f(x̂) and W = K / (P(C) p_A P(O)); temporal reuse of the pixel's
+                     reservoir of the last frame, found by reprojecting x₁ (confidence cap ``history_cap`` 20), and one spatial
+                     neighbour uniform in a ``radius`` 30 px disc, both through the **manifold shift**
+                     (a ≤ 5-step walk from the neighbour's u* in this pixel's problem with the same O and
+                     x_n, checked by the walk back; Jacobian 1) and pairwise MIS (Eq. 10–11) —
+                     :meth:`grisx.theory.manifold.ManifoldSampler.reuse`, the toy's very function. The
+                     path tracer's part of the pixel is its own fresh sample each frame.
+
+``max_trials`` caps the Bernoulli trials (128 as the paper; 0 = unbounded): any cap loses the
+energy f (1 − P)^cap of each solution, so a small cap (``max_trials=2``) is the biased ablation
+of Fig. 7. Every formula (seed pdf, P(C), α', W, the walk) is :mod:`grisx.theory.manifold`'s,
+shared with the ``sms-toy`` toy problem.
+
+Statistics (seed 003, Table 1) come back in ``render --json`` under ``statistics``, over all frames
+rendered: success rate, Newton iterations per sample, Bernoulli trials per solution, Newton
+iterations per solution, capped solutions, the prior's walks and (``sms-restir``) the shifts'
+success rate and cost; the stage times are ``seconds``' ``prior``, ``manifold_sampling`` (which
+includes the path tracer's sample of the pixel), ``temporal``, ``spatial`` and ``shade``.
+
+Simplified against the paper (said plainly): one emitter point and caster per sample, the caster
+uniform and the light by power, without the α mix over light–object pairs of Sec. 4.2 (the prior
+is per block *and* caster, built with light points drawn per presample); delta casters only (no
+offset manifolds for glossy casters); the chain is shot from x₁ with a
+numerical Jacobian (:mod:`grisx.scene.caustics`); ``sms-restir``'s temporal neighbour is found by
+reprojecting x₁ (not a G-buffer similarity test) and temporal reuse is off while objects move.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from typing import Any
+
+import numpy as np
+import warp as wp
+
+from grisx.device import specialized_module
+from grisx.errors import InvalidParameterError
+from grisx.params import Param
+from grisx.render.base.registry import RenderMethod, register, renderer_params
+from grisx.render.base.trace import PathRadiance, make_trace_path
+from grisx.render.pt import PathTracer, _scale, add_sample, pixel_ray, sample_key
+from grisx.scene.bsdf import make_bsdf
+from grisx.render.base.reuse import spatial_neighbor
+from grisx.scene.camera import CameraData, camera_project, camera_ray
+from grisx.scene.caustics import CHAIN_MAX, CausticSpec, make_caustic_spec, make_caustics, set_view
+from grisx.scene.frame import frame_from_normal, to_local, to_world
+from grisx.scene.lights import sample_light
+from grisx.scene.material import MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, material_kind
+from grisx.scene.scene import SceneData, SurfaceInteraction, intersect, spawn_origin, surface_material
+from grisx.theory.gris import resampling_weight
+from grisx.theory.manifold import NEWTON_MAX_ITERATIONS, PRIOR_ALPHA, prior_add_tile, reuse_neighbor, seed_space, tile_of
+from grisx.theory.reservoir import Reservoir, reservoir_empty, reservoir_finalize, reservoir_update
+from grisx.theory.random import random_key, random_subkey, random_uniform
+
+wp.set_module_options({"enable_backward": False})
+
+__all__ = ["SMSRenderer", "SMSReSTIR", "CausticSample", "ShadingPoint", "caster_objects", "STAT_NAMES", "make_sms_kernels", "sms_statistics"]
+
+#: per-frame tallies (summed over pixels and samples), the order of the ``stats`` array
+STAT_NAMES = (
+    "samples",  # SMS attempts (x₁ found, an emitter triangle sampled)
+    "successes",  # walks that converged to a solution u*
+    "newton_sample",  # Newton steps of the main walks
+    "bernoulli",  # Bernoulli trials of all solutions
+    "newton_bernoulli",  # their Newton steps
+    "capped",  # solutions whose trials hit max_trials
+    "prior_walks",
+    "prior_successes",
+    "newton_prior",
+    "prior_tiles",
+    "shift_walks",  # sms-restir: manifold walks of the shifts (2 per shift: there and back)
+    "shifts_valid",
+    "newton_shift",
+)
+_N_STATS = len(STAT_NAMES)
+
+
+def caster_objects(scene: Any) -> list[int]:
+    """Object ids of a scene's caustic casters: objects with a delta (smooth conductor or dielectric) material."""
+    kinds = (int(MATERIAL_CONDUCTOR), int(MATERIAL_DIELECTRIC))
+    return [i for i, o in enumerate(scene.objects) if material_kind(scene.materials[o.material]) in kinds]
+
+
+@wp.struct
+class CausticSample:
+    """A kept SMS sample x̂ = (solution u*, caster O, emitter point x_n): what a reservoir holds (Sec. 5.2)."""
+
+    u: wp.vec2
+    caster: int
+    xn: wp.vec3
+    xn_n: wp.vec3
+    light_tri: int
+
+
+@wp.struct
+class ShadingPoint:
+    """A pixel's x₁ this frame: the surface, the direction back, the camera path's throughput, its depth."""
+
+    si: SurfaceInteraction
+    wo: wp.vec3
+    beta: wp.vec3
+    depth: int
+    valid: int
+
+
+@wp.struct
+class SMSPass:
+    """What every sample pass reads: camera, casters, seed and frame, depth, trial cap, seed space and the prior."""
+
+    cam: CameraData
+    casters: wp.array(dtype=int)
+    seed: int
+    frame: int
+    max_depth: int
+    rr_depth: int
+    jitter: int
+    max_trials: int
+    tiles: int
+    alpha: float
+    block: int
+    blocks_x: int
+    prior_tiles: wp.array2d(dtype=int)
+    prior_count: wp.array(dtype=int)
+    stats: wp.array2d(dtype=wp.float64)
+
+
+#: rows of the tally array: a thread adds into row (its index mod this), so atomics on a GPU rarely collide
+STAT_ROWS = 256
+
+
+@wp.func
+def _tally(stats: wp.array2d(dtype=wp.float64), thread: int, i: int, value: float):
+    wp.atomic_add(stats, thread % stats.shape[0], i, wp.float64(value))
+
+
+_KERNELS: dict[Any, Any] = {}
+
+
+def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
+    """The prior and sample-pass kernels for material kinds ``kinds`` and chains of ≤ ``chain`` vertices (cached)."""
+    key = (frozenset(kinds), int(chain))
+    if key in _KERNELS:
+        return _KERNELS[key]
+    kinds = frozenset(kinds)
+    bsdf = make_bsdf(kinds)
+    trace_path = make_trace_path(kinds, caustic_chain=chain)
+    caustics = make_caustics(kinds)
+    SMS = caustics.sms
+    module = specialized_module(f"{__name__}.chain{chain}", kinds)
+
+    @wp.func
+    def first_non_delta(scene: SceneData, o: wp.vec3, d: wp.vec3, key: wp.uint32) -> SurfaceInteraction:
+        """The first non-delta vertex along a camera ray (delta lobes sampled as the path tracer does)."""
+        si = intersect(scene, o, d, 1.0e30)
+        for k in range(8):
+            if si.valid == 0:
+                return si
+            m = surface_material(scene, si)
+            if bsdf.is_delta(m) == 0:
+                return si
+            frame = frame_from_normal(si.ns)
+            bs = bsdf.sample(m, to_local(frame, -d), random_uniform(key, 3 * k), wp.vec2(0.5, 0.5))
+            if bs.valid == 0:
+                break
+            d = wp.normalize(to_world(frame, bs.wi))
+            o = spawn_origin(scene, si.p, si.ng, d)
+            si = intersect(scene, o, d, 1.0e30)
+        si.valid = 0
+        return si
+
+    @wp.func
+    def sms_candidate(spec: CausticSpec, p: SMSPass, view: int, x1: ShadingPoint, x: int, y: int, skey: wp.uint32) -> wp.vec4:
+        """One SMS sample at x₁ into ``view``: (u*₀, u*₁, W = K/P(C) / (p_A(x_n) P(O)), found); caster and x_n in the view."""
+        casters = p.casters
+        stats = p.stats
+        out = wp.vec4(0.0, 0.0, 0.0, 0.0)
+        n_casters = casters.shape[0]
+        ci = wp.min(int(random_uniform(skey, 0) * float(n_casters)), n_casters - 1)
+        ls = sample_light(spec.scene.lights, x1.si.p, random_uniform(skey, 1), wp.vec2(random_uniform(skey, 2), random_uniform(skey, 3)))
+        if ls.light < 0 or ls.delta != 0 or not (ls.pdf_area > 0.0):
+            return out  # point lights: no chain reaches a delta light (the path tracer's neither)
+        set_view(spec, view, x1.si, x1.wo, x1.depth, casters[ci], ls.p, ls.n, ls.tri)
+        row = ((y // p.block) * p.blocks_x + x // p.block) * n_casters + ci
+        space = seed_space(p.tiles, p.alpha, p.prior_count[row])  # Eq. 7 (p_U when no prior)
+        s = SMS.sample(spec, view, space, p.prior_tiles[row], random_subkey(skey, 4), p.max_trials)
+        _tally(stats, view, 0, 1.0)
+        _tally(stats, view, 2, float(s.newton_sample))
+        if s.found:
+            _tally(stats, view, 1, 1.0)
+            _tally(stats, view, 3, float(s.trials))
+            _tally(stats, view, 4, float(s.newton_bernoulli))
+            if s.capped:
+                _tally(stats, view, 5, 1.0)
+            out = wp.vec4(s.u[0], s.u[1], s.ucw * float(n_casters) / ls.pdf_area, 1.0)  # Eq. 1, 5: f W / (p_A P(O))
+        return out
+
+    @wp.func
+    def shading_point(r: PathRadiance, casters: wp.array(dtype=int)) -> ShadingPoint:
+        sp = ShadingPoint()
+        sp.si = r.x1
+        sp.wo = r.x1_wo
+        sp.beta = r.x1_beta
+        sp.depth = r.x1_depth
+        sp.valid = int(r.x1_valid != 0 and casters.shape[0] > 0)
+        return sp
+
+    @wp.func
+    def camera_path(spec: CausticSpec, p: SMSPass, x: int, y: int, sample: int) -> PathRadiance:
+        """The path tracer's sample of pixel (x, y), without the paths SMS owns (x₁ recorded)."""
+        key = sample_key(p.seed, p.frame, y * p.cam.width + x, sample)
+        ray = pixel_ray(p.cam, key, x, y, p.jitter)
+        return trace_path(spec.scene, ray.o, ray.d, random_subkey(key, 1), p.max_depth, p.rr_depth, 0, -1, 0)
+
+    @wp.func
+    def view_sample(spec: CausticSpec, view: int, u: wp.vec2) -> CausticSample:
+        c = CausticSample()
+        c.u = u
+        c.caster = spec.caster[view]
+        c.xn = spec.xn[view]
+        c.xn_n = spec.xn_n[view]
+        c.light_tri = spec.light_tri[view]
+        return c
+
+    @wp.func
+    def set_sample_view(spec: CausticSpec, view: int, x1: ShadingPoint, y: CausticSample):
+        set_view(spec, view, x1.si, x1.wo, x1.depth, y.caster, y.xn, y.xn_n, y.light_tri)
+
+    @wp.kernel(module=module)
+    def prior_pass(
+        spec: CausticSpec,
+        cam: CameraData,
+        casters: wp.array(dtype=int),
+        seed: int,
+        frame: int,
+        block: int,
+        tiles: int,
+        presamples: int,
+        blocks_x: int,
+        view_base: int,
+        prior_tiles: wp.array2d(dtype=int),
+        prior_count: wp.array(dtype=int),
+        stats: wp.array2d(dtype=wp.float64),
+    ):
+        # ---- per-frame prior: unrestricted walks from random pixels of a B × B block (seed 003, Sec. 4.1) ----
+        by, bx, ci = wp.tid()
+        n_casters = casters.shape[0]
+        row = (by * blocks_x + bx) * n_casters + ci
+        view = view_base + row
+        key = random_subkey(random_subkey(random_key(seed, frame), 1), row)
+        count = int(0)
+        for j in range(presamples):
+            jkey = random_subkey(key, j)
+            x = wp.min(bx * block + int(random_uniform(jkey, 0) * float(block)), cam.width - 1)
+            y = wp.min(by * block + int(random_uniform(jkey, 1) * float(block)), cam.height - 1)
+            ray = camera_ray(cam, float(x) + 0.5, float(y) + 0.5, wp.vec2(0.5, 0.5))
+            si = first_non_delta(spec.scene, ray.o, ray.d, random_subkey(jkey, 1))
+            if si.valid == 0:
+                continue
+            ls = sample_light(spec.scene.lights, si.p, random_uniform(jkey, 2), wp.vec2(random_uniform(jkey, 3), random_uniform(jkey, 4)))
+            if ls.light < 0 or ls.delta != 0:
+                continue
+            set_view(spec, view, si, -ray.d, 0, casters[ci], ls.p, ls.n, ls.tri)
+            w = SMS.walk(spec, view, wp.vec2(random_uniform(jkey, 5), random_uniform(jkey, 6)), 0, NEWTON_MAX_ITERATIONS)
+            _tally(stats, row, 6, 1.0)
+            _tally(stats, row, 8, float(w.iterations))
+            if w.converged:
+                _tally(stats, row, 7, 1.0)
+                count = prior_add_tile(prior_tiles[row], count, tile_of(w.u, tiles))
+        prior_count[row] = count
+        _tally(stats, row, 9, float(count))
+
+    @wp.kernel(module=module)
+    def sample_pass(
+        spec: CausticSpec,
+        p: SMSPass,
+        sample: int,
+        total: wp.array2d(dtype=wp.vec3d),
+        total_sq: wp.array2d(dtype=wp.vec3d),
+        nonfinite: wp.array(dtype=wp.int32),
+    ):
+        y, x = wp.tid()
+        pixel = y * p.cam.width + x
+        r = camera_path(spec, p, x, y, sample)
+        L = r.total
+        sp = shading_point(r, p.casters)
+        if sp.valid != 0:
+            # ---- caustic next-event estimation at x₁ (seed 003, Eq. 1) ----
+            c = sms_candidate(spec, p, pixel, sp, x, y, random_subkey(sample_key(p.seed, p.frame, pixel, sample), 2))
+            if c[3] > 0.0:
+                L += wp.cw_mul(sp.beta, caustics.value(spec, pixel, wp.vec2(c[0], c[1]))) * c[2]
+        add_sample(total, total_sq, nonfinite, y, x, L)
+
+    @wp.kernel(module=module)
+    def restir_initial(
+        spec: CausticSpec,
+        p: SMSPass,
+        radiance: wp.array(dtype=wp.vec3),
+        points: wp.array(dtype=ShadingPoint),
+        res: wp.array(dtype=Reservoir),
+        samples: wp.array(dtype=CausticSample),
+    ):
+        y, x = wp.tid()
+        q = y * p.cam.width + x
+        r = camera_path(spec, p, x, y, 0)
+        radiance[q] = r.total
+        sp = shading_point(r, p.casters)
+        points[q] = sp
+        # ---- initial candidate: one SMS sample, a reservoir of one (Eq. 10 with m = 1, T = id) ----
+        rc = reservoir_empty()
+        smp = CausticSample()
+        if sp.valid != 0:
+            rc = reservoir_update(rc, 0.0, 0.0, 1.0, 0.0)  # the domain exists: confidence 1, found or not
+            c = sms_candidate(spec, p, q, sp, x, y, random_subkey(sample_key(p.seed, p.frame, q, 0), 2))
+            if c[3] > 0.0:
+                u = wp.vec2(c[0], c[1])
+                p_hat = caustics.target(spec, q, u)
+                rc = reservoir_empty()
+                rc = reservoir_update(rc, resampling_weight(1.0, p_hat, c[2], 1.0), p_hat, 1.0, 0.0)
+                smp = view_sample(spec, q, u)
+        res[q] = reservoir_finalize(rc)
+        samples[q] = smp
+
+    @wp.kernel(module=module)
+    def restir_reuse(
+        spec: CausticSpec,
+        cam_prev: CameraData,
+        seed: int,
+        frame: int,
+        width: int,
+        height: int,
+        spatial: int,
+        radius: float,
+        cap: float,
+        points: wp.array(dtype=ShadingPoint),
+        points_n: wp.array(dtype=ShadingPoint),
+        res: wp.array(dtype=Reservoir),
+        samples: wp.array(dtype=CausticSample),
+        res_n: wp.array(dtype=Reservoir),
+        samples_n: wp.array(dtype=CausticSample),
+        res_out: wp.array(dtype=Reservoir),
+        samples_out: wp.array(dtype=CausticSample),
+        stats: wp.array2d(dtype=wp.float64),
+    ):
+        # ---- temporal (where x₁ was seen last frame) or spatial (one neighbour in a disc) reuse, Sec. 5.2 ----
+        y, x = wp.tid()
+        q = y * width + x
+        pixels = width * height
+        res_out[q] = res[q]
+        samples_out[q] = samples[q]
+        pc = points[q]
+        if pc.valid == 0:
+            return
+        key = random_subkey(sample_key(seed, frame, q, 0), 10 + spatial)
+        nb = int(-1)
+        if spatial != 0:
+            n = spatial_neighbor(x, y, width, height, radius, wp.vec2(random_uniform(key, 8), random_uniform(key, 9)))
+            if n.valid != 0:
+                nb = n.y * width + n.x
+        else:
+            proj = camera_project(cam_prev, pc.si.p)  # x₁ reprojected into the last frame's camera
+            if proj.valid != 0 and proj.inside != 0:
+                nb = wp.min(int(proj.pixel[1]), height - 1) * width + wp.min(int(proj.pixel[0]), width - 1)
+        present = int(0)
+        if nb >= 0:
+            present = points_n[nb].valid
+        absent = reuse_neighbor(reservoir_empty(), wp.vec2(0.0, 0.0), 0, 0, 0, 0)
+        n0 = absent
+        y_c = samples[q]
+        set_sample_view(spec, q, pc, y_c)  # canonical: x₁ here, y_c's caster and x_n
+        if present != 0:
+            pn = points_n[nb]
+            y_n = samples_n[nb]
+            set_sample_view(spec, pixels + q, pc, y_n)  # T_i(y_n) lands here
+            set_sample_view(spec, 2 * pixels + q, pn, y_c)  # y_c carried into the neighbour's domain
+            set_sample_view(spec, 3 * pixels + q, pn, y_n)  # y_n in its own domain
+            n0 = reuse_neighbor(res_n[nb], y_n.u, 3 * pixels + q, pixels + q, 2 * pixels + q, 1)
+        out = SMS.reuse(spec, res[q], y_c.u, q, n0, absent, cap, key)
+        _tally(stats, q, 10, float(out.walks))
+        _tally(stats, q, 11, float(out.valid))
+        _tally(stats, q, 12, float(out.newton))
+        kept = y_c
+        if out.source == 0:
+            kept = samples_n[nb]
+        kept.u = out.y
+        res_out[q] = out.r
+        samples_out[q] = kept
+
+    @wp.kernel(module=module)
+    def restir_shade(
+        spec: CausticSpec,
+        width: int,
+        radiance: wp.array(dtype=wp.vec3),
+        points: wp.array(dtype=ShadingPoint),
+        res: wp.array(dtype=Reservoir),
+        samples: wp.array(dtype=CausticSample),
+        total: wp.array2d(dtype=wp.vec3d),
+        total_sq: wp.array2d(dtype=wp.vec3d),
+        nonfinite: wp.array(dtype=wp.int32),
+    ):
+        # ---- shading: the path tracer's part + β ⊙ f(y) W_y (Eq. 11) ----
+        y, x = wp.tid()
+        q = y * width + x
+        L = radiance[q]
+        pc = points[q]
+        r = res[q]
+        if pc.valid != 0 and r.ucw > 0.0:
+            smp = samples[q]
+            set_sample_view(spec, q, pc, smp)
+            L += wp.cw_mul(pc.beta, caustics.value(spec, q, smp.u)) * r.ucw
+        add_sample(total, total_sq, nonfinite, y, x, L)
+
+    out = {"prior_pass": prior_pass, "sample_pass": sample_pass, "restir_initial": restir_initial, "restir_reuse": restir_reuse, "restir_shade": restir_shade, "first_non_delta": first_non_delta, "caustics": caustics}
+    _KERNELS[key] = out
+    return out
+
+
+class SMSRenderer(PathTracer):
+    """The path tracer plus SMS caustic NEE at x₁: ``spp`` sample passes per frame (see the module docstring)."""
+
+    def __init__(
+        self,
+        built: Any,
+        width: int,
+        height: int,
+        *,
+        spp: int = 1,
+        max_depth: int = 16,
+        rr_depth: int = 5,
+        max_trials: int = 128,
+        tiles: int = 0,
+        prior: bool = True,
+        presamples: int = 128,
+        block: int = 16,
+        chain: int = CHAIN_MAX,
+        jitter: bool = True,
+        seed: int = 0,
+        timer: Any = None,
+    ) -> None:
+        if tiles != 0 and tiles < 3:
+            raise InvalidParameterError(f"param 'tiles' must be 0 (unpartitioned) or >= 3 (3 × 3 trust regions), got {tiles}")
+        if not 1 <= int(chain) <= 4:
+            raise InvalidParameterError(f"param 'chain' must be in [1, 4] specular vertices, got {chain}")
+        super().__init__(built, width, height, spp=spp, max_depth=max_depth, rr_depth=rr_depth, seed=seed, timer=timer, jitter=jitter)
+        self.max_trials = int(max_trials)
+        self.tiles = int(tiles)
+        self.prior = bool(prior) and self.tiles > 0
+        self.presamples = int(presamples)
+        self.block = int(block)
+        self.chain = int(chain)
+        dev = built.device
+        self.casters_host = caster_objects(built.scene)
+        # no casters: SMS adds nothing and the path tracer keeps every path (it owns them all)
+        self.casters = wp.array(np.asarray(self.casters_host, dtype=np.int32), dtype=int, device=dev)
+        self.kernels_ = make_sms_kernels(frozenset(built.features.material_kinds), self.chain)
+        self.blocks_x = -(-self.width // self.block)
+        self.blocks_y = -(-self.height // self.block)
+        n_rows = self.blocks_x * self.blocks_y * max(len(self.casters_host), 1)
+        self.prior_tiles = wp.zeros((n_rows, max(self.presamples, 1)), dtype=int, device=dev)
+        self.prior_count = wp.zeros(n_rows, dtype=int, device=dev)
+        self.spec = make_caustic_spec(built, self.width * self.height + n_rows, self.chain, self.max_depth)
+        self.prior_view_base = self.width * self.height
+        self.stats = wp.zeros((STAT_ROWS, _N_STATS), dtype=wp.float64, device=dev)
+        self.frames = 0
+
+    def kernels(self) -> list[Any]:
+        return [self.kernels_["prior_pass"], self.kernels_["sample_pass"], _scale]
+
+    def _timed(self, name: str) -> Any:
+        return self.timer(name) if self.timer is not None else contextlib.nullcontext()
+
+    def build_prior(self, frame: int, cam: CameraData) -> None:
+        """Seed 003, Sec. 4.1: the tiles I that held solutions, per pixel block and caster."""
+        self.prior_count.zero_()
+        if not self.prior or not self.casters_host:
+            return
+        wp.launch(
+            self.kernels_["prior_pass"],
+            dim=(self.blocks_y, self.blocks_x, len(self.casters_host)),
+            inputs=[self.spec, cam, self.casters, self.seed, int(frame), self.block, self.tiles, self.presamples, self.blocks_x, self.prior_view_base],
+            outputs=[self.prior_tiles, self.prior_count, self.stats],
+            device=self.built.device,
+        )
+
+    def pass_record(self, frame: int, cam: CameraData) -> SMSPass:
+        p = SMSPass()
+        p.cam = cam
+        p.casters = self.casters
+        p.seed, p.frame = self.seed, int(frame)
+        p.max_depth, p.rr_depth, p.jitter, p.max_trials = self.max_depth, self.rr_depth, self.jitter, self.max_trials
+        p.tiles, p.alpha, p.block, p.blocks_x = self.tiles, PRIOR_ALPHA if self.prior else 0.0, self.block, self.blocks_x
+        p.prior_tiles, p.prior_count, p.stats = self.prior_tiles, self.prior_count, self.stats
+        return p
+
+    def add_samples(self, frame: int, count: int, first_sample: int | None = None) -> None:
+        cam = self.built.camera_data(float(frame), self.width, self.height)
+        with self._timed("prior"):
+            self.build_prior(frame, cam)
+        p = self.pass_record(frame, cam)
+        with self._timed("manifold_sampling"):
+            for _ in range(count):
+                wp.launch(self.kernels_["sample_pass"], dim=(self.height, self.width), inputs=[self.spec, p, self.samples],
+                          outputs=[self.total, self.total_sq, self.nonfinite], device=self.built.device)
+                self.samples += 1
+
+    def render_frame(self, frame: int) -> wp.array:
+        self.reset()
+        self.add_samples(frame, self.spp)
+        self.frames += 1
+        wp.launch(_scale, dim=self.total.shape, inputs=[self.total, wp.float64(1.0 / max(self.samples, 1))], outputs=[self.image], device=self.built.device)
+        return self.image
+
+    def statistics(self) -> dict[str, float]:
+        """Seed 003's Table 1 columns over everything rendered so far (per frame where it says so)."""
+        return sms_statistics(dict(zip(STAT_NAMES, self.stats.numpy().sum(axis=0).tolist())), max(self.frames, 1))
+
+
+class SMSReSTIR(SMSRenderer):
+    """``sms-restir``: sms-partitioned samples, then temporal and spatial GRIS through manifold shifts (Sec. 5).
+
+    Per frame: the path tracer (without SMS's paths) and one SMS candidate per pixel; temporal reuse of
+    the reservoir of the pixel where x₁ was seen in the last frame (x₁ reprojected into its camera; that
+    pixel's x₁ then is the neighbour's domain; skipped while objects move, whose last frame's geometry is
+    gone); one spatial neighbour uniform in a ``radius``-pixel disc (clamped to the film); pairwise MIS
+    and the confidence cap ``history_cap`` (seed 003: 20) through :meth:`ManifoldSampler.reuse`.
+    """
+
+    def __init__(self, built: Any, width: int, height: int, *, temporal: bool = True, spatial: bool = True, radius: float = 30.0,
+                 history_cap: float = 20.0, tiles: int = 16, **kw: Any) -> None:
+        super().__init__(built, width, height, tiles=tiles, **kw)
+        self.temporal, self.spatial = bool(temporal), bool(spatial)
+        self.radius, self.history_cap = float(radius), float(history_cap)
+        n = self.width * self.height
+        dev = built.device
+        # views: 4 per pixel (canonical, a neighbour's sample here, ours there, the neighbour's own) + prior rows
+        n_rows = self.prior_count.shape[0]
+        self.spec = make_caustic_spec(built, 4 * n + n_rows, self.chain, self.max_depth)
+        self.prior_view_base = 4 * n
+        self.radiance = wp.zeros(n, dtype=wp.vec3, device=dev)
+        self.points = wp.zeros(n, dtype=ShadingPoint, device=dev)
+        self.points_prev = wp.zeros(n, dtype=ShadingPoint, device=dev)
+        self.res = [wp.zeros(n, dtype=Reservoir, device=dev) for _ in range(4)]  # initial, temporal, final, last frame's
+        self.smp = [wp.zeros(n, dtype=CausticSample, device=dev) for _ in range(4)]
+        self.history = False
+
+    def kernels(self) -> list[Any]:
+        k = self.kernels_
+        return [k["prior_pass"], k["restir_initial"], k["restir_reuse"], k["restir_shade"], _scale]
+
+    def _reuse(self, frame: int, spatial: int, points_n: wp.array, src: int, nb: int, dst: int) -> None:
+        cam_prev = self.built.camera_data(float(frame - 1), self.width, self.height)
+        wp.launch(
+            self.kernels_["restir_reuse"],
+            dim=(self.height, self.width),
+            inputs=[self.spec, cam_prev, self.seed, int(frame), self.width, self.height, spatial, self.radius, self.history_cap, self.points, points_n,
+                    self.res[src], self.smp[src], self.res[nb], self.smp[nb]],
+            outputs=[self.res[dst], self.smp[dst], self.stats],
+            device=self.built.device,
+        )
+
+    def render_frame(self, frame: int) -> wp.array:
+        self.reset()
+        dev = self.built.device
+        cam = self.built.camera_data(float(frame), self.width, self.height)
+        with self._timed("prior"):
+            self.build_prior(frame, cam)
+        with self._timed("manifold_sampling"):
+            wp.launch(self.kernels_["restir_initial"], dim=(self.height, self.width), inputs=[self.spec, self.pass_record(frame, cam)],
+                      outputs=[self.radiance, self.points, self.res[0], self.smp[0]], device=dev)
+        cur = 0
+        # ---- temporal reuse (static geometry: the last frame's x₁ still lies on it) ----
+        if self.temporal and self.history and not self.built.features.animated_objects:
+            with self._timed("temporal"):
+                self._reuse(frame, 0, self.points_prev, 0, 3, 1)
+            cur = 1
+        # ---- spatial reuse ----
+        if self.spatial:
+            with self._timed("spatial"):
+                self._reuse(frame, 1, self.points, cur, cur, 2)
+            cur = 2
+        with self._timed("shade"):
+            wp.launch(self.kernels_["restir_shade"], dim=(self.height, self.width),
+                      inputs=[self.spec, self.width, self.radiance, self.points, self.res[cur], self.smp[cur]],
+                      outputs=[self.total, self.total_sq, self.nonfinite], device=dev)
+            wp.copy(self.res[3], self.res[cur])
+            wp.copy(self.smp[3], self.smp[cur])
+            wp.copy(self.points_prev, self.points)
+        self.history = True
+        self.samples = 1
+        self.frames += 1
+        wp.launch(_scale, dim=self.total.shape, inputs=[self.total, wp.float64(1.0)], outputs=[self.image], device=dev)
+        return self.image
+
+
+def sms_statistics(t: dict[str, float], frames: int) -> dict[str, float]:
+    """Table 1's columns from the tallies ``t`` (:data:`STAT_NAMES`, plus any shift tallies)."""
+
+    def ratio(a: float, b: float) -> float:
+        return float(a / b) if b > 0 else 0.0
+
+    found = t["successes"]
+    out = {
+        "success_rate": ratio(found, t["samples"]),
+        "newton_per_sample": ratio(t["newton_sample"], t["samples"]),
+        "bernoulli_per_solution": ratio(t["bernoulli"], found),
+        "newton_per_solution": ratio(t["newton_bernoulli"], found),
+        "capped_per_solution": ratio(t["capped"], found),
+        "samples_per_frame": t["samples"] / frames,
+        "prior_walks_per_frame": t["prior_walks"] / frames,
+        "prior_success_rate": ratio(t["prior_successes"], t["prior_walks"]),
+        "prior_tiles_per_frame": t["prior_tiles"] / frames,
+    }
+    if t.get("shift_walks", 0.0) > 0.0:  # sms-restir: the manifold shifts (2 walks each)
+        out["shift_success_rate"] = ratio(t["shifts_valid"], t["shift_walks"] / 2.0)
+        out["shift_walks_per_sample"] = ratio(t["shift_walks"], t["samples"])
+        out["newton_shift_per_sample"] = ratio(t["newton_shift"], t["samples"])
+    return out
+
+
+def _create(tiles_default: int, cls: type = SMSRenderer):
+    def create(ctx: Any) -> SMSRenderer:
+        p = dict(ctx.params)
+        names = {q.name for q in (*_PARAMS_ALL, *_PARAMS_RESTIR)}
+        kw = {k: v for k, v in p.items() if k in names}
+        kw.setdefault("tiles", tiles_default)
+        return cls(ctx.built, ctx.width, ctx.height, spp=p["spp"], seed=ctx.seed, timer=ctx.timer, **kw)
+
+    return create
+
+
+# ---- registration (grisx.render.base.registry) ----
+
+_COMMON = (
+    Param("max_depth", ..., "longest path in segments, Mitsuba's meaning (the path tracer's); default: the scene's", kind="int", minimum=-1),
+    Param("rr_depth", ..., "depth from which Russian roulette may end paths", kind="int", minimum=1),
+    Param("max_trials", ..., "cap on Bernoulli trials per solution (128 as seed 003; 0 = unbounded; a small cap is the biased ablation)", kind="int", minimum=0, maximum=1 << 22),
+    Param("chain", ..., "most specular vertices of a caustic chain (2: a slab's two refractions)", kind="int", minimum=1, maximum=4),
+    Param("jitter", ..., "a new camera sample per pixel and frame (the box filter pt estimates); false: pixel centres", kind="bool"),
+)
+_PARTITION = (
+    Param("tiles", 16, "N: U is cut into N × N tiles, trust regions are 3 × 3 tiles (seed 003, Sec. 3.3)", kind="int", minimum=3, maximum=256),
+    Param("prior", ..., "seed pdf α p_I + (1 − α) p_U from presampled tiles I per pixel block (Eq. 7), α = 0.8", kind="bool"),
+    Param("presamples", ..., "unrestricted walks per pixel block, caster and frame that build the prior (seed 003: 128, 256 hard cases)", kind="int", minimum=1, maximum=1024),
+    Param("block", ..., "B: prior blocks are B × B pixels", kind="int", minimum=1, maximum=256),
+)
+_PARAMS_ALL = renderer_params(SMSRenderer, *_COMMON, *_PARTITION)
+_PARAMS_RESTIR = renderer_params(
+    SMSReSTIR,
+    Param("temporal", ..., "reuse the previous frame's reservoir of the pixel (manifold shift)", kind="bool"),
+    Param("spatial", ..., "reuse one neighbour's reservoir per frame (manifold shift)", kind="bool"),
+    Param("radius", ..., "spatial reuse radius in pixels (seed 003: 30)", kind="float", minimum=1.0, maximum=1024.0),
+    Param("history_cap", ..., "cap on the confidence M a reservoir carries (seed 003: 20)", kind="float", minimum=0.0),
+)
+
+register(
+    RenderMethod(
+        "sms",
+        "the path tracer + caustic NEE by specular manifold sampling: uniform seeds, Bernoulli-trial UCWs (seed 003, Eq. 1-3)",
+        _create(0),
+        params=_PARAMS_ALL[: len(_COMMON)],
+        uses_spp=True,
+    )
+)
+register(
+    RenderMethod(
+        "sms-partitioned",
+        "SMS with N x N tiles, 3 x 3 trust regions, W = K / P(C) and per-frame priors per pixel block (seed 003, Eq. 4-9)",
+        _create(16),
+        params=_PARAMS_ALL,
+        uses_spp=True,
+    )
+)
+register(
+    RenderMethod(
+        "sms-restir",
+        "sms-partitioned samples reused by temporal + spatial GRIS through manifold shifts, pairwise MIS (seed 003, Eq. 10-13)",
+        _create(16, SMSReSTIR),
+        params=(*_PARAMS_ALL, *_PARAMS_RESTIR),
+    )
+)
