@@ -24,8 +24,11 @@ Methods:
 ``sms``              Zeltner et al. 2020: uniform seed in U, unrestricted walk, W = K Bernoulli trials;
 ``sms-partitioned``  N × N tiles (``tiles``, 16), walks stopped outside the 3 × 3 trust region R(u)
                      (periodic), W = K / P(C) with trials in C(u*) (Eq. 4–6); with ``prior`` a
-                     per-frame prior over tiles from ``presamples`` unrestricted walks per
-                     ``block`` × ``block`` pixel block and caster (Eq. 7–9, α = 0.8);
+                     per-frame prior from ``presamples`` unrestricted walks per ``block`` × ``block``
+                     pixel block, each from a random pixel to a random light–object pair: the tiles
+                     that held solutions per caster (Eq. 7–9, α = 0.8) and the pairs that did, from
+                     which a pixel draws its pair w.p. α, else from the whole scene, P(pair) =
+                     α [pair ∈ I]/#I + (1 − α) p_scene entering W (Sec. 4.2);
 ``sms-restir``       one ``sms-partitioned`` sample per pixel and frame as a reservoir x̂ = (u*, O, x_n)
                      with p̂ = lum f(x̂) and W = K / (P(C) p_A P(O)); temporal reuse of the pixel's
                      reservoir of the last frame, found by reprojecting x₁ (confidence cap ``history_cap`` 20), and one spatial
@@ -46,9 +49,9 @@ iterations per solution, capped solutions, the prior's walks and (``sms-restir``
 success rate and cost; the stage times are ``seconds``' ``prior``, ``manifold_sampling`` (which
 includes the path tracer's sample of the pixel), ``temporal``, ``spatial`` and ``shade``.
 
-Simplified against the paper (said plainly): one emitter point and caster per sample, the caster
-uniform and the light by power, without the α mix over light–object pairs of Sec. 4.2 (the prior
-is per block *and* caster, built with light points drawn per presample); delta casters only (no
+Simplified against the paper (said plainly): one emitter point and caster per sample (p_scene: the
+caster uniform, the light by power; a "light" is one emitter triangle, as the light set has it);
+the tile prior is per block and caster, not per pair (linked lists in the paper); delta casters only (no
 offset manifolds for glossy casters); the chain is shot from x₁ with a
 numerical Jacobian (:mod:`grisx.scene.caustics`); ``sms-restir``'s temporal neighbour is found by
 reprojecting x₁ (not a G-buffer similarity test) and temporal reuse is off while objects move.
@@ -73,11 +76,12 @@ from grisx.render.base.reuse import spatial_neighbor
 from grisx.scene.camera import CameraData, camera_project, camera_ray
 from grisx.scene.caustics import CHAIN_MAX, CausticSpec, make_caustic_spec, make_caustics, set_view
 from grisx.scene.frame import frame_from_normal, to_local, to_world
-from grisx.scene.lights import sample_light
+from grisx.scene.distribution import alias_pmf, sample_alias
+from grisx.scene.lights import sample_given_light, sample_light
 from grisx.scene.material import MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, material_kind
 from grisx.scene.scene import SceneData, SurfaceInteraction, intersect, spawn_origin, surface_material
 from grisx.theory.gris import resampling_weight
-from grisx.theory.manifold import NEWTON_MAX_ITERATIONS, PRIOR_ALPHA, prior_add_tile, reuse_neighbor, seed_space, tile_of
+from grisx.theory.manifold import NEWTON_MAX_ITERATIONS, PRIOR_ALPHA, pair_pmf, prior_add_tile, prior_contains, reuse_neighbor, seed_space, tile_of
 from grisx.theory.reservoir import Reservoir, reservoir_empty, reservoir_finalize, reservoir_update
 from grisx.theory.random import random_key, random_subkey, random_uniform
 
@@ -150,6 +154,8 @@ class SMSPass:
     blocks_x: int
     prior_tiles: wp.array2d(dtype=int)
     prior_count: wp.array(dtype=int)
+    prior_pairs: wp.array2d(dtype=int)  # per block: light · #casters + caster of the pairs that held solutions
+    prior_pair_count: wp.array(dtype=int)
     stats: wp.array2d(dtype=wp.float64)
 
 
@@ -199,17 +205,29 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
 
     @wp.func
     def sms_candidate(spec: CausticSpec, p: SMSPass, view: int, x1: ShadingPoint, x: int, y: int, skey: wp.uint32) -> wp.vec4:
-        """One SMS sample at x₁ into ``view``: (u*₀, u*₁, W = K/P(C) / (p_A(x_n) P(O)), found); caster and x_n in the view."""
+        """One SMS sample at x₁ into ``view``: (u*₀, u*₁, W = K/P(C) / (p(x_n | light) P(light, O)), found); caster and x_n in the view."""
         casters = p.casters
         stats = p.stats
         out = wp.vec4(0.0, 0.0, 0.0, 0.0)
         n_casters = casters.shape[0]
+        blk = (y // p.block) * p.blocks_x + x // p.block
+        # ---- a light–object pair: from the block's prior pairs w.p. α, else caster uniform, light ∝ power (Sec. 4.2) ----
+        n_pairs = p.prior_pair_count[blk]
         ci = wp.min(int(random_uniform(skey, 0) * float(n_casters)), n_casters - 1)
-        ls = sample_light(spec.scene.lights, x1.si.p, random_uniform(skey, 1), wp.vec2(random_uniform(skey, 2), random_uniform(skey, 3)))
-        if ls.light < 0 or ls.delta != 0 or not (ls.pdf_area > 0.0):
+        light = sample_alias(spec.scene.lights.selection, random_uniform(skey, 1))
+        if p.alpha > 0.0 and n_pairs > 0 and random_uniform(skey, 5) < p.alpha:
+            pair = p.prior_pairs[blk, wp.min(int(random_uniform(skey, 6) * float(n_pairs)), n_pairs - 1)]
+            light = pair // n_casters
+            ci = pair % n_casters
+        if light < 0:
+            return out
+        scene_pmf = alias_pmf(spec.scene.lights.selection, light) / float(n_casters)
+        p_pair = pair_pmf(p.alpha, prior_contains(p.prior_pairs[blk], n_pairs, light * n_casters + ci), n_pairs, scene_pmf)
+        ls = sample_given_light(spec.scene.lights, light, 1.0, x1.si.p, wp.vec2(random_uniform(skey, 2), random_uniform(skey, 3)))
+        if ls.light < 0 or ls.delta != 0 or not (ls.pdf_area > 0.0) or not (p_pair > 0.0):
             return out  # point lights: no chain reaches a delta light (the path tracer's neither)
         set_view(spec, view, x1.si, x1.wo, x1.depth, casters[ci], ls.p, ls.n, ls.tri)
-        row = ((y // p.block) * p.blocks_x + x // p.block) * n_casters + ci
+        row = blk * n_casters + ci
         space = seed_space(p.tiles, p.alpha, p.prior_count[row])  # Eq. 7 (p_U when no prior)
         s = SMS.sample(spec, view, space, p.prior_tiles[row], random_subkey(skey, 4), p.max_trials)
         _tally(stats, view, 0, 1.0)
@@ -220,7 +238,7 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
             _tally(stats, view, 4, float(s.newton_bernoulli))
             if s.capped:
                 _tally(stats, view, 5, 1.0)
-            out = wp.vec4(s.u[0], s.u[1], s.ucw * float(n_casters) / ls.pdf_area, 1.0)  # Eq. 1, 5: f W / (p_A P(O))
+            out = wp.vec4(s.u[0], s.u[1], s.ucw / (ls.pdf_area * p_pair), 1.0)  # Eq. 1, 5: f W / (p(x_n | light) P(light, O))
         return out
 
     @wp.func
@@ -268,15 +286,20 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
         view_base: int,
         prior_tiles: wp.array2d(dtype=int),
         prior_count: wp.array(dtype=int),
+        prior_pairs: wp.array2d(dtype=int),
+        prior_pair_count: wp.array(dtype=int),
         stats: wp.array2d(dtype=wp.float64),
     ):
-        # ---- per-frame prior: unrestricted walks from random pixels of a B × B block (seed 003, Sec. 4.1) ----
-        by, bx, ci = wp.tid()
+        # ---- per-frame prior: unrestricted walks from random pixels of a B × B block, each to a random
+        # light–object pair (seed 003, Sec. 4.1–4.2): the tiles that held solutions, per caster, and the pairs ----
+        by, bx = wp.tid()
         n_casters = casters.shape[0]
-        row = (by * blocks_x + bx) * n_casters + ci
-        view = view_base + row
-        key = random_subkey(random_subkey(random_key(seed, frame), 1), row)
-        count = int(0)
+        blk = by * blocks_x + bx
+        view = view_base + blk
+        key = random_subkey(random_subkey(random_key(seed, frame), 1), blk)
+        for ci in range(n_casters):
+            prior_count[blk * n_casters + ci] = 0
+        pairs = int(0)
         for j in range(presamples):
             jkey = random_subkey(key, j)
             x = wp.min(bx * block + int(random_uniform(jkey, 0) * float(block)), cam.width - 1)
@@ -285,18 +308,22 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
             si = first_non_delta(spec.scene, ray.o, ray.d, random_subkey(jkey, 1))
             if si.valid == 0:
                 continue
+            ci = wp.min(int(random_uniform(jkey, 7) * float(n_casters)), n_casters - 1)
             ls = sample_light(spec.scene.lights, si.p, random_uniform(jkey, 2), wp.vec2(random_uniform(jkey, 3), random_uniform(jkey, 4)))
             if ls.light < 0 or ls.delta != 0:
                 continue
             set_view(spec, view, si, -ray.d, 0, casters[ci], ls.p, ls.n, ls.tri)
             w = SMS.walk(spec, view, wp.vec2(random_uniform(jkey, 5), random_uniform(jkey, 6)), 0, NEWTON_MAX_ITERATIONS)
-            _tally(stats, row, 6, 1.0)
-            _tally(stats, row, 8, float(w.iterations))
+            _tally(stats, blk, 6, 1.0)
+            _tally(stats, blk, 8, float(w.iterations))
             if w.converged:
-                _tally(stats, row, 7, 1.0)
-                count = prior_add_tile(prior_tiles[row], count, tile_of(w.u, tiles))
-        prior_count[row] = count
-        _tally(stats, row, 9, float(count))
+                _tally(stats, blk, 7, 1.0)
+                row = blk * n_casters + ci
+                prior_count[row] = prior_add_tile(prior_tiles[row], prior_count[row], tile_of(w.u, tiles))
+                pairs = prior_add_tile(prior_pairs[blk], pairs, ls.light * n_casters + ci)
+        prior_pair_count[blk] = pairs
+        for ci in range(n_casters):
+            _tally(stats, blk, 9, float(prior_count[blk * n_casters + ci]))
 
     @wp.kernel(module=module)
     def sample_pass(
@@ -486,6 +513,9 @@ class SMSRenderer(PathTracer):
         n_rows = self.blocks_x * self.blocks_y * max(len(self.casters_host), 1)
         self.prior_tiles = wp.zeros((n_rows, max(self.presamples, 1)), dtype=int, device=dev)
         self.prior_count = wp.zeros(n_rows, dtype=int, device=dev)
+        n_blocks = self.blocks_x * self.blocks_y
+        self.prior_pairs = wp.zeros((n_blocks, max(self.presamples, 1)), dtype=int, device=dev)
+        self.prior_pair_count = wp.zeros(n_blocks, dtype=int, device=dev)
         self.spec = make_caustic_spec(built, self.width * self.height + n_rows, self.chain, self.max_depth)
         self.prior_view_base = self.width * self.height
         self.stats = wp.zeros((STAT_ROWS, _N_STATS), dtype=wp.float64, device=dev)
@@ -498,15 +528,16 @@ class SMSRenderer(PathTracer):
         return self.timer(name) if self.timer is not None else contextlib.nullcontext()
 
     def build_prior(self, frame: int, cam: CameraData) -> None:
-        """Seed 003, Sec. 4.1: the tiles I that held solutions, per pixel block and caster."""
+        """Seed 003, Sec. 4.1–4.2: the tiles I that held solutions, per pixel block and caster, and the pairs."""
         self.prior_count.zero_()
+        self.prior_pair_count.zero_()
         if not self.prior or not self.casters_host:
             return
         wp.launch(
             self.kernels_["prior_pass"],
-            dim=(self.blocks_y, self.blocks_x, len(self.casters_host)),
+            dim=(self.blocks_y, self.blocks_x),
             inputs=[self.spec, cam, self.casters, self.seed, int(frame), self.block, self.tiles, self.presamples, self.blocks_x, self.prior_view_base],
-            outputs=[self.prior_tiles, self.prior_count, self.stats],
+            outputs=[self.prior_tiles, self.prior_count, self.prior_pairs, self.prior_pair_count, self.stats],
             device=self.built.device,
         )
 
@@ -518,6 +549,7 @@ class SMSRenderer(PathTracer):
         p.max_depth, p.rr_depth, p.jitter, p.max_trials = self.max_depth, self.rr_depth, self.jitter, self.max_trials
         p.tiles, p.alpha, p.block, p.blocks_x = self.tiles, PRIOR_ALPHA if self.prior else 0.0, self.block, self.blocks_x
         p.prior_tiles, p.prior_count, p.stats = self.prior_tiles, self.prior_count, self.stats
+        p.prior_pairs, p.prior_pair_count = self.prior_pairs, self.prior_pair_count
         return p
 
     def add_samples(self, frame: int, count: int, first_sample: int | None = None) -> None:

@@ -29,7 +29,9 @@ from x₁, as footnote 2 recommends, so the map is continuous):
   segment reaches x_n). For the **environment** x_n is a sampled direction ω_n
   and C(u) is the last direction's tangential part about ω_n (its antipode is
   refused), so |det ∂C/∂u| is per solid angle at ω_n. ∂C/∂u is taken by
-  central differences of the shot (step 1e-3 in U); the walks are
+  central differences of the shot (step 1e-3 in U; one-sided within a step of
+  O's outline or of a chain-length change, so that no solution there is lost);
+  the walks are
   :func:`grisx.theory.manifold.make_manifold_sampler`'s;
 * **generalized geometry term** (Jakob & Marschner 2012): a change of variables
   from ω₁ to the area of x_n, |∂ω₁/∂A(x_n)| = |∂ω₁/∂u| / |det ∂C/∂u| — for one
@@ -356,19 +358,33 @@ def _make_caustics(kinds: frozenset[int]) -> CausticFuncs:
         return shoot(spec, view, u).c
 
     @wp.func
+    def _difference(center: CausticChain, plus: CausticChain, minus: CausticChain, h: float) -> wp.vec3:
+        """∂C along one axis: central where both neighbours are shots of the same chain as the centre,
+        one-sided where only one is (at O's outline or a slab edge), else none: (∂C₀, ∂C₁, ok)."""
+        ok_p = plus.valid != 0 and plus.length == center.length
+        ok_m = minus.valid != 0 and minus.length == center.length
+        if ok_p and ok_m:
+            d = (plus.c - minus.c) / (2.0 * h)
+            return wp.vec3(d[0], d[1], 1.0)
+        if ok_p:
+            d = (plus.c - center.c) / h
+            return wp.vec3(d[0], d[1], 1.0)
+        if ok_m:
+            d = (center.c - minus.c) / h
+            return wp.vec3(d[0], d[1], 1.0)
+        return wp.vec3(0.0, 0.0, 0.0)
+
+    @wp.func
     def jacobian(spec: CausticSpec, view: int, u: wp.vec2) -> wp.mat22:
         h = JACOBIAN_STEP
-        a0 = shoot(spec, view, wp.vec2(u[0] + h, u[1]))
-        b0 = shoot(spec, view, wp.vec2(u[0] - h, u[1]))
-        a1 = shoot(spec, view, wp.vec2(u[0], u[1] + h))
-        b1 = shoot(spec, view, wp.vec2(u[0], u[1] - h))
-        if a0.valid == 0 or b0.valid == 0 or a1.valid == 0 or b1.valid == 0:
+        center = shoot(spec, view, u)
+        if center.valid == 0:
             return wp.mat22(0.0, 0.0, 0.0, 0.0)  # singular: the walk stops
-        if a0.length != b0.length or a1.length != b1.length:
-            return wp.mat22(0.0, 0.0, 0.0, 0.0)  # across a change of chain topology
-        c0 = (a0.c - b0.c) / (2.0 * h)
-        c1 = (a1.c - b1.c) / (2.0 * h)
-        return wp.mat22(c0[0], c1[0], c0[1], c1[1])
+        d0 = _difference(center, shoot(spec, view, wp.vec2(u[0] + h, u[1])), shoot(spec, view, wp.vec2(u[0] - h, u[1])), h)
+        d1 = _difference(center, shoot(spec, view, wp.vec2(u[0], u[1] + h)), shoot(spec, view, wp.vec2(u[0], u[1] - h)), h)
+        if d0[2] == 0.0 or d1[2] == 0.0:
+            return wp.mat22(0.0, 0.0, 0.0, 0.0)
+        return wp.mat22(d0[0], d1[0], d0[1], d1[1])
 
     @wp.func
     def geometry(spec: CausticSpec, view: int, u: wp.vec2) -> float:

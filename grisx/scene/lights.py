@@ -128,6 +128,7 @@ __all__ = [
     "envmap_direction_to_uv",
     "envmap_uv_to_direction",
     "sample_light",
+    "sample_given_light",
     "light_pdf_emitter",
     "emitter_radiance",
     "environment_eval",
@@ -508,12 +509,18 @@ def point_light_intensity(ls: LightSet, k: int, w: wp.vec3) -> wp.vec3:
 @wp.func
 def sample_light(ls: LightSet, ref_p: wp.vec3, u_select: float, u: wp.vec2) -> LightSample:
     """Pick a light ∝ power with u_select, then a point/direction on it with u (see the module docstring)."""
-    s = _invalid_sample()
     light = sample_alias(ls.selection, u_select)
     if light < 0:
-        return s
-    pmf = alias_pmf(ls.selection, light)
-    if pmf <= 0.0:
+        return _invalid_sample()
+    return sample_given_light(ls, light, alias_pmf(ls.selection, light), ref_p, u)
+
+
+@wp.func
+def sample_given_light(ls: LightSet, light: int, pmf: float, ref_p: wp.vec3, u: wp.vec2) -> LightSample:
+    """A point/direction on light ``light`` (a selection index) with u; the densities include ``pmf``, the
+    probability the light was picked with (1: the density on this light alone)."""
+    s = _invalid_sample()
+    if light < 0 or light >= ls.num_lights or pmf <= 0.0:
         return s
     s.light = light
     if light < ls.num_emitters:

@@ -116,6 +116,8 @@ __all__ = [
     "sample_seed",
     "prior_add_tile",
     "prior_count_in_region",
+    "prior_contains",
+    "pair_pmf",
     "conditional_probability",
     "conditional_alpha",
     "sample_conditional_seed",
@@ -327,7 +329,8 @@ def prior_add_tile(prior: wp.array(dtype=int), count: int, tile: int) -> int:
 
 
 @wp.func
-def _in_prior(prior: wp.array(dtype=int), count: int, tile: int) -> wp.bool:
+def prior_contains(prior: wp.array(dtype=int), count: int, tile: int) -> wp.bool:
+    """Is ``tile`` in the set I held in ``prior[0:count]``?"""
     for j in range(count):
         if prior[j] == tile:
             return True
@@ -348,7 +351,7 @@ def prior_count_in_region(space: SeedSpace, prior: wp.array(dtype=int), center: 
 def seed_pdf(space: SeedSpace, prior: wp.array(dtype=int), u: wp.vec2) -> float:
     """p(u) = α p_I(u) + (1 − α) p_U(u) (seed 003, Eq. 7), p_I = N²/#(I) on the tiles of I."""
     p = 1.0 - space.alpha
-    if space.alpha > 0.0 and _in_prior(prior, space.prior_count, tile_of(u, space.tiles)):
+    if space.alpha > 0.0 and prior_contains(prior, space.prior_count, tile_of(u, space.tiles)):
         p += space.alpha * float(space.tiles * space.tiles) / float(space.prior_count)
     return p
 
@@ -362,6 +365,18 @@ def sample_seed(space: SeedSpace, prior: wp.array(dtype=int), key: wp.uint32, co
         tile = prior[_pick(space.prior_count, random_uniform(key, counter + 3))]
         return _uniform_in_tile(tile, space.tiles, r0, r1)
     return wrap_unit(wp.vec2(r0, r1))
+
+
+@wp.func
+def pair_pmf(alpha: float, in_prior: wp.bool, prior_count: int, scene_pmf: float) -> float:
+    """P(pair) = α [pair ∈ I]/#(I) + (1 − α) p_scene(pair) (seed 003, Sec. 4.2): a light–object pair drawn from
+    the block's prior pairs with probability α, else from the whole scene; α = 0 when I is empty."""
+    p = scene_pmf
+    if alpha > 0.0 and prior_count > 0:
+        p = (1.0 - alpha) * scene_pmf
+        if in_prior:
+            p += alpha / float(prior_count)
+    return p
 
 
 # ---- the conditional sample space C(u*) (Eq. 4–6, 8, 9) ------------------------------------
