@@ -168,7 +168,7 @@ def _agreement(method, params, k=DEFAULT_K, **kw):
 
 @pytest.mark.parametrize(
     "method,params",
-    [("sms", {}), ("sms", {"max_trials": 0}), ("sms-partitioned", {}), ("sms-partitioned", {"prior": False}), ("sms-partitioned", {"tiles": 8, "block": 4})],
+    [("sms", {}), ("sms", {"max_trials": 128}), ("sms-partitioned", {}), ("sms-partitioned", {"prior": False}), ("sms-partitioned", {"tiles": 8, "block": 4})],
     ids=["sms", "sms-uncapped", "partitioned-prior", "partitioned-no-prior", "partitioned-8-tiles"],
 )
 def test_sms_agrees_with_the_path_tracer(method, params):
