@@ -63,7 +63,7 @@ TABLE_METHODS = (
     ("sms", "sms", dict(PAPER)),
     ("tiles", "sms-partitioned", {"prior": False, **PAPER}),
     ("tiles+prior", "sms-partitioned", dict(PAPER)),
-    ("tiles+prior+restir", "sms-restir", {}),
+    ("tiles+prior+restir", "sms-restir", dict(PAPER)),
 )
 EQUAL_TIME = (("pt", {}), ("restir-pt", {}), ("sms", {}), ("sms-partitioned", {}), ("sms-restir", {}))
 _ONE_FRAME = {"sms-restir", "restir-pt"}  # one sample per pixel and frame: accumulate frames
