@@ -185,7 +185,9 @@ def run_scene(scene: str, args: argparse.Namespace) -> list[dict[str, Any]]:
     # ---- calibration: one instance / 1 spp of each method ----
     cal = {}
     for label in args.methods:
+        start = time.perf_counter()
         cal[label] = run_method(built, label, 1, args.calibration_frames, [], args)["record"]["frame_ms_l2"]
+        print(f"{scene:12s} {label:24s} calibration {cal[label]:8.2f} ms/frame ({time.perf_counter() - start:.0f} s, compilation included)", flush=True)
     target = cal[args.methods[0]]
     refs: dict[int, tuple[np.ndarray, np.ndarray]] = {}
 
@@ -281,19 +283,28 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     args.out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    records = []
+    records: list[dict[str, Any]] = []
+    settings = {k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()}
+
+    def write_json(complete: bool) -> dict[str, Any]:
+        """The JSON so far: rewritten after every scene, so a run cut short keeps the scenes it finished."""
+        payload = {
+            "benchmark": "gradient_domain", "settings": settings, "device": str(dev), "complete": complete,
+            "device_name": wp.get_device(dev).name if cuda else platform.processor() or platform.machine(),
+            "versions": {"grisx": grisx.__version__, "warp": wp.__version__, "python": platform.python_version(), "numpy": np.__version__},
+            "paper": PAPER, "relmse_epsilon": 1e-2, "reference": f"pt at {args.ref_spp} spp, max_depth {args.max_depth}, at each evaluated frame's camera",
+            "seconds": time.perf_counter() - t0,
+            "records": [{k: v for k, v in r.items() if k not in ("last_frame", "reference")} for r in records],
+        }
+        tmp = args.out / "gradient_domain.json.tmp"
+        tmp.write_text(json.dumps(payload, indent=2))
+        tmp.replace(args.out / "gradient_domain.json")
+        return payload
+
     for scene in args.scenes:
         records += run_scene(scene, args)
-    settings = {k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()}
-    payload = {
-        "benchmark": "gradient_domain", "settings": settings, "device": str(dev),
-        "device_name": wp.get_device(dev).name if cuda else platform.processor() or platform.machine(),
-        "versions": {"grisx": grisx.__version__, "warp": wp.__version__, "python": platform.python_version(), "numpy": np.__version__},
-        "paper": PAPER, "relmse_epsilon": 1e-2, "reference": f"pt at {args.ref_spp} spp, max_depth {args.max_depth}, at each evaluated frame's camera",
-        "seconds": time.perf_counter() - t0,
-        "records": [{k: v for k, v in r.items() if k not in ("last_frame", "reference")} for r in records],
-    }
-    (args.out / "gradient_domain.json").write_text(json.dumps(payload, indent=2))
+        write_json(complete=False)
+    payload = write_json(complete=True)
     plot(records, args.out / "gradient_domain.png", f"gradient-domain ReSTIR PT vs B.1-B.3, equal time, {args.width}x{args.height}, {args.camera} camera, {payload['device_name']}")
     print(f"wrote {args.out / 'gradient_domain.json'} and {args.out / 'gradient_domain.png'} ({payload['seconds']:.1f} s)")
     return 0
