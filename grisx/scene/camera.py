@@ -36,6 +36,8 @@ from grisx.theory.random import random_key, random_subkey, random_uniform
 wp.set_module_options({"enable_backward": False})
 
 __all__ = [
+    "film_weight",
+    "filter_reach",
     "Camera",
     "CameraPath",
     "CameraData",
@@ -254,11 +256,13 @@ def camera_sample_key(seed: int, frame: int, pixel: int) -> wp.uint32:
 #: Mitsuba's gaussian filter reaches 4 standard deviations; tries of the rejection step (each accepts with p > 0.99)
 GAUSSIAN_RADIUS = wp.constant(4.0)
 GAUSSIAN_TRIES = wp.constant(16)
+_SQRT2 = wp.constant(1.4142135623730951)
+_SQRT_HALF_PI = wp.constant(1.2533141373155003)  # ∫ e^{−t²/2} dt over ℝ is 2·√(π/2)
 
 
 @wp.func
 def _gaussian_cdf(t: float, stddev: float) -> float:
-    return 0.5 * (1.0 + wp.erf(t / (stddev * 1.41421356)))
+    return 0.5 * (1.0 + wp.erf(t / (stddev * _SQRT2)))
 
 
 @wp.func
@@ -267,7 +271,7 @@ def sample_gaussian_offset(u: float, stddev: float, lo: float, hi: float) -> flo
     a = _gaussian_cdf(lo, stddev)
     b = _gaussian_cdf(hi, stddev)
     q = wp.clamp(2.0 * (a + u * (b - a)) - 1.0, -0.9999999, 0.9999999)
-    return wp.clamp(stddev * 1.41421356 * wp.erfinv(q), lo, hi)
+    return wp.clamp(stddev * _SQRT2 * wp.erfinv(q), lo, hi)
 
 
 @wp.func
@@ -297,6 +301,50 @@ def gaussian_filter_sample(key: wp.uint32, x: int, y: int, width: int, height: i
         if random_uniform(key, 18 + 3 * k) < accept:
             break
     return p
+
+
+@wp.func
+def filter_reach(cam: CameraData) -> float:
+    """How far the pixel filter reaches from the pixel's centre: ½ (box) or r = 4σ (Mitsuba's gaussian)."""
+    if cam.filter_stddev > 0.0:
+        return GAUSSIAN_RADIUS * cam.filter_stddev
+    return 0.5
+
+
+@wp.func
+def _gaussian_axis(t: float, r: float, inv2var: float) -> float:
+    return wp.max(0.0, wp.exp(-t * t * inv2var) - wp.exp(-r * r * inv2var))
+
+
+@wp.func
+def _gaussian_axis_integral(c: float, size: float, stddev: float) -> float:
+    """∫ f(t) dt over the filter's support [−r, r] ∩ the film, for a pixel centre at c on an axis of ``size`` pixels."""
+    r = GAUSSIAN_RADIUS * stddev
+    a = wp.max(-r, -c)
+    b = wp.min(r, size - c)
+    s2 = stddev * _SQRT2
+    return stddev * _SQRT_HALF_PI * (wp.erf(b / s2) - wp.erf(a / s2)) - wp.exp(-r * r / (2.0 * stddev * stddev)) * (b - a)
+
+
+@wp.func
+def film_weight(cam: CameraData, x: int, y: int, offset: wp.vec2) -> float:
+    """ω_i(u) = (support area) · w_i(u − ½): pixel (x, y)'s filter, normalized over its part inside the film (what
+    Mitsuba's splatting film converges to), times the area of its support — the weight of a film sample at
+    (x, y) + ``offset`` drawn uniformly over that support (:func:`filter_reach`); 0 outside the film."""
+    px = float(x) + offset[0]
+    py = float(y) + offset[1]
+    if px < 0.0 or py < 0.0 or px >= float(cam.width) or py >= float(cam.height):
+        return 0.0  # Mitsuba's film takes samples from inside the film only
+    sd = cam.filter_stddev
+    if sd <= 0.0:
+        return 1.0
+    r = GAUSSIAN_RADIUS * sd
+    inv2var = 1.0 / (2.0 * sd * sd)
+    cx = float(x) + 0.5
+    cy = float(y) + 0.5
+    w = _gaussian_axis(px - cx, r, inv2var) * _gaussian_axis(py - cy, r, inv2var)
+    z = _gaussian_axis_integral(cx, float(cam.width), sd) * _gaussian_axis_integral(cy, float(cam.height), sd)
+    return 4.0 * r * r * w / z
 
 
 @wp.func

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 import warp as wp
 
-from grisx.scene.camera import gaussian_filter_sample
+from grisx.scene.camera import CameraData, film_weight, gaussian_filter_sample
 from grisx.testing import chi2_test
 from grisx.theory.random import random_key
 
@@ -66,3 +66,33 @@ def test_a_filter_not_cut_at_the_film_border_is_told_apart():
     """Mitsuba's border pixels see only samples from inside the film; the whole filter is a different distribution."""
     t = offsets(0, 8, 1.0)
     assert not chi2_test(t[:, 0], mitsuba_filter(1.0, -4.0, 4.0), -4.0, 4.0, bins=48).passed
+
+
+@wp.kernel
+def _film_weights(cam: CameraData, x: int, y: int, offsets: wp.array(dtype=wp.vec2), out: wp.array(dtype=float)):
+    i = wp.tid()
+    out[i] = film_weight(cam, x, y, offsets[i])
+
+
+@pytest.mark.parametrize(("x", "y", "stddev"), [(8, 8, 0.5), (0, 15, 1.0), (8, 8, 0.0)])
+def test_film_weight_is_the_filter_normalized_on_the_film(x, y, stddev):
+    """ω(u) = |support| · w(u − ½): Mitsuba's filter normalized over its part inside the film (the numpy oracle above),
+    so uniform film samples over the support average to the filtered pixel; a box weighs 1 inside the pixel."""
+    size = 16
+    cam = CameraData()
+    cam.width, cam.height, cam.filter_stddev = size, size, stddev
+    r = 4 * stddev if stddev > 0 else 0.5
+    g = np.linspace(0.5 - r, 0.5 + r, 41)[:-1] + r / 40  # cell centres of the support
+    u = np.stack(np.meshgrid(g, g, indexing="ij"), -1).reshape(-1, 2).astype(np.float32)
+    out = wp.empty(len(u), dtype=float, device="cpu")
+    wp.launch(_film_weights, dim=len(u), inputs=[cam, x, y, wp.array(u, dtype=wp.vec2, device="cpu")], outputs=[out], device="cpu")
+    w = out.numpy()
+    inside = (x + u[:, 0] >= 0) & (x + u[:, 0] < size) & (y + u[:, 1] >= 0) & (y + u[:, 1] < size)
+    assert np.all(w[~inside] == 0.0)
+    if stddev == 0:
+        np.testing.assert_array_equal(w, 1.0)
+        return
+    t = u - 0.5
+    fx = mitsuba_filter(stddev, max(-r, -(x + 0.5)), min(r, size - (x + 0.5)))(t[:, 0])
+    fy = mitsuba_filter(stddev, max(-r, -(y + 0.5)), min(r, size - (y + 0.5)))(t[:, 1])
+    np.testing.assert_allclose(w[inside], (4 * r * r * fx * fy)[inside], rtol=2e-3, atol=1e-5)

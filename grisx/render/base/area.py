@@ -45,14 +45,14 @@ from __future__ import annotations
 import warp as wp
 
 from grisx.render.base.path_shift import Domain, vertex_from_hit
-from grisx.scene.camera import GAUSSIAN_RADIUS, CameraData, camera_ray
+from grisx.scene.camera import CameraData, camera_ray, film_weight, filter_reach
 from grisx.scene.lights import emitter_radiance, environment_eval
 from grisx.scene.scene import SceneData, intersect
 from grisx.theory.random import random_uniform
 
 wp.set_module_options({"enable_backward": False})
 
-__all__ = ["FilmSample", "AreaDomain", "film_sample", "film_weight", "filter_reach", "area_domain", "film_translate", "FILM_STREAM"]
+__all__ = ["FilmSample", "AreaDomain", "film_sample", "area_domain", "film_translate", "FILM_STREAM"]
 
 #: the film sample's random stream of a pixel (pixel_key_of), apart from ReSTIR PT's 1–10 and 64+
 FILM_STREAM = 48
@@ -77,14 +77,6 @@ class AreaDomain:
 
 
 @wp.func
-def filter_reach(cam: CameraData) -> float:
-    """How far the pixel filter reaches from the pixel's centre: ½ (box) or r = 4σ (Mitsuba's gaussian)."""
-    if cam.filter_stddev > 0.0:
-        return GAUSSIAN_RADIUS * cam.filter_stddev
-    return 0.5
-
-
-@wp.func
 def film_sample(key: wp.uint32, cam: CameraData) -> FilmSample:
     """A film sample uniform over the pixel filter's support and the lens, from counters 0–3 of ``key``."""
     reach = filter_reach(cam)
@@ -93,40 +85,6 @@ def film_sample(key: wp.uint32, cam: CameraData) -> FilmSample:
     s.lens = wp.vec2(random_uniform(key, 2), random_uniform(key, 3))
     s.valid = 1
     return s
-
-
-@wp.func
-def _gaussian_axis(t: float, r: float, inv2var: float) -> float:
-    return wp.max(0.0, wp.exp(-t * t * inv2var) - wp.exp(-r * r * inv2var))
-
-
-@wp.func
-def _gaussian_axis_integral(c: float, size: float, stddev: float) -> float:
-    """∫ f(t) dt over the filter's support [−r, r] ∩ the film, for a pixel centre at c on an axis of ``size`` pixels."""
-    r = GAUSSIAN_RADIUS * stddev
-    a = wp.max(-r, -c)
-    b = wp.min(r, size - c)
-    s2 = stddev * 1.41421356
-    return stddev * 1.25331414 * (wp.erf(b / s2) - wp.erf(a / s2)) - wp.exp(-r * r / (2.0 * stddev * stddev)) * (b - a)  # σ√(π/2)
-
-
-@wp.func
-def film_weight(cam: CameraData, x: int, y: int, offset: wp.vec2) -> float:
-    """ω_i(u) = (support area) · w_i: the weight of a film sample u drawn uniformly over the filter's support of pixel (x, y)."""
-    px = float(x) + offset[0]
-    py = float(y) + offset[1]
-    if px < 0.0 or py < 0.0 or px >= float(cam.width) or py >= float(cam.height):
-        return 0.0  # Mitsuba's film takes samples from inside the film only
-    sd = cam.filter_stddev
-    if sd <= 0.0:
-        return 1.0
-    r = GAUSSIAN_RADIUS * sd
-    inv2var = 1.0 / (2.0 * sd * sd)
-    cx = float(x) + 0.5
-    cy = float(y) + 0.5
-    w = _gaussian_axis(px - cx, r, inv2var) * _gaussian_axis(py - cy, r, inv2var)
-    z = _gaussian_axis_integral(cx, float(cam.width), sd) * _gaussian_axis_integral(cy, float(cam.height), sd)
-    return 4.0 * r * r * w / z
 
 
 @wp.func
