@@ -57,12 +57,17 @@ def every_method() -> tuple[tuple[str, str, dict[str, Any]], ...]:
 METHODS = every_method()
 
 
-def render_scene(scene: str, device: str, res: tuple[int, int], frames: int, out: Path) -> dict[str, Any]:
-    """Render ``scene`` with every method; save each last frame as .npy for the contact sheet."""
+def render_scene(scene: str, device: str, res: tuple[int, int], frames: int, out: Path,
+                 methods: tuple[tuple[str, str, dict[str, Any]], ...] = METHODS) -> dict[str, Any]:
+    """Render ``scene`` with every method; save each last frame as .npy for the contact sheet.
+
+    The rows so far are rewritten to ``out/SCENE.json`` after every render, so a run that is cut
+    short (a device call's time limit) keeps what it measured.
+    """
     from grisx.render.driver import render
 
     rows = {}
-    for label, method, params in METHODS:
+    for label, method, params in methods:
         t0 = time.perf_counter()
         r = render(scene, method, frames=frames, res=res, device=device, seed=1, params=params, camera="auto")
         img = np.asarray(r.image, dtype=np.float32)
@@ -77,10 +82,11 @@ def render_scene(scene: str, device: str, res: tuple[int, int], frames: int, out
         }
         print(f"{scene:20s} {label:24s} nonfinite {rows[f'{scene} {label}']['nonfinite_samples']}  mean {img.mean():.4f}"
               f"  {rows[f'{scene} {label}']['wall_s']:.1f} s", flush=True)
+        (out / f"{scene}.json").write_text(json.dumps(rows, indent=1))
     return rows
 
 
-def contact_sheet(scenes: list[str], out: Path, path: Path) -> None:
+def contact_sheet(scenes: list[str], methods, out: Path, path: Path) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -88,13 +94,16 @@ def contact_sheet(scenes: list[str], out: Path, path: Path) -> None:
 
     from grisx.imageio import srgb_encode
 
-    fig, axes = plt.subplots(len(scenes), len(METHODS), figsize=(2.6 * len(METHODS), 2.1 * len(scenes)), squeeze=False)
+    fig, axes = plt.subplots(len(scenes), len(methods), figsize=(2.6 * len(methods), 2.1 * len(scenes)), squeeze=False)
     for i, scene in enumerate(scenes):
-        imgs = [np.load(out / f"{scene}__{label.replace(' ', '_')}.npy") for label, _, _ in METHODS]
-        scale = 1.0 / max(float(np.percentile(np.concatenate([im.ravel() for im in imgs]), 99)), 1e-6)
-        for j, ((label, _, _), img) in enumerate(zip(METHODS, imgs)):
+        files = [out / f"{scene}__{label.replace(' ', '_')}.npy" for label, _, _ in methods]
+        imgs = [np.load(f) if f.exists() else None for f in files]  # None: a render that did not finish
+        done = [im.ravel() for im in imgs if im is not None]
+        scale = 1.0 / max(float(np.percentile(np.concatenate(done), 99)), 1e-6)
+        for j, ((label, _, _), img) in enumerate(zip(methods, imgs)):
             ax = axes[i, j]
-            ax.imshow(np.clip(srgb_encode(np.clip(img * scale, 0.0, 1.0)), 0.0, 1.0))
+            if img is not None:
+                ax.imshow(np.clip(srgb_encode(np.clip(img * scale, 0.0, 1.0)), 0.0, 1.0))
             ax.set_xticks([])
             ax.set_yticks([])
             if i == 0:
@@ -111,6 +120,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--device", default="cpu")
     ap.add_argument("--scenes", default=None, help="comma-separated built-in scenes (default: all)")
     ap.add_argument("--res", default=None, help="WxH (default 320x240 on CUDA, 48x36 on CPU)")
+    ap.add_argument("--methods", default=None, help="comma-separated labels (default: all, e.g. 'restir-pt hybrid,restcv')")
     ap.add_argument("--frames", type=int, default=4)
     ap.add_argument("--jobs", type=int, default=1, help="scenes rendered at once, in separate processes")
     ap.add_argument("--out", type=Path, default=Path(__file__).resolve().parent / "results")
@@ -128,10 +138,19 @@ def main(argv: list[str] | None = None) -> int:
         print(f"restir_every_scene.py: error: {exc}", file=sys.stderr)
         return 2
     scenes = args.scenes.split(",") if args.scenes else list(BUILTIN_SCENES)
+    methods = METHODS
+    if args.methods:
+        wanted = args.methods.split(",")
+        unknown = sorted(set(wanted) - {label for label, _, _ in METHODS})
+        if unknown:
+            print(f"restir_every_scene.py: error: unknown method label(s) {', '.join(unknown)}; "
+                  f"known: {', '.join(label for label, _, _ in METHODS)}", file=sys.stderr)
+            return 2
+        methods = tuple(m for m in METHODS if m[0] in wanted)
     frames_dir = args.out / "restir_every_scene_frames"
     frames_dir.mkdir(parents=True, exist_ok=True)
     if args.one:
-        print("JSON " + json.dumps(render_scene(scenes[0], args.device, res, args.frames, frames_dir)), flush=True)
+        render_scene(scenes[0], args.device, res, args.frames, frames_dir, methods)
         return 0
     rows: dict[str, Any] = {}
     start = time.perf_counter()
@@ -141,17 +160,16 @@ def main(argv: list[str] | None = None) -> int:
         while pending and len(running) < max(1, args.jobs):
             scene = pending.pop(0)
             cmd = [sys.executable, __file__, "--one", "--device", args.device, "--scenes", scene, "--res", f"{res[0]}x{res[1]}",
-                   "--frames", str(args.frames), "--out", str(args.out)]
-            running.append(subprocess.Popen(cmd, stdout=subprocess.PIPE, text=True))
+                   "--frames", str(args.frames), "--out", str(args.out)] + (["--methods", args.methods] if args.methods else [])
+            (frames_dir / f"{scene}.json").unlink(missing_ok=True)
+            running.append(subprocess.Popen(cmd))  # its lines go straight to our stdout, as they come
+            running[-1].scene = scene
         done = [p for p in running if p.poll() is not None]
         for p in done:
             running.remove(p)
-            text = p.stdout.read() if p.stdout else ""
-            for line in text.splitlines():
-                if line.startswith("JSON "):
-                    rows.update(json.loads(line[5:]))
-                else:
-                    print(line, flush=True)
+            rows_file = frames_dir / f"{p.scene}.json"
+            if rows_file.exists():
+                rows.update(json.loads(rows_file.read_text()))
             if p.returncode != 0:
                 print(f"restir_every_scene.py: a worker failed with exit code {p.returncode}", file=sys.stderr)
         time.sleep(0.5)
@@ -161,11 +179,12 @@ def main(argv: list[str] | None = None) -> int:
         "res": list(res),
         "frames": args.frames,
         "wall_s": round(time.perf_counter() - start, 1),
-        "all_finite": all(r["finite"] and r["nonfinite_samples"] == 0 for r in rows.values()) and len(rows) == len(scenes) * len(METHODS),
+        "all_finite": all(r["finite"] and r["nonfinite_samples"] == 0 for r in rows.values()) and len(rows) == len(scenes) * len(methods),
+        "methods": [label for label, _, _ in methods],
         "renders": rows,
     }
     (args.out / "restir_every_scene.json").write_text(json.dumps(report, indent=2))
-    contact_sheet([s for s in scenes if any(k.startswith(s + " ") for k in rows)], frames_dir, args.out / "restir_every_scene.png")
+    contact_sheet([s for s in scenes if any(k.startswith(s + " ") for k in rows)], methods, frames_dir, args.out / "restir_every_scene.png")
     print(f"{len(rows)} renders, all finite: {report['all_finite']}; wrote {args.out / 'restir_every_scene.json'} and .png")
     return 0 if report["all_finite"] else 1
 

@@ -165,7 +165,7 @@ def main(argv: list[str] | None = None) -> int:
         eq = equal_time(scene, res, args.device, args.budget, ref)
         images[scene] = {"reference": ref, **{m: row.pop("_image") for m, row in eq.items()}}
         result["scenes"][scene] = {"table1": t, "equal_time": eq}
-        print(f"== {scene} ({args.width}x{args.height}, {dev})")
+        print(f"== {scene} ({args.width}x{args.height}, {dev})", flush=True)
         print(f"{'':<20}{'success':>9}{'Newton/smp':>11}{'Bern./sol':>10}{'Newton/sol':>11}{'sampling ms':>12}{'frame ms':>10}")
         for label, row in t.items():
             ms = row["stage_ms_per_frame"].get("manifold_sampling", 0.0)
@@ -177,7 +177,11 @@ def main(argv: list[str] | None = None) -> int:
         for m, row in eq.items():
             f = row["flip"]
             print(f"{m:<20}{row['passes']:8d}{row['relmse']:10.4f}{(f if f is not None else float('nan')):8.4f}")
+        # rewritten after every scene: a run cut short (a device call's time limit) keeps what it measured
+        result["seconds"] = time.perf_counter() - t0
+        (out / "sms_scenes.json").write_text(json.dumps(result | {"complete": False}, indent=2, default=float))
     result["seconds"] = time.perf_counter() - t0
+    result["complete"] = True
     (out / "sms_scenes.json").write_text(json.dumps(result, indent=2, default=float))
     _plot(images, out / "sms_scenes.png")
     print(f"wrote {out / 'sms_scenes.json'} and {out / 'sms_scenes.png'}")
