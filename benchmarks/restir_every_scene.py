@@ -12,7 +12,9 @@ compilation, which the first scene with a given set of material kinds pays).
 
 Compilation dominates on CUDA (minutes per material-kind set for ReSTIR GI),
 so ``--jobs N`` renders N scenes at once in separate processes; Warp's kernel
-cache is shared between them.
+cache is shared between them. A worker that dies (a CUDA fault poisons its context) is
+relaunched for the methods after the one it died on; that one is reported under ``failed``,
+and the exit status is 1.
 
 Usage::
 
@@ -66,7 +68,8 @@ def render_scene(scene: str, device: str, res: tuple[int, int], frames: int, out
     """
     from grisx.render.driver import render
 
-    rows = {}
+    rows_file = out / f"{scene}.json"
+    rows = json.loads(rows_file.read_text()) if rows_file.exists() else {}  # a relaunch after a crash appends
     for label, method, params in methods:
         t0 = time.perf_counter()
         r = render(scene, method, frames=frames, res=res, device=device, seed=1, params=params, camera="auto")
@@ -82,7 +85,7 @@ def render_scene(scene: str, device: str, res: tuple[int, int], frames: int, out
         }
         print(f"{scene:20s} {label:24s} nonfinite {rows[f'{scene} {label}']['nonfinite_samples']}  mean {img.mean():.4f}"
               f"  {rows[f'{scene} {label}']['wall_s']:.1f} s", flush=True)
-        (out / f"{scene}.json").write_text(json.dumps(rows, indent=1))
+        rows_file.write_text(json.dumps(rows, indent=1))
     return rows
 
 
@@ -153,25 +156,36 @@ def main(argv: list[str] | None = None) -> int:
         render_scene(scenes[0], args.device, res, args.frames, frames_dir, methods)
         return 0
     rows: dict[str, Any] = {}
+    failed: dict[str, str] = {}
     start = time.perf_counter()
-    pending = list(scenes)
+    labels = [label for label, _, _ in methods]
+    # (scene, the labels still to render): a worker that dies (a CUDA fault poisons its context) is
+    # relaunched for the labels after the one it died on, which is recorded as failed
+    pending = [(scene, labels) for scene in scenes]
+    for scene in scenes:
+        (frames_dir / f"{scene}.json").unlink(missing_ok=True)
     running: list[subprocess.Popen] = []
     while pending or running:
         while pending and len(running) < max(1, args.jobs):
-            scene = pending.pop(0)
+            scene, todo = pending.pop(0)
             cmd = [sys.executable, __file__, "--one", "--device", args.device, "--scenes", scene, "--res", f"{res[0]}x{res[1]}",
-                   "--frames", str(args.frames), "--out", str(args.out)] + (["--methods", args.methods] if args.methods else [])
-            (frames_dir / f"{scene}.json").unlink(missing_ok=True)
+                   "--frames", str(args.frames), "--out", str(args.out), "--methods", ",".join(todo)]
             running.append(subprocess.Popen(cmd))  # its lines go straight to our stdout, as they come
-            running[-1].scene = scene
+            running[-1].job = (scene, todo)
         done = [p for p in running if p.poll() is not None]
         for p in done:
             running.remove(p)
-            rows_file = frames_dir / f"{p.scene}.json"
-            if rows_file.exists():
-                rows.update(json.loads(rows_file.read_text()))
-            if p.returncode != 0:
-                print(f"restir_every_scene.py: a worker failed with exit code {p.returncode}", file=sys.stderr)
+            scene, todo = p.job
+            rows_file = frames_dir / f"{scene}.json"
+            scene_rows = json.loads(rows_file.read_text()) if rows_file.exists() else {}
+            rows.update(scene_rows)
+            left = [label for label in todo if f"{scene} {label}" not in scene_rows]
+            if p.returncode != 0 and left:
+                failed[f"{scene} {left[0]}"] = f"the worker exited with code {p.returncode} during this render"
+                print(f"restir_every_scene.py: {scene} {left[0]} failed (exit code {p.returncode}); "
+                      f"{len(left) - 1} method(s) left, relaunched", file=sys.stderr, flush=True)
+                if left[1:]:
+                    pending.append((scene, left[1:]))
         time.sleep(0.5)
     report = {
         "benchmark": "restir_every_scene",
@@ -180,6 +194,7 @@ def main(argv: list[str] | None = None) -> int:
         "frames": args.frames,
         "wall_s": round(time.perf_counter() - start, 1),
         "all_finite": all(r["finite"] and r["nonfinite_samples"] == 0 for r in rows.values()) and len(rows) == len(scenes) * len(methods),
+        "failed": failed,
         "methods": [label for label, _, _ in methods],
         "renders": rows,
     }
