@@ -58,12 +58,12 @@ PAPER = {
     "caustic-slab-plane": {"newton_per_solution": (145.0, 9.1)},
 }
 #: seed 003's Table 1 runs with the paper's cap of 128 Bernoulli trials (grisx's default is uncapped, unbiased)
-PAPER = {"max_trials": 128}
+PAPER_PARAMS = {"max_trials": 128}
 TABLE_METHODS = (
-    ("sms", "sms", dict(PAPER)),
-    ("tiles", "sms-partitioned", {"prior": False, **PAPER}),
-    ("tiles+prior", "sms-partitioned", dict(PAPER)),
-    ("tiles+prior+restir", "sms-restir", dict(PAPER)),
+    ("sms", "sms", dict(PAPER_PARAMS)),
+    ("tiles", "sms-partitioned", {"prior": False, **PAPER_PARAMS}),
+    ("tiles+prior", "sms-partitioned", dict(PAPER_PARAMS)),
+    ("tiles+prior+restir", "sms-restir", dict(PAPER_PARAMS)),
 )
 EQUAL_TIME = (("pt", {}), ("restir-pt", {}), ("sms", {}), ("sms-partitioned", {}), ("sms-restir", {}))
 _ONE_FRAME = {"sms-restir", "restir-pt"}  # one sample per pixel and frame: accumulate frames
@@ -155,6 +155,7 @@ def main(argv: list[str] | None = None) -> int:
         "relmse_epsilon": 1e-2,
         "reference": f"{args.ref_method} at ref_spp, same resolution, seed 12345",
         "paper": PAPER,
+        "paper_params": PAPER_PARAMS,
         "scenes": {},
     }
     images: dict[str, dict[str, np.ndarray]] = {}

@@ -120,7 +120,7 @@ def static_correlation(scene: str, method: str, params: dict[str, Any], ref: np.
     return {"static_frame_relmse": frame, "average_relmse": avg, "average_frames": frames, "correlation_factor": frames * avg / frame if frame > 0 else None}
 
 
-def run_scene(scene: str, args: argparse.Namespace) -> list[dict[str, Any]]:
+def run_scene(scene: str, args: argparse.Namespace, on_row: Any = None) -> list[dict[str, Any]]:
     from grisx.eval.metrics import flip
     from grisx.render.driver import METHODS as REGISTRY
     from grisx.render.driver import load_scene
@@ -138,7 +138,7 @@ def run_scene(scene: str, args: argparse.Namespace) -> list[dict[str, Any]]:
     static = sc.build(args.device)
     static.animate_camera = False
     static_ref = reference_at(static, args.width, args.height, 0, MAX_DEPTH, args.reference_spp, args.seed + 7920)
-    specs = methods(args.prefixes)
+    specs = [s for s in methods(args.prefixes) if args.rows is None or s[0] == "pt" or s[0] in args.rows]
     records: list[dict[str, Any]] = []
     seconds_of: dict[str, float] = {}
     i = 0
@@ -164,6 +164,8 @@ def run_scene(scene: str, args: argparse.Namespace) -> list[dict[str, Any]]:
         if label == f"suffix-restir N={args.prefixes[0]}" and "restir-pt" in seconds_of:
             c = equal_time_candidates(scene, seconds, seconds_of["restir-pt"], args)
             specs.insert(i, (f"restir-pt equal-time (candidates={c})", "restir-pt", {"max_depth": MAX_DEPTH, "candidates": c}))
+        if on_row is not None:
+            on_row(records)
         print(f"[{scene}] {label:34s} {1e3 * seconds:9.2f} ms  relMSE {rec['frame_relmse']:.4g}  FLIP {rec['frame_flip']:.4f}  "
               f"corr. x{rec['correlation_factor'] or 0:.2f}", file=sys.stderr, flush=True)
     base = next(r for r in records if r["method"] == "pt")
@@ -209,6 +211,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--heavy-frames", type=int, default=8, help="frames of the slow rows (more than 8 prefixes, MMIS)")
     ap.add_argument("--scenes", default="closed-room,cornell-box", help="comma-separated built-in scenes")
     ap.add_argument("--prefixes", default="8,32,128", help="integration prefixes per pixel of the suffix-restir rows")
+    ap.add_argument("--rows", default=None,
+                    help="comma-separated row labels to run (e.g. 'suffix-restir N=128,mmis-gather 64x3'; pt, the gain's baseline, always runs)")
     ap.add_argument("--reference-spp", type=int, default=None, help="reference samples per pixel (default 1024 on CUDA, 256 on CPU; their noise is subtracted)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", type=Path, default=Path(__file__).resolve().parent / "results")
@@ -223,26 +227,40 @@ def main(argv: list[str] | None = None) -> int:
     args.height = args.height or (1080 if cuda else 36)
     args.reference_spp = args.reference_spp or (1024 if cuda else 256)
     args.prefixes = [int(n) for n in args.prefixes.split(",") if n]
+    args.rows = None if args.rows is None else {r.strip() for r in args.rows.split(",") if r.strip()}
+    known = {label for label, _, _ in methods(args.prefixes)}
+    if args.rows is not None and not args.rows <= known:
+        print(f"suffix_restir.py: error: unknown rows {', '.join(sorted(args.rows - known))} (rows: {', '.join(sorted(known))})", file=sys.stderr)
+        return 2
     if args.frames < 2 or args.heavy_frames < 2 or args.width < 1 or args.height < 1 or not args.prefixes:
         print("suffix_restir.py: error: need --frames >= 2, a positive size and at least one prefix count", file=sys.stderr)
         return 2
     args.out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
-    records = [r for scene in args.scenes.split(",") for r in run_scene(scene, args)]
-    result = {
-        "benchmark": "suffix_restir",
-        "device": str(dev),
-        "device_name": dev.name if cuda else platform.processor() or platform.machine(),
-        "versions": {"grisx": grisx.__version__, "warp": wp.config.version, "numpy": np.__version__, "python": platform.python_version()},
-        "settings": {"scenes": args.scenes.split(","), "width": args.width, "height": args.height, "frames": args.frames,
-                     "heavy_frames": args.heavy_frames, "max_depth": MAX_DEPTH,
-                     "prefixes": args.prefixes, "reference_spp": args.reference_spp, "seed": args.seed, "relmse_epsilon": 1e-2,
-                     "reference": "pt at each evaluated frame's camera (moving), at frame 0 (static), max_depth 12"},
-        "paper_ms_rtx4090": PAPER_MS,
-        "records": [{k: v for k, v in r.items() if k != "last_frame"} for r in records if r["method"] != "reference"],
-        "seconds_total": time.perf_counter() - start,
-    }
-    (args.out / "suffix_restir.json").write_text(json.dumps(result, indent=2, default=float))
+
+    def write(records: list[dict[str, Any]], complete: bool) -> dict[str, Any]:
+        """The JSON, rewritten after every row (``complete`` false until the end): a run cut short keeps what it measured."""
+        result = {
+            "benchmark": "suffix_restir",
+            "complete": complete,
+            "device": str(dev),
+            "device_name": dev.name if cuda else platform.processor() or platform.machine(),
+            "versions": {"grisx": grisx.__version__, "warp": wp.config.version, "numpy": np.__version__, "python": platform.python_version()},
+            "settings": {"scenes": args.scenes.split(","), "width": args.width, "height": args.height, "frames": args.frames,
+                         "heavy_frames": args.heavy_frames, "max_depth": MAX_DEPTH, "rows": sorted(args.rows) if args.rows else "all",
+                         "prefixes": args.prefixes, "reference_spp": args.reference_spp, "seed": args.seed, "relmse_epsilon": 1e-2,
+                         "reference": "pt at each evaluated frame's camera (moving), at frame 0 (static), max_depth 12"},
+            "paper_ms_rtx4090": PAPER_MS,
+            "records": [{k: v for k, v in r.items() if k != "last_frame"} for r in records if r["method"] != "reference"],
+            "seconds_total": time.perf_counter() - start,
+        }
+        (args.out / "suffix_restir.json").write_text(json.dumps(result, indent=2, default=float))
+        return result
+
+    records: list[dict[str, Any]] = []
+    for scene in args.scenes.split(","):
+        records += run_scene(scene, args, on_row=lambda rows: write(records + rows, False))
+    result = write(records, True)
     plot(records, args.out / "suffix_restir.png", f"Suffix ReSTIR vs ReSTIR PT and MMIS, {args.width}x{args.height}, {dev}, camera path, max depth {MAX_DEPTH}")
     print(f"{args.width}x{args.height}, {dev}, {args.frames} frames, max_depth {MAX_DEPTH}; relMSE eps 1e-2 against pt ({args.reference_spp} spp)")
     print(f"{'scene':14s} {'method':36s} {'ms':>9s} {'paper ms':>9s} {'relMSE':>9s} {'FLIP':>7s} {'gain':>6s} {'avg relMSE':>11s} {'corr.':>6s} {'B/px':>6s}")
