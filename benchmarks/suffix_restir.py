@@ -157,7 +157,7 @@ def run_scene(scene: str, args: argparse.Namespace, on_row: Any = None) -> list[
                "frames": frames, "eval_frames": ev, "ms_per_frame": 1e3 * seconds,
                "ms_per_pass": {k: 1e3 * v / frames for k, v in r.pass_seconds.items() if k != "scene_update"},
                "frame_relmse": frame_relmse(kept, ref_for, MAX_DEPTH), "frame_flip": float(flip(kept[last], ref_for(last, MAX_DEPTH)[0])),
-               "nonfinite_samples": r.settings.get("nonfinite_samples", 0), "stats": r.settings.get("stats", {}), "paper_ms": PAPER_MS.get(label),
+               "nonfinite_samples": r.settings.get("nonfinite_samples", 0), "stats": r.settings.get("statistics", {}), "paper_ms": PAPER_MS.get(label),
                "last_frame": kept[last]}
         rec.update(static_correlation(scene, method, params, *static_ref, args, rec["frames"]))
         records.append(rec)
