@@ -32,8 +32,10 @@ Usage::
 
     python benchmarks/suffix_restir.py --device cuda --out benchmarks/results        # 1920x1080, 32 frames
     python benchmarks/suffix_restir.py --device cpu --width 32 --height 18 --frames 4 --reference-spp 64   # CPU check
+    python benchmarks/suffix_restir.py --device cuda --rows "suffix-restir N=128,mmis-gather 64x3" --heavy-frames 2   # some rows (pt always)
 
-Writes ``suffix_restir.json`` (device, versions, settings, every record) and
+Writes ``suffix_restir.json`` (device, versions, settings, every record; rewritten after every row with
+``complete: false`` until the end, so a run cut short keeps its rows) and
 ``suffix_restir.png`` (each method's last moving-camera frame beside the reference, with its
 time, relMSE and FLIP) to ``--out``, and prints the table.
 """
