@@ -54,6 +54,11 @@ def install_hook(arch: int) -> None:
     done: set[str] = set()
 
     def load(self, device, block_dim=None, *args, **kwargs):
+        # Hash the CUDA variant *before* the CPU build: building a module's adjoints for the CPU
+        # changes what Warp 1.19 hashes afterwards, and a cubin compiled under that later hash is
+        # never found by a GPU process (which hashes a fresh module). Measured: kinds_0_2 of
+        # suffix_restir hashed 4a32ffc fresh and 34d11f8 after a CPU load.
+        self.get_module_hash(None)
         exec_ = original(self, device, block_dim, *args, **kwargs)
         key = f"{self.name} {self.get_module_hash(None).hex()[:7]}"
         if key not in done:

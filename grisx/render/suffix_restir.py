@@ -612,18 +612,35 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         return count
 
     # ---- final gather ----
+    # One launch pair per integration prefix j (the passes of Eq. 22 over j = 0 … N−1): the
+    # prefix pass samples prefix j, adds its walk's light and fills the pixel's row; the MIS
+    # pass adds its Eq. 22 terms. Splitting the loop over j out of the kernel keeps each kernel
+    # small. The single-kernel gather (255 registers, 3.3 kB of stack) faulted on H100 and H200
+    # (metal-rack, mmis-gather): a row store's address was built from uniform registers that
+    # held kernel int params written by diverged lanes — a code-generation fault, measured with
+    # cuda-gdb; see benchmarks/README "The metal-rack fault".
+    @wp.func
+    def gather_chosen(gkey: wp.uint32, prefixes: int, own_suffixes: int) -> int:
+        """The prefix that traces its canonical suffix (Eq. 23); with own suffixes (MMIS) the first ones always do."""
+        return own_suffixes + roulette_pick(random_uniform(gkey, 0), wp.max(prefixes - own_suffixes, 1))
+
+    @wp.func
+    def gather_traced(j: int, chosen: int, own_suffixes: int, roulette: int, canonical: int) -> wp.bool:
+        """Whether prefix j has its canonical suffix domain (α = 0 without it: canonical=false, biased)."""
+        return canonical != 0 and (j < own_suffixes or roulette == 0 or j == chosen)
+
     @wp.kernel(module=module)
-    def gather_pass(
+    def gather_prefix_pass(
         spec: SuffixSpec,
         full_sp: ShiftParams,
         seed: int,
         frame: int,
+        j: int,
         prefixes: int,
         gather_k: int,
         own_suffixes: int,
         roulette: int,
         canonical: int,
-        mis_mode: int,
         max_bounces: int,
         grid: wp.uint64,
         grid_radius: float,
@@ -636,81 +653,108 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         knn_idx: wp.array2d(dtype=int),
         knn_dist: wp.array2d(dtype=float),
         rows: Rows,
-        image: wp.array2d(dtype=wp.vec3),
-        nonfinite: wp.array(dtype=wp.int32),
+        accum: wp.array2d(dtype=wp.vec3),
     ):
         y, x = wp.tid()
         width = domains.shape[1]
         t = y * width + x
         dom = domains[y, x]
-        L = direct[y, x]
+        L = accum[y, x]
+        if j == 0:
+            L = direct[y, x]
+        # entry 0 holds the integration prefix for the MIS pass; none (invalid) makes it skip the pixel
+        row_set(rows, t, 0, prefix_empty(), path_sample_empty(), reservoir_empty(), 0.0)
         if dom.valid == 0:
-            image[y, x] = finite_or_dropped(L, nonfinite)
+            accum[y, x] = L
             return
         gkey = pixel_key_of(seed, frame, x, y, width, _STREAM_GATHER)
+        pkey = random_subkey(gkey, _STREAM_GATHER_PREFIX + j)
+        z = sample_prefix(spec, dom, pkey)
+        # ---- light of the paths that end within the prefix: NEE at x₁ … x_{k−1}, emitters hit at x₂ … x_k (MIS), as pt ----
+        # (the same walk: the same uniforms; without a suffix, the whole path is the walk's)
+        walk = max_bounces
+        if z.dom.valid != 0:
+            walk = z.length
+        if walk != 0:
+            d = PathReservoir()
+            d.res = reservoir_empty()
+            d.path = path_sample_empty()
+            d.estimate = wp.vec3(0.0)
+            d = stream(spec.scene, dom, pkey, walk, 1.0, full_sp, d, random_subkey(gkey, _STREAM_CHOICES + j))
+            L += d.estimate * (1.0 / float(prefixes))  # Σ f/p over its candidates
+        accum[y, x] = L
+        if z.dom.valid == 0 or z.bounces == 0:
+            return
+        # entry 0: the prefix's own (canonical) suffix domain, α = 0 without it (canonical=false, biased)
+        row_set(rows, t, 0, z, path_sample_empty(), reservoir_empty(), float(canonical))
+        if gather_traced(j, gather_chosen(gkey, prefixes, own_suffixes), own_suffixes, roulette, canonical):
+            if j < own_suffixes:
+                row_set(rows, t, 0, z, own_x[t, j], own_res[t, j], 1.0)
+            else:
+                skey = random_subkey(gkey, _STREAM_GATHER_SUFFIX + j)
+                c = trace_suffix(spec, z, skey, random_subkey(skey, 1))
+                row_set(rows, t, 0, z, c.path, c.res, 1.0)
+        # entries 1 … k: the suffixes of the k nearest supporting prefixes (Alg. 1 lines 14–15)
+        found = int(0)
+        if gather_k > 0:
+            found = knn(grid, z.dom.p, grid_radius, gather_k, support, knn_idx[t], knn_dist[t])
+        for l in range(gather_k):
+            row_set(rows, t, 1 + l, prefix_empty(), path_sample_empty(), reservoir_empty(), 0.0)
+            if l < found:
+                q = knn_idx[t, l]
+                s = support[q // width, q % width]
+                row_set(rows, t, 1 + l, s.prefix, s.suffix.path, s.suffix.res, 1.0)  # α = 1: see the module docstring
+        # entries after: the pixel's own suffixes (MMIS), the prefix's own one left empty (it is entry 0)
+        for l in range(own_suffixes):
+            e = 1 + gather_k + l
+            row_set(rows, t, e, prefix_empty(), path_sample_empty(), reservoir_empty(), 0.0)
+            if l != j:
+                row_set(rows, t, e, own_z[t, l], own_x[t, l], own_res[t, l], 1.0)
+
+    @wp.kernel(module=module)
+    def gather_mis_pass(
+        spec: SuffixSpec,
+        seed: int,
+        frame: int,
+        j: int,
+        prefixes: int,
+        own_suffixes: int,
+        roulette: int,
+        canonical: int,
+        mis_mode: int,
+        rows: Rows,
+        accum: wp.array2d(dtype=wp.vec3),
+    ):
+        y, x = wp.tid()
+        width = accum.shape[1]
+        t = y * width + x
+        z = rows.z[t, 0]
+        if z.dom.valid == 0 or z.bounces == 0:
+            return
+        gkey = pixel_key_of(seed, frame, x, y, width, _STREAM_GATHER)
+        traced = gather_traced(j, gather_chosen(gkey, prefixes, own_suffixes), own_suffixes, roulette, canonical)
         inv_n = 1.0 / float(prefixes)
-        # the prefix that traces its canonical suffix (Eq. 23); with own suffixes (MMIS) the first ones always do
-        rouletted = prefixes - own_suffixes
-        chosen = own_suffixes + roulette_pick(random_uniform(gkey, 0), wp.max(rouletted, 1))
-        n_row = 1 + gather_k + own_suffixes
-        for j in range(prefixes):
-            pkey = random_subkey(gkey, _STREAM_GATHER_PREFIX + j)
-            z = sample_prefix(spec, dom, pkey)
-            # ---- light of the paths that end within the prefix: NEE at x₁ … x_{k−1}, emitters hit at x₂ … x_k (MIS), as pt ----
-            # (the same walk: the same uniforms; without a suffix, the whole path is the walk's)
-            walk = max_bounces
-            if z.dom.valid != 0:
-                walk = z.length
-            if walk != 0:
-                d = PathReservoir()
-                d.res = reservoir_empty()
-                d.path = path_sample_empty()
-                d.estimate = wp.vec3(0.0)
-                d = stream(spec.scene, dom, pkey, walk, 1.0, full_sp, d, random_subkey(gkey, _STREAM_CHOICES + j))
-                L += d.estimate * inv_n  # Σ f/p over its candidates
-            if z.dom.valid == 0 or z.bounces == 0:
-                continue
-            w_prefix = ucw_from_source_pdf(z.pdf)
-            # entry 0: the prefix's own (canonical) suffix domain, α = 0 without it (canonical=false, biased)
-            traced = canonical != 0 and (j < own_suffixes or roulette == 0 or j == chosen)
-            row_set(rows, t, 0, z, path_sample_empty(), reservoir_empty(), float(canonical))
-            if traced:
-                if j < own_suffixes:
-                    row_set(rows, t, 0, z, own_x[t, j], own_res[t, j], 1.0)
-                else:
-                    skey = random_subkey(gkey, _STREAM_GATHER_SUFFIX + j)
-                    c = trace_suffix(spec, z, skey, random_subkey(skey, 1))
-                    row_set(rows, t, 0, z, c.path, c.res, 1.0)
-            # entries 1 … k: the suffixes of the k nearest supporting prefixes (Alg. 1 lines 14–15)
-            found = int(0)
-            if gather_k > 0:
-                found = knn(grid, z.dom.p, grid_radius, gather_k, support, knn_idx[t], knn_dist[t])
-            for l in range(gather_k):
-                row_set(rows, t, 1 + l, prefix_empty(), path_sample_empty(), reservoir_empty(), 0.0)
-                if l < found:
-                    q = knn_idx[t, l]
-                    s = support[q // width, q % width]
-                    row_set(rows, t, 1 + l, s.prefix, s.suffix.path, s.suffix.res, 1.0)  # α = 1: see the module docstring
-            # entries after: the pixel's own suffixes (MMIS), the prefix's own one left empty (it is entry 0)
-            for l in range(own_suffixes):
-                e = 1 + gather_k + l
-                row_set(rows, t, e, prefix_empty(), path_sample_empty(), reservoir_empty(), 0.0)
-                if l != j:
-                    row_set(rows, t, e, own_z[t, l], own_x[t, l], own_res[t, l], 1.0)
-            # ---- Eq. 22 for this prefix: borrowed suffixes, then the (rouletted) canonical one ----
-            for l in range(1, n_row):
-                if rows.conf[t, l] > 0.0:
-                    gw = CRIS.gather_sample(spec, mis_mode, z, w_prefix, l, 0, rows.z[t], rows.x[t], rows.res[t], rows.conf[t], rows.targets[t])
-                    if gw.weight > 0.0:
-                        L += wp.cw_mul(z.f, gw.y.f) * (gw.weight * inv_n)  # f(X^p, Y_l) m_l W_{X^p,Y_l} / N
-            if traced:
-                gw = CRIS.gather_sample(spec, mis_mode, z, w_prefix, 0, 0, rows.z[t], rows.x[t], rows.res[t], rows.conf[t], rows.targets[t])
+        w_prefix = ucw_from_source_pdf(z.pdf)
+        L = accum[y, x]
+        # ---- Eq. 22 for this prefix: borrowed suffixes, then the (rouletted) canonical one ----
+        for l in range(1, rows.conf.shape[1]):
+            if rows.conf[t, l] > 0.0:
+                gw = CRIS.gather_sample(spec, mis_mode, z, w_prefix, l, 0, rows.z[t], rows.x[t], rows.res[t], rows.conf[t], rows.targets[t])
                 if gw.weight > 0.0:
-                    rw = float(1.0)
-                    if j >= own_suffixes:
-                        rw = canonical_roulette_weight(roulette, j == chosen, rouletted)
-                    L += wp.cw_mul(z.f, gw.y.f) * (gw.weight * rw * inv_n)
-        image[y, x] = finite_or_dropped(L, nonfinite)
+                    L += wp.cw_mul(z.f, gw.y.f) * (gw.weight * inv_n)  # f(X^p, Y_l) m_l W_{X^p,Y_l} / N
+        if traced:
+            gw = CRIS.gather_sample(spec, mis_mode, z, w_prefix, 0, 0, rows.z[t], rows.x[t], rows.res[t], rows.conf[t], rows.targets[t])
+            if gw.weight > 0.0:
+                rw = float(1.0)
+                if j >= own_suffixes:
+                    rw = canonical_roulette_weight(roulette, j == gather_chosen(gkey, prefixes, own_suffixes), prefixes - own_suffixes)
+                L += wp.cw_mul(z.f, gw.y.f) * (gw.weight * rw * inv_n)
+        accum[y, x] = L
+
+    @wp.kernel(module=module)
+    def gather_finish_pass(accum: wp.array2d(dtype=wp.vec3), image: wp.array2d(dtype=wp.vec3), nonfinite: wp.array(dtype=wp.int32)):
+        y, x = wp.tid()
+        image[y, x] = finite_or_dropped(accum[y, x], nonfinite)
 
     # ---- MMIS: the pixel's own prefixes and suffixes ----
     @wp.kernel(module=module)
@@ -736,7 +780,16 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             own_x[t, j] = c.path
             own_res[t, j] = c.res
 
-    return {"primary": primary_pass, "support": support_pass, "spatial": spatial_pass, "points": points_pass, "gather": gather_pass, "own": own_suffix_pass}
+    return {
+        "primary": primary_pass,
+        "support": support_pass,
+        "spatial": spatial_pass,
+        "points": points_pass,
+        "gather_prefix": gather_prefix_pass,
+        "gather_mis": gather_mis_pass,
+        "gather_finish": gather_finish_pass,
+        "own": own_suffix_pass,
+    }
 
 
 def _rows(n: int, width: int, device: Any) -> Rows:
@@ -850,6 +903,7 @@ class SuffixReSTIR(ScreenSpaceRenderer):
         self.points = wp.zeros(n, dtype=wp.vec3, device=dev)
         self.grid = wp.HashGrid(128, 128, 128, device=dev)
         self.direct = wp.zeros(shape, dtype=wp.vec3, device=dev)
+        self.accum = wp.zeros(shape, dtype=wp.vec3, device=dev)  # the gather's running sum over its prefixes
         self.image = wp.zeros(shape, dtype=wp.vec3, device=dev)
         self.nonfinite = wp.zeros(1, dtype=wp.int32, device=dev)
         self.frames_rendered = 0
@@ -916,17 +970,26 @@ class SuffixReSTIR(ScreenSpaceRenderer):
         if self.di is not None:
             direct = self.di.direct_light(frame)
         with self._phase("gather"):
-            wp.launch(
-                k["gather"],
-                dim=dim,
-                inputs=[
-                    self.spec, self.full_sp, self.seed, int(frame), self.prefixes, self.gather_k, self.suffixes, int(self.roulette), int(self.canonical), self.mis_mode,
-                    self.max_bounces, self.grid.id, self.grid_radius, dom, direct, cur,
-                    self.own_z, self.own_x, self.own_res, self.knn_idx, self.knn_dist, self.rows["gather"],
-                ],
-                outputs=[self.image, self.nonfinite],
-                device=dev,
-            )
+            for j in range(self.prefixes):
+                wp.launch(
+                    k["gather_prefix"],
+                    dim=dim,
+                    inputs=[
+                        self.spec, self.full_sp, self.seed, int(frame), j, self.prefixes, self.gather_k, self.suffixes, int(self.roulette), int(self.canonical),
+                        self.max_bounces, self.grid.id, self.grid_radius, dom, direct, cur,
+                        self.own_z, self.own_x, self.own_res, self.knn_idx, self.knn_dist, self.rows["gather"],
+                    ],
+                    outputs=[self.accum],
+                    device=dev,
+                )
+                wp.launch(
+                    k["gather_mis"],
+                    dim=dim,
+                    inputs=[self.spec, self.seed, int(frame), j, self.prefixes, self.suffixes, int(self.roulette), int(self.canonical), self.mis_mode, self.rows["gather"]],
+                    outputs=[self.accum],
+                    device=dev,
+                )
+            wp.launch(k["gather_finish"], dim=dim, inputs=[self.accum], outputs=[self.image, self.nonfinite], device=dev)
         self.buffers = [cur, history, other]
         self.frames_rendered += 1
         return self.image
