@@ -62,6 +62,9 @@ than the other prefix leaves (``max_depth`` counts the whole path). Per frame:
     (:func:`roulette_pick`, :func:`canonical_roulette_weight`, Eq. 23); ``roulette=false``
     traces one per prefix. ``canonical=false`` drops the canonical domain: the borrowed
     suffixes no longer cover the suffix space (Eq. 17) — biased, and the tests show it.
+    Each prefix j is one launch pair, a prefix pass (sample it, its walk, fill the pixel's row of
+    domains) and a MIS pass (its Eq. 22 terms), summed into a running image: no kernel loops
+    over the N prefixes (the one-kernel gather faulted on CUDA: benchmarks/README, "The metal-rack fault").
 
 **MMIS baseline** (``mmis-gather``, West et al. 2022 as in seed 001 Fig. 7): no reuse across
 pixels or frames; each pixel traces ``prefixes`` prefixes and ``suffixes`` suffixes (after its
