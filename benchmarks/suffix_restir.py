@@ -65,11 +65,15 @@ MAX_DEPTH = 12  # the paper's max path length (segments from the camera)
 PAPER_MS = {"restir-pt": 76.0, "suffix-restir N=8": 74.0, "suffix-restir N=32": 207.0, "suffix-restir N=128": 736.0}
 
 
-def methods(prefixes: list[int]) -> list[tuple[str, str, dict[str, Any]]]:
-    """(label, method, params) of the compared renderers (the equal-time ReSTIR PT is added once timed)."""
+def methods(prefixes: list[int], gather_k: int | None = None) -> list[tuple[str, str, dict[str, Any]]]:
+    """(label, method, params) of the compared renderers (the equal-time ReSTIR PT is added once timed).
+
+    ``gather_k``: borrowed suffixes per integration prefix of the suffix-restir rows (None: the renderer's default).
+    """
+    k = {} if gather_k is None else {"gather_k": gather_k}
     rows = [("pt", "pt", {}), ("restir-pt", "restir-pt", {})]
-    rows += [(f"suffix-restir N={n}", "suffix-restir", {"prefixes": n}) for n in prefixes]
-    rows.append((f"suffix-restir N={prefixes[0]} pairwise", "suffix-restir", {"prefixes": prefixes[0], "gather_mis": "pairwise"}))
+    rows += [(f"suffix-restir N={n}", "suffix-restir", {"prefixes": n, **k}) for n in prefixes]
+    rows.append((f"suffix-restir N={prefixes[0]} pairwise", "suffix-restir", {"prefixes": prefixes[0], "gather_mis": "pairwise", **k}))
     rows.append(("mmis-gather 64x3", "mmis-gather", {"prefixes": 64, "suffixes": 3}))
     return [(label, m, {"max_depth": MAX_DEPTH, **p}) for label, m, p in rows]
 
@@ -140,7 +144,7 @@ def run_scene(scene: str, args: argparse.Namespace, on_row: Any = None) -> list[
     static = sc.build(args.device)
     static.animate_camera = False
     static_ref = reference_at(static, args.width, args.height, 0, MAX_DEPTH, args.reference_spp, args.seed + 7920)
-    specs = [s for s in methods(args.prefixes) if args.rows is None or s[0] == "pt" or s[0] in args.rows]
+    specs = [s for s in methods(args.prefixes, args.gather_k) if args.rows is None or s[0] == "pt" or s[0] in args.rows]
     records: list[dict[str, Any]] = []
     seconds_of: dict[str, float] = {}
     i = 0
@@ -213,6 +217,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--heavy-frames", type=int, default=8, help="frames of the slow rows (more than 8 prefixes, MMIS)")
     ap.add_argument("--scenes", default="closed-room,cornell-box", help="comma-separated built-in scenes")
     ap.add_argument("--prefixes", default="8,32,128", help="integration prefixes per pixel of the suffix-restir rows")
+    ap.add_argument("--gather-k", type=int, default=None, help="borrowed suffixes per integration prefix of the suffix-restir rows (default: the renderer's)")
     ap.add_argument("--rows", default=None,
                     help="comma-separated row labels to run (e.g. 'suffix-restir N=128,mmis-gather 64x3'; pt, the gain's baseline, always runs)")
     ap.add_argument("--reference-spp", type=int, default=None, help="reference samples per pixel (default 1024 on CUDA, 256 on CPU; their noise is subtracted)")
@@ -230,7 +235,7 @@ def main(argv: list[str] | None = None) -> int:
     args.reference_spp = args.reference_spp or (1024 if cuda else 256)
     args.prefixes = [int(n) for n in args.prefixes.split(",") if n]
     args.rows = None if args.rows is None else {r.strip() for r in args.rows.split(",") if r.strip()}
-    known = {label for label, _, _ in methods(args.prefixes)}
+    known = {label for label, _, _ in methods(args.prefixes, args.gather_k)}
     if args.rows is not None and not args.rows <= known:
         print(f"suffix_restir.py: error: unknown rows {', '.join(sorted(args.rows - known))} (rows: {', '.join(sorted(known))})", file=sys.stderr)
         return 2
