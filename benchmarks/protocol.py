@@ -5,8 +5,13 @@ What users of a real-time renderer see is a **single frame**, jittered (a
 new camera sample per pixel and frame), under a static or a moving camera.
 So the protocol measures, per scene, camera and method:
 
-* **frame time**: the median seconds per frame after the first frame
-  (compilation is off the clock; the first frame has no history);
+* **frame time** (protocol v2): the median and quartiles of the frames after
+  the first (32 frames by default) of each frame's device time, as
+  :func:`grisx.render.driver.render` reports it in ``frame_seconds``: the
+  device synchronized before the frame and after its last pass, the host copy
+  of the image off the clock, for every method, ``pt`` included (protocol v1
+  timed ``pt`` with each frame's copy to the host: its gains were inflated);
+  ``pt_spp`` is the method's frame time over pt's at 1 spp;
 * **per-frame relMSE** (ε = 1e-2, :func:`grisx.eval.metrics.relmse`) of the
   frames in the second half of the run (history warmed up), each against a
   path-traced reference *at that frame's camera* with the method's own
@@ -94,21 +99,31 @@ def reference_relmse(ref: np.ndarray, var: np.ndarray, eps: float) -> float:
 
 
 def render_frames(scene: str, method: str, params: dict[str, Any], spp: int | None, camera: str, args: argparse.Namespace,
-                  eval_frames: list[int]) -> tuple[dict[int, np.ndarray], float, Any]:
-    """Render ``args.frames`` frames; keep the ``eval_frames`` images; the median seconds per frame after the first."""
+                  eval_frames: list[int]) -> tuple[dict[int, np.ndarray], dict[str, float], Any]:
+    """Render ``args.frames`` frames; keep the ``eval_frames`` images; frame time statistics after the first frame.
+
+    Time is :attr:`~grisx.render.driver.RenderResult.frame_seconds`: each frame's device time
+    (synchronized before and after, the host copy of the image excluded), the same clock for
+    every method, ``pt`` included (protocol v2).
+    """
     from grisx.render.driver import render
 
     kept: dict[int, np.ndarray] = {}
-    stamps: list[float] = []
 
     def on_frame(i: int, image: np.ndarray, seconds: float) -> None:
-        stamps.append(seconds)
         if i in eval_frames:
             kept[i] = image.copy()
 
     r = render(scene, method, spp=spp, frames=args.frames, res=args.res, device=args.device, seed=args.seed, params=params,
                camera="path" if camera == "moving" else "static", on_frame=on_frame)
-    return kept, float(np.median(np.diff(stamps))) if len(stamps) > 1 else float(stamps[0]), r
+    return kept, frame_time(r.frame_seconds), r
+
+
+def frame_time(frame_seconds: list[float]) -> dict[str, float]:
+    """Median and quartiles of the frames after the first (its history is empty; compilation is off the clock anyway)."""
+    t = np.asarray(frame_seconds[1:] if len(frame_seconds) > 1 else frame_seconds, dtype=np.float64)
+    q25, q50, q75 = np.percentile(t, [25, 50, 75])
+    return {"median": float(q50), "q25": float(q25), "q75": float(q75), "frames_timed": int(t.size)}
 
 
 def frame_relmse(kept: dict[int, np.ndarray], ref_for: Any, depth: int) -> float:
@@ -155,10 +170,12 @@ def run_scene(scene: str, args: argparse.Namespace) -> list[dict[str, Any]]:
             p = dict(params)
             if "max_depth" in {q.name for q in spec.params} and "max_depth" not in p:
                 p["max_depth"] = depth
-            kept, seconds, r = render_frames(scene, method, p, 1 if spec.uses_spp else None, camera, args, eval_frames)
+            kept, timing, r = render_frames(scene, method, p, 1 if spec.uses_spp else None, camera, args, eval_frames)
+            seconds = timing["median"]
             rec = {"scene": scene, "camera": camera, "method": label, "renderer": method, "params": {k: str(v) for k, v in p.items()},
                    "max_depth": depth, "width": width, "height": height, "frames": frames, "eval_frames": sorted(kept),
-                   "frame_seconds": seconds, "frame_relmse": frame_relmse(kept, ref_for, depth),
+                   "frame_seconds": seconds, "frame_seconds_q25": timing["q25"], "frame_seconds_q75": timing["q75"],
+                   "frames_timed": timing["frames_timed"], "frame_relmse": frame_relmse(kept, ref_for, depth),
                    "frame_mape": frame_metric("mape", kept, ref_for, depth), "frame_chroma": frame_metric("chroma", kept, ref_for, depth),
                    "nonfinite_samples": r.settings.get("nonfinite_samples", 0)}
             if method == "pt" and depth not in baseline:
@@ -176,6 +193,7 @@ def run_scene(scene: str, args: argparse.Namespace) -> list[dict[str, Any]]:
             rec["pt_frame_relmse"] = base["frame_relmse"]
             rec["pt_frame_seconds"] = base["frame_seconds"]
             rec["gain"] = base["frame_relmse"] * base["frame_seconds"] / (rec["frame_relmse"] * seconds) if rec["frame_relmse"] > 0 else None
+            rec["pt_spp"] = seconds / base["frame_seconds"]  # the method's frame in path-traced samples (protocol v2)
             rec["pt_equal_time_spp"] = max(1, int(round(seconds / base["frame_seconds"])))
             if method != "pt":
                 pt_eq = _pt_frame(scene, camera, depth, rec["pt_equal_time_spp"], last, args)
@@ -199,10 +217,12 @@ def _pt_frame(scene: str, camera: str, depth: int, spp: int, frame: int, args: a
 
 def _pt_row(scene: str, camera: str, depth: int, args: argparse.Namespace, eval_frames: list[int], ref_for: Any) -> dict[str, Any]:
     """The baseline at another depth than the protocol's pt row (restir-di: pt at max_depth 2)."""
-    kept, sec, _ = render_frames(scene, "pt", {"max_depth": depth}, 1, camera, args, eval_frames)
+    kept, timing, _ = render_frames(scene, "pt", {"max_depth": depth}, 1, camera, args, eval_frames)
+    sec = timing["median"]
     return {"scene": scene, "camera": camera, "method": f"pt (max_depth {depth})", "renderer": "pt", "params": {"max_depth": str(depth)},
             "max_depth": depth, "width": args.res[0], "height": args.res[1], "frames": args.frames, "eval_frames": sorted(kept),
-            "frame_seconds": sec, "frame_relmse": frame_relmse(kept, ref_for, depth), "gain": 1.0}
+            "frame_seconds": sec, "frame_seconds_q25": timing["q25"], "frame_seconds_q75": timing["q75"], "frames_timed": timing["frames_timed"],
+            "frame_relmse": frame_relmse(kept, ref_for, depth), "gain": 1.0, "pt_spp": 1.0}
 
 
 def plot(records: list[dict[str, Any]], path: Path, title: str) -> None:
@@ -239,7 +259,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--scenes", default=None, help=f"comma-separated scenes (default: {','.join(SCENES)})")
     ap.add_argument("--methods", default=",".join(METHODS), help="comma-separated label=method:k=v entries (pt first: the baseline)")
     ap.add_argument("--res", default=None, help="WxH (default 1920x1080 on CUDA, 64x36 on CPU)")
-    ap.add_argument("--frames", type=int, default=16, help="frames per run (the second half is evaluated)")
+    ap.add_argument("--frames", type=int, default=32, help="frames per run (the second half is evaluated; all but the first timed)")
     ap.add_argument("--reference-spp", type=int, default=None, help="spp of each reference (default 1024 on CUDA, 256 on CPU)")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--jobs", type=int, default=1, help="scenes rendered at once, one process each")
@@ -315,12 +335,14 @@ def main(argv: list[str] | None = None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "protocol.json").write_text(json.dumps(result, indent=2))
     plot(records, args.out / "protocol.png", f"protocol: {args.res[0]}x{args.res[1]}, {result['device_name']}")
-    print(f"{'scene':12s} {'camera':7s} {'method':24s} {'ms/frame':>9s} {'relMSE':>9s} {'gain':>7s} {'FLIP':>6s} {'pt FLIP@t':>9s}")
+    print(f"{'scene':12s} {'camera':7s} {'method':24s} {'ms/frame':>9s} {'(q25-q75)':>15s} {'pt-spp':>7s} {'relMSE':>9s} {'gain':>7s} {'FLIP':>6s} {'pt FLIP@t':>9s}")
     for r in records:
         g = f"{r['gain']:7.2f}" if r.get("gain") else "      -"
         fl = f"{r['frame_flip']:6.3f}" if "frame_flip" in r else "     -"
         pf = f"{r['pt_equal_time_flip']:9.3f}" if "pt_equal_time_flip" in r else "        -"
-        print(f"{r['scene']:12s} {r['camera']:7s} {r['method']:24s} {1e3 * r['frame_seconds']:9.2f} {r['frame_relmse']:9.4g} {g} {fl} {pf}")
+        spread = f"{1e3 * r['frame_seconds_q25']:6.2f}-{1e3 * r['frame_seconds_q75']:<6.2f}"
+        print(f"{r['scene']:12s} {r['camera']:7s} {r['method']:24s} {1e3 * r['frame_seconds']:9.2f} {spread:>15s} {r.get('pt_spp', 0):7.2f} "
+              f"{r['frame_relmse']:9.4g} {g} {fl} {pf}")
     if failed:
         print(f"protocol.py: scenes failed: {', '.join(failed)}", file=sys.stderr)
         return 1

@@ -7,7 +7,10 @@ with ``render_frame(frame) -> wp.array2d(vec3)`` — for ``frames`` frames,
 moving the scene and camera along their paths, optionally averaging all
 frames (``accumulate``: how a reuse method converges under a static camera).
 Per-pass timings come from a :class:`PassTimer` that synchronizes the device
-before reading the clock, so GPU times are real.
+before reading the clock, so GPU times are real. ``RenderResult.frame_seconds``
+is each frame's time on the same clock: from a synchronized device to the
+frame's last pass finished, the copy of the image to the host excluded — the
+one way every method, ``pt`` included, is timed by the benchmark protocol.
 
 Each renderer module registers its methods and options (``--param k=v``)
 itself, in :mod:`grisx.render.base.registry`'s :data:`METHODS`; importing this
@@ -112,6 +115,7 @@ class RenderResult:
     spp: int
     seconds: float
     pass_seconds: dict[str, float]
+    frame_seconds: list[float]  # each frame's device time (synchronized before and after; no host copy)
     device: str
     settings: dict[str, Any]
     extra: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)  # e.g. every G-buffer field
@@ -182,19 +186,25 @@ def render(
     acc = None  # running sum: on the device (float64) for device frames, on the host otherwise
     average = None
     image = None
+    frame_seconds: list[float] = []
     synchronize(dev)
     start = time.perf_counter()
     for f in range(frames):
+        synchronize(dev)
+        frame_start = time.perf_counter()
         with timer("scene_update"):
             built.set_frame(float(f))
         frame_img = renderer.render_frame(f)
+        if isinstance(frame_img, wp.array) and accumulate:
+            if acc is None:
+                acc = wp.zeros(frame_img.shape, dtype=wp.vec3d, device=dev)
+                average = wp.empty(frame_img.shape, dtype=wp.vec3, device=dev)
+            wp.launch(_accumulate, dim=frame_img.shape, inputs=[acc, frame_img], device=dev)
+        synchronize(dev)
+        frame_seconds.append(time.perf_counter() - frame_start)
         need_host = on_frame is not None or f == frames - 1  # data stays on the device otherwise
         if isinstance(frame_img, wp.array):
             if accumulate:
-                if acc is None:
-                    acc = wp.zeros(frame_img.shape, dtype=wp.vec3d, device=dev)
-                    average = wp.empty(frame_img.shape, dtype=wp.vec3, device=dev)
-                wp.launch(_accumulate, dim=frame_img.shape, inputs=[acc, frame_img], device=dev)
                 if need_host:
                     wp.launch(_average, dim=frame_img.shape, inputs=[acc, wp.float64(1.0 / (f + 1))], outputs=[average], device=dev)
                     image = average.numpy()
@@ -241,6 +251,7 @@ def render(
         spp=int(spp),
         seconds=seconds,
         pass_seconds=dict(timer.seconds),
+        frame_seconds=frame_seconds,
         device=str(dev),
         settings=settings,
         extra=extra,
