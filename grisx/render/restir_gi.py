@@ -34,6 +34,18 @@ Sec. 4–5); each frame runs the phases of its Figure 4:
 
 Both reservoir buffers are double-buffered, so a pass never reads what it writes.
 
+**Stages** (``DESIGN.md``, "GPU execution"). Each phase runs as small kernels with one
+path tracer or one shift each: ``validate_pass`` (every ``validation_interval`` frames
+in scenes that move), ``direct_pass`` (sky, emission and direct light at x_v; whole
+paths on mirrors and glass), ``initial_pass`` (the sample and L_o at x_s),
+``temporal_pass``, ``spatial_resample_pass`` (draws the domains — history and
+neighbours — into a :class:`~grisx.render.base.reuse.DomainList` and streams their
+shifted candidates through one call site of the shift) and ``spatial_mis_pass`` (Z over
+the same domains), ``shade_pass``. Reservoirs keep *where* their kept sample lives (a
+domain code), not a copy of it, until the sample is written once. Split this way, no
+kernel reaches the 255-register cap on sm_90 (the one-kernel spatial pass had 255
+registers and 2 KB of spills); the images are bit-identical to the one-kernel passes.
+
 **Targets.** ``target=full`` is Eq. 9, p̂ = lum(L_o f ⟨cos θ_i⟩);
 ``target=radiance`` is Eq. 10, p̂ = lum(L_o). Both are zero outside the
 visible point's hemisphere and where x_v is behind the sample point's surface.
@@ -161,9 +173,12 @@ from grisx.scene.lights import emitter_radiance, environment_eval, luminance
 from grisx.render.base.screen import ScreenFrame, ScreenSpaceRenderer, frame_key, kernel_cache, pixel_key, screen_frame, visible_normal, write_pixel
 from grisx.render.base.trace import STRATEGIES, make_trace_path
 from grisx.render.base.reuse import (
-    neighbor_set_add,
-    neighbor_set_empty,
-    neighbor_set_pixel,
+    DOMAIN_HISTORY,
+    DOMAIN_PREVIOUS,
+    DomainList,
+    domain_code,
+    domain_flags,
+    domain_pixel,
     SIMILARITY_DEPTH,
     SIMILARITY_NORMAL_COS,
     DoubleBuffer,
@@ -233,6 +248,8 @@ _STRATEGY_MIS = wp.constant(STRATEGIES["mis"])
 _INV_2PI = wp.constant(1.0 / (2.0 * math.pi))
 _TILE_W = wp.constant(64)
 _TILE_H = wp.constant(32)
+KEPT_NONE = wp.constant(-2)  # the spatial pass's kept sample: none, this pixel's own, else a domain code
+KEPT_OWN = wp.constant(-1)
 
 
 @wp.struct
@@ -607,7 +624,14 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
                 nb.valid = 0
         return nb
 
-    # ---- the initial pass's three jobs, one function each ----
+    @wp.func
+    def depth_from_visible_point(max_depth: int) -> int:
+        """The path at x_s continues the camera path: one segment fewer (−1: unbounded)."""
+        if max_depth < 0:
+            return -1
+        return max_depth - 1
+
+    # ---- the initial pass's jobs, one function each ----
     @wp.func
     def validate_history(
         scene: SceneData,
@@ -671,6 +695,60 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
 
     module = specialized_module(__name__, kinds)
 
+    # ---- the initial pass (Alg. 2) in three stages, one path tracer each: validation, direct light, the sample ----
+    @wp.kernel(module=module)
+    def validate_pass(
+        scene: SceneData,
+        sf: ScreenFrame,
+        max_depth: int,
+        rr_depth: int,
+        mb_fraction: float,
+        tolerance: float,
+        res_t_prev: wp.array2d(dtype=Reservoir),
+        s_t_prev: wp.array2d(dtype=GISample),
+        res_s_prev: wp.array2d(dtype=Reservoir),
+        s_s_prev: wp.array2d(dtype=GISample),
+    ):
+        """Sample validation (Sec. 4.3), launched every ``validation_interval`` frames in scenes that move."""
+        y, x = wp.tid()
+        if sf.si[y, x].valid == 0:
+            return
+        validate_history(scene, x, y, depth_from_visible_point(max_depth), rr_depth, mb_fraction, tolerance, res_t_prev, s_t_prev, res_s_prev, s_s_prev)
+
+    @wp.kernel(module=module)
+    def direct_pass(
+        scene: SceneData,
+        sf: ScreenFrame,
+        max_depth: int,
+        rr_depth: int,
+        direct_mode: int,
+        base: wp.array2d(dtype=wp.vec3),
+    ):
+        """What is not ReSTIR GI's: the sky, emission and direct light at x_v (``direct=nee``), whole paths on mirrors and glass."""
+        y, x = wp.tid()
+        key = pixel_key(sf, x, y, 0)
+        si = sf.si[y, x]
+        wo = sf.wo[y, x]
+        base[y, x] = wp.vec3(0.0)
+        # the visible point's camera ray (its origin on the lens is t back along wo from the hit)
+        ray_d = -wo
+        ray_o = si.p + wo * si.t
+        if si.valid == 0:
+            if direct_mode == 0:
+                base[y, x] = environment_eval(scene.lights, ray_d)
+            return
+        traced_here = path_traced_here(scene, si)
+        if traced_here or direct_mode == 0:
+            # ---- the camera path: all of it on mirrors and glass (no reservoir there), else its first two
+            # segments = emission and direct light (NEE + BSDF sampling with MIS) ----
+            cam_depth = max_depth
+            if not traced_here and (max_depth < 0 or max_depth > 2):
+                cam_depth = 2
+            cam_path = trace_path(scene, ray_o, ray_d, random_subkey(key, 1), cam_depth, rr_depth, _STRATEGY_MIS, 2, 0)
+            base[y, x] = cam_path.total
+            if traced_here and direct_mode != 0:
+                base[y, x] = cam_path.total - cam_path.prefix  # ReSTIR DI has the first two segments
+
     @wp.kernel(module=module)
     def initial_pass(
         scene: SceneData,
@@ -680,17 +758,9 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         max_depth: int,
         rr_depth: int,
         mb_fraction: float,
-        direct_mode: int,
         exact_bsdf: int,
-        validate_now: int,
-        tolerance: float,
         res_out: wp.array2d(dtype=Reservoir),
         s_out: wp.array2d(dtype=GISample),
-        base: wp.array2d(dtype=wp.vec3),
-        res_t_prev: wp.array2d(dtype=Reservoir),
-        s_t_prev: wp.array2d(dtype=GISample),
-        res_s_prev: wp.array2d(dtype=Reservoir),
-        s_s_prev: wp.array2d(dtype=GISample),
     ):
         y, x = wp.tid()
         width = sf.si.shape[1]
@@ -701,33 +771,9 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         s = gi_sample_none()
         res_out[y, x] = r
         s_out[y, x] = s
-        base[y, x] = wp.vec3(0.0)
-        # the visible point's camera ray (its origin on the lens is t back along wo from the hit)
-        ray_d = -wo
-        ray_o = si.p + wo * si.t
-        if si.valid == 0:
-            if direct_mode == 0:
-                base[y, x] = environment_eval(scene.lights, ray_d)
-            return
-        # ---- sample validation: replay last frame's samples of this pixel (Sec. 4.3) ----
-        depth_from_xv = max_depth - 1  # the path at x_s continues the camera path: one segment fewer
-        if max_depth < 0:
-            depth_from_xv = -1
-        if validate_now != 0:
-            validate_history(scene, x, y, depth_from_xv, rr_depth, mb_fraction, tolerance, res_t_prev, s_t_prev, res_s_prev, s_s_prev)
-        traced_here = path_traced_here(scene, si)
-        if traced_here or direct_mode == 0:
-            # ---- the camera path: all of it on mirrors and glass (no reservoir there), else its first two
-            # segments = emission and direct light (NEE + BSDF sampling with MIS) ----
-            cam_depth = max_depth
-            if not traced_here and (max_depth < 0 or max_depth > 2):
-                cam_depth = 2
-            cam_path = trace_path(scene, ray_o, ray_d, random_subkey(key, 1), cam_depth, rr_depth, _STRATEGY_MIS, 2, 0)
-            base[y, x] = cam_path.total
-            if traced_here:
-                if direct_mode != 0:
-                    base[y, x] = cam_path.total - cam_path.prefix  # ReSTIR DI has the first two segments
-                return
+        if si.valid == 0 or path_traced_here(scene, si):
+            return  # the sky, mirrors and glass: the direct pass has all of it
+        depth_from_xv = depth_from_visible_point(max_depth)
         r.confidence = 1.0  # one initial sample: M = 1 (Alg. 1 UPDATE), even if it carries no weight
         res_out[y, x] = r
         if max_depth >= 0 and max_depth <= 2:
@@ -801,9 +847,8 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         y, x = wp.tid()
         key = pixel_key(sf, x, y, 3)
         r_new = res_in[y, x]
-        s_new = s_in[y, x]
         res_out[y, x] = r_new
-        s_out[y, x] = s_new
+        s_out[y, x] = s_in[y, x]
         si = sf.si[y, x]
         if si.valid == 0 or use_history == 0 or r_new.confidence <= 0.0:
             return
@@ -814,19 +859,23 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         si_p = sf.si_prev[tn.y, tn.x]
         wo_p = sf.wo_prev[tn.y, tn.x]
         r_p = res_prev[tn.y, tn.x]
-        s_p = s_prev[tn.y, tn.x]
         r_p.confidence = confidence_capped(r_p.confidence, cap)
         moved = int(wp.length_sq(si_p.p - si.p) > 0.0)
         # ---- Alg. 3: the history reservoir (reconnected if the visible point moved), then the new sample ----
         out = reservoir_empty()
-        sel = gi_sample_none()
-        sh = reconnect(scene, si_p, wo_p, si, wo, s_p, target_mode, moved, use_jacobian, max_jacobian)
+        sh = reconnect(scene, si_p, wo_p, si, wo, s_prev[tn.y, tn.x], target_mode, moved, use_jacobian, max_jacobian)
         out = reservoir_merge(out, r_p, r_p.confidence, sh.target, sh.jacobian, random_uniform(key, 0))
+        kept = int(0)  # which sample is kept (0: none, 1: the history's, 2: the new one), loaded once below
         if out.selected:
-            sel = s_p
+            kept = 1
         out = reservoir_merge(out, r_new, r_new.confidence, r_new.target, 1.0, random_uniform(key, 1))
         if out.selected:
-            sel = s_new
+            kept = 2
+        sel = gi_sample_none()
+        if kept == 1:
+            sel = s_prev[tn.y, tn.x]
+        elif kept == 2:
+            sel = s_in[y, x]
         # ---- W = w / (Z p̂): Z counts the domains that can produce the kept sample (Alg. 3 l. 6 with Alg. 4's Z) ----
         z = support_count_term(r_new.confidence, out.target)
         if sel.valid != 0:
@@ -835,8 +884,24 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         res_out[y, x] = out
         s_out[y, x] = sel
 
+    @wp.func
+    def domain_of(
+        sf: ScreenFrame,
+        code: wp.int32,
+        temporal_cap: float,
+        spatial_cap: float,
+        res_t: wp.array2d(dtype=Reservoir),
+        s_t: wp.array2d(dtype=GISample),
+        res_s_prev: wp.array2d(dtype=Reservoir),
+        s_s_prev: wp.array2d(dtype=GISample),
+    ) -> NeighborDomain:
+        """The domain a :func:`~grisx.render.base.reuse.domain_code` names (reservoir, sample, visible point)."""
+        return neighbor_domain(sf, domain_pixel(code, sf.si.shape[1]), int(domain_flags(code) != 0), temporal_cap, spatial_cap,
+                               res_t, s_t, res_s_prev, s_s_prev)
+
+    # ---- the spatial pass (Alg. 4) in two stages: resample the candidates, then count Z over the same domains ----
     @wp.kernel(module=module)
-    def spatial_pass(
+    def spatial_resample_pass(
         scene: SceneData,
         sf: ScreenFrame,
         use_history: int,
@@ -850,7 +915,6 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         low_m: float,
         target_mode: int,
         use_jacobian: int,
-        unbiased: int,
         max_jacobian: float,
         res_t: wp.array2d(dtype=Reservoir),
         s_t: wp.array2d(dtype=GISample),
@@ -858,44 +922,36 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         s_s_prev: wp.array2d(dtype=GISample),
         res_out: wp.array2d(dtype=Reservoir),
         s_out: wp.array2d(dtype=GISample),
+        kept: wp.array2d(dtype=wp.int32),
+        domains: wp.array3d(dtype=wp.int32),
+        domain_count: wp.array2d(dtype=wp.int32),
     ):
         y, x = wp.tid()
+        width = sf.si.shape[1]
         key = pixel_key(sf, x, y, 4)
         r_t = res_t[y, x]
-        s_own = s_t[y, x]
         res_out[y, x] = r_t
-        s_out[y, x] = s_own
+        s_out[y, x] = s_t[y, x]
+        domain_count[y, x] = -1
         si = sf.si[y, x]
         if si.valid == 0 or r_t.confidence <= 0.0:
             return
         wo = sf.wo[y, x]
         out = reservoir_empty()
-        sel = gi_sample_none()
-        # ---- Alg. 4 l. 2: last frame's spatial reservoir of this surface (reprojected) ----
+        # the kept sample is tracked by the domain it lives in (KEPT_OWN: this pixel's), not copied at each
+        # selection; the MIS stage loads it once
+        sel = int(KEPT_NONE)
+        count = int(0)
+        capacity = domains.shape[2]
+        # ---- Alg. 4 l. 2: last frame's spatial reservoir of this surface (reprojected): domain −1 below ----
         c_s = float(0.0)
-        si_h = si
-        wo_h = wo
-        s_h = gi_sample_none()
+        h = NeighborPixel()
+        h.valid = 0
         if use_history != 0:
             tn = temporal_neighbor(sf.g, sf.g_prev, x, y, SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH)
             if tn.valid != 0:
-                r_h = res_s_prev[tn.y, tn.x]
-                s_h = s_s_prev[tn.y, tn.x]
-                si_h = sf.si_prev[tn.y, tn.x]
-                wo_h = sf.wo_prev[tn.y, tn.x]
-                r_h.confidence = confidence_capped(r_h.confidence, spatial_cap)
-                c_s = r_h.confidence
-                moved = int(wp.length_sq(si_h.p - si.p) > 0.0)
-                sh = reconnect(scene, si_h, wo_h, si, wo, s_h, target_mode, moved, use_jacobian, max_jacobian)
-                out = reservoir_merge(out, r_h, c_s, sh.target, sh.jacobian, random_uniform(key, 0))
-                if out.selected:
-                    sel = s_h
-        # ---- this pixel's temporal reservoir ----
-        r_t.confidence = confidence_capped(r_t.confidence, temporal_cap)
-        out = reservoir_merge(out, r_t, r_t.confidence, r_t.target, 1.0, random_uniform(key, 1))
-        if out.selected:
-            sel = s_own
-        # ---- Alg. 4 l. 4–14: neighbours' temporal reservoirs (spatial ones while this pixel's M is low: Fig. 10) ----
+                h = tn
+                c_s = confidence_capped(res_s_prev[tn.y, tn.x].confidence, spatial_cap)
         iterations = iterations_high
         if c_s < 0.5 * spatial_cap:
             iterations = iterations_low
@@ -903,29 +959,84 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         g_n = sf.g
         if from_spatial != 0:
             g_n = sf.g_prev
-        ns = neighbor_set_empty()  # drawn once: the Z loop below reads the same neighbours
         rejections = int(0)
-        for it in range(iterations):
-            nb = pick_neighbor(sf.g, g_n, x, y, it, rejections, key, adaptive, radius, min_radius)
-            if nb.valid == 0:
-                rejections += 1
-                continue
-            ns = neighbor_set_add(ns, nb, it)
-            n = neighbor_domain(sf, nb, from_spatial, temporal_cap, spatial_cap, res_t, s_t, res_s_prev, s_s_prev)
-            sh = reconnect(scene, n.si, n.wo, si, wo, n.sample, target_mode, 1, use_jacobian, max_jacobian)  # Alg. 4 l. 11–12
-            out = reservoir_merge(out, n.res, n.res.confidence, sh.target, sh.jacobian, random_uniform(key, 4 * it + 10))
-            if out.selected:
-                sel = n.sample
+        # ---- one loop, one call site of the shift: d = −1 is the history, then this pixel's temporal
+        # reservoir; d ≥ 0 the neighbours' temporal reservoirs (spatial ones while this pixel's M is low:
+        # Fig. 10), Alg. 4 l. 4–14 ----
+        for d in range(-1, iterations):
+            nb = h
+            flags = DOMAIN_PREVIOUS | DOMAIN_HISTORY
+            u = random_uniform(key, 0)
+            if d >= 0:
+                nb = pick_neighbor(sf.g, g_n, x, y, d, rejections, key, adaptive, radius, min_radius)
+                flags = from_spatial * DOMAIN_PREVIOUS
+                u = random_uniform(key, 4 * d + 10)
+                if nb.valid == 0:
+                    rejections += 1
+            if nb.valid != 0 and count < capacity:
+                code = domain_code(nb.x, nb.y, width, flags)
+                domains[y, x, count] = code
+                count += 1
+                n = neighbor_domain(sf, nb, int(flags != 0), temporal_cap, spatial_cap, res_t, s_t, res_s_prev, s_s_prev)
+                test_visibility = int(1)
+                if d < 0:  # the same surface last frame: visibility is only in question if x_v moved
+                    test_visibility = int(wp.length_sq(n.si.p - si.p) > 0.0)
+                sh = reconnect(scene, n.si, n.wo, si, wo, n.sample, target_mode, test_visibility, use_jacobian, max_jacobian)  # Alg. 4 l. 11–12
+                out = reservoir_merge(out, n.res, n.res.confidence, sh.target, sh.jacobian, u)
+                if out.selected:
+                    sel = code
+            if d < 0:  # ---- this pixel's temporal reservoir ----
+                r_t.confidence = confidence_capped(r_t.confidence, temporal_cap)
+                out = reservoir_merge(out, r_t, r_t.confidence, r_t.target, 1.0, random_uniform(key, 1))
+                if out.selected:
+                    sel = KEPT_OWN
+        res_out[y, x] = out  # W is set by the MIS stage
+        kept[y, x] = wp.int32(sel)
+        domain_count[y, x] = wp.int32(count)
+
+    @wp.kernel(module=module)
+    def spatial_mis_pass(
+        scene: SceneData,
+        sf: ScreenFrame,
+        temporal_cap: float,
+        spatial_cap: float,
+        target_mode: int,
+        unbiased: int,
+        max_jacobian: float,
+        res_t: wp.array2d(dtype=Reservoir),
+        s_t: wp.array2d(dtype=GISample),
+        res_s_prev: wp.array2d(dtype=Reservoir),
+        s_s_prev: wp.array2d(dtype=GISample),
+        kept: wp.array2d(dtype=wp.int32),
+        domains: wp.array3d(dtype=wp.int32),
+        domain_count: wp.array2d(dtype=wp.int32),
+        res_out: wp.array2d(dtype=Reservoir),
+        s_out: wp.array2d(dtype=GISample),
+    ):
+        y, x = wp.tid()
+        count = int(domain_count[y, x])
+        if count < 0:
+            return  # not resampled: the resample stage copied the temporal reservoir through
+        si = sf.si[y, x]
+        wo = sf.wo[y, x]
+        out = res_out[y, x]
+        code = kept[y, x]
+        sel = gi_sample_none()
+        if code == KEPT_OWN:
+            sel = s_t[y, x]
+        elif code != KEPT_NONE:
+            sel = domain_of(sf, code, temporal_cap, spatial_cap, res_t, s_t, res_s_prev, s_s_prev).sample
         # ---- Alg. 4 l. 15–19: Z = confidence of the domains that can produce the kept sample ----
-        z = support_count_term(r_t.confidence, out.target)
+        z = support_count_term(confidence_capped(res_t[y, x].confidence, temporal_cap), out.target)
         if sel.valid != 0:
-            if c_s > 0.0:
-                moved = int(wp.length_sq(si_h.p - si.p) > 0.0)
-                z = support_count(z, c_s, domain_counts(scene, si_h, wo_h, si, wo, sel, target_mode, unbiased * moved, unbiased, max_jacobian))
-            for j in range(ns.count):
-                n = neighbor_domain(sf, neighbor_set_pixel(ns, j), from_spatial, temporal_cap, spatial_cap, res_t, s_t, res_s_prev, s_s_prev)
+            for j in range(count):
+                c = domains[y, x, j]
+                n = domain_of(sf, c, temporal_cap, spatial_cap, res_t, s_t, res_s_prev, s_s_prev)
+                test_support = unbiased
+                if domain_flags(c) & DOMAIN_HISTORY:  # visibility from last frame's x_v is only in question if it moved
+                    test_support = unbiased * int(wp.length_sq(n.si.p - si.p) > 0.0)
                 if n.res.confidence > 0.0:
-                    z = support_count(z, n.res.confidence, domain_counts(scene, n.si, n.wo, si, wo, sel, target_mode, unbiased, unbiased, max_jacobian))
+                    z = support_count(z, n.res.confidence, domain_counts(scene, n.si, n.wo, si, wo, sel, target_mode, test_support, unbiased, max_jacobian))
         out = reservoir_finalize_mis(out, support_mis(1.0, out.target, z))
         res_out[y, x] = out
         s_out[y, x] = sel
@@ -954,7 +1065,8 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         write_pixel(image, nonfinite, y, x, L)
 
     return types.SimpleNamespace(
-        gi_eval=gi_eval, initial_pass=initial_pass, temporal_pass=temporal_pass, spatial_pass=spatial_pass, shade_pass=shade_pass
+        gi_eval=gi_eval, validate_pass=validate_pass, direct_pass=direct_pass, initial_pass=initial_pass, temporal_pass=temporal_pass, spatial_resample_pass=spatial_resample_pass,
+        spatial_mis_pass=spatial_mis_pass, shade_pass=shade_pass
     )
 
 
@@ -1039,6 +1151,9 @@ class ReSTIRGI(ScreenSpaceRenderer):
         self.initial = pair()  # the initial sample buffer (as one-sample reservoirs)
         self.temporal_buf = DoubleBuffer(pair)  # temporal reservoir buffer
         self.spatial_buf = DoubleBuffer(pair)  # spatial reservoir buffer
+        # the spatial pass's two stages share the domains drawn and the kept sample's domain
+        self.domains = DomainList(self.height, self.width, max(self.iterations_low, self.iterations_high) + 1, dev)
+        self.kept = wp.zeros(shape, dtype=wp.int32, device=dev)
         self.base = wp.zeros(shape, dtype=wp.vec3, device=dev)
         self.image = wp.zeros(shape, dtype=wp.vec3, device=dev)
         self.nonfinite = wp.zeros(1, dtype=wp.int32, device=dev)
@@ -1051,7 +1166,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
             self.di.reset(None if seed is None else int(seed) + 7919)
 
     def kernels(self) -> list[Any]:
-        ks = [gbuffer_kernel, self.k.initial_pass, self.k.temporal_pass, self.k.spatial_pass, self.k.shade_pass]
+        ks = [gbuffer_kernel, self.k.validate_pass, self.k.direct_pass, self.k.initial_pass, self.k.temporal_pass, self.k.spatial_resample_pass, self.k.spatial_mis_pass, self.k.shade_pass]
         return ks + (self.di.kernels() if self.di is not None else [])
 
     def render_frame(self, frame: int) -> wp.array:
@@ -1073,18 +1188,23 @@ class ReSTIRGI(ScreenSpaceRenderer):
             and frame % self.validation_interval == 0
             and self.built.features.animated_objects  # else nothing can change: the replay would be bit-exact
         )
+        if validate_now:
+            with self._phase("gi_validate"):
+                wp.launch(
+                    self.k.validate_pass,
+                    dim=dim,
+                    inputs=[data, sf, self.max_depth, self.rr_depth, self.mb_fraction, self.validation_tolerance],
+                    outputs=[self.temporal_buf.previous[0], self.temporal_buf.previous[1], self.spatial_buf.previous[0], self.spatial_buf.previous[1]],
+                    device=dev,
+                )
+        with self._phase("gi_direct"):
+            wp.launch(self.k.direct_pass, dim=dim, inputs=[data, sf, self.max_depth, self.rr_depth, self.direct], outputs=[self.base], device=dev)
         with self._phase("gi_initial"):
             wp.launch(
                 self.k.initial_pass,
                 dim=dim,
-                inputs=[
-                    data, sf, self.source, self.target, self.max_depth, self.rr_depth,
-                    self.mb_fraction, self.direct, self.exact_bsdf, validate_now, self.validation_tolerance,
-                ],
-                outputs=[
-                    self.initial[0], self.initial[1], self.base, self.temporal_buf.previous[0], self.temporal_buf.previous[1],
-                    self.spatial_buf.previous[0], self.spatial_buf.previous[1],
-                ],
+                inputs=[data, sf, self.source, self.target, self.max_depth, self.rr_depth, self.mb_fraction, self.exact_bsdf],
+                outputs=[self.initial[0], self.initial[1]],
                 device=dev,
             )
         t_out = self.temporal_buf.current
@@ -1103,12 +1223,23 @@ class ReSTIRGI(ScreenSpaceRenderer):
         if self.spatial:
             with self._phase("gi_spatial"):
                 wp.launch(
-                    self.k.spatial_pass,
+                    self.k.spatial_resample_pass,
                     dim=dim,
                     inputs=[
                         data, sf, history, self.history_cap, self.spatial_cap, self.iterations_low, self.iterations_high,
-                        self.adaptive, self.radius, self.min_radius, self.low_m, self.target, self.jacobian, self.unbiased,
+                        self.adaptive, self.radius, self.min_radius, self.low_m, self.target, self.jacobian,
                         self.max_jacobian, t_out[0], t_out[1], self.spatial_buf.previous[0], self.spatial_buf.previous[1],
+                    ],
+                    outputs=[s_out[0], s_out[1], self.kept, self.domains.codes, self.domains.count],
+                    device=dev,
+                )
+                wp.launch(
+                    self.k.spatial_mis_pass,
+                    dim=dim,
+                    inputs=[
+                        data, sf, self.history_cap, self.spatial_cap, self.target, self.unbiased, self.max_jacobian,
+                        t_out[0], t_out[1], self.spatial_buf.previous[0], self.spatial_buf.previous[1],
+                        self.kept, self.domains.codes, self.domains.count,
                     ],
                     outputs=[s_out[0], s_out[1]],
                     device=dev,

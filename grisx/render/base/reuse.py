@@ -19,6 +19,11 @@ questions a renderer asks before it calls that math, once for all renderers:
 * :func:`adaptive_radius` — seed 004's radius schedule: start at 10% of the
   image and halve after each rejected neighbour, down to 3 px.
 
+:class:`DomainList` carries a pass's domains (the pixels it resampled from, and from
+which buffer) to the next stage in global memory: a staged spatial pass draws and
+shifts its candidates in one kernel and counts Z or MIS over the *same* domains in
+the next (``DESIGN.md``, "GPU execution": each stage a small kernel).
+
 :class:`DoubleBuffer` holds a renderer's per-pixel reservoirs for "this
 frame" and "previous frame" (or "input"/"output" of a spatial pass), swapped
 without copies, so a pass never reads what it is writing.
@@ -49,6 +54,12 @@ __all__ = [
     "spatial_neighbor",
     "adaptive_radius",
     "DoubleBuffer",
+    "DomainList",
+    "DOMAIN_HISTORY",
+    "DOMAIN_PREVIOUS",
+    "domain_code",
+    "domain_pixel",
+    "domain_flags",
     "SIMILARITY_NORMAL_COS",
     "SIMILARITY_DEPTH",
 ]
@@ -176,6 +187,48 @@ def adaptive_radius(width: int, height: int, rejections: int, min_radius: float)
 
 
 T = TypeVar("T")
+
+
+#: :func:`domain_code` flags: the domain's reservoir is in the *previous* frame's buffer
+DOMAIN_PREVIOUS = wp.constant(1)
+#: the domain is this pixel's own history (the reprojected previous-frame reservoir)
+DOMAIN_HISTORY = wp.constant(2)
+
+
+@wp.func
+def domain_code(x: int, y: int, width: int, flags: int) -> wp.int32:
+    """One int for a domain: its pixel and :data:`DOMAIN_PREVIOUS` / :data:`DOMAIN_HISTORY` flags."""
+    return wp.int32((y * width + x) * 4 + flags)
+
+
+@wp.func
+def domain_pixel(code: wp.int32, width: int) -> NeighborPixel:
+    """The pixel of a :func:`domain_code` (valid)."""
+    nb = NeighborPixel()
+    i = int(code) // 4
+    nb.x = i % width
+    nb.y = i // width
+    nb.valid = 1
+    return nb
+
+
+@wp.func
+def domain_flags(code: wp.int32) -> int:
+    return int(code) % 4
+
+
+class DomainList:
+    """Per pixel, up to ``capacity`` domain codes (:func:`domain_code`) in drawing order, and their count.
+
+    Written by the stage that draws the domains, read by the stages after it, so that every stage
+    sees the very same domains (the :class:`NeighborSet` guarantee, across kernels). ``count`` < 0
+    marks a pixel the pass does not resample (nothing for later stages to do).
+    """
+
+    def __init__(self, height: int, width: int, capacity: int, device: wp.context.Device) -> None:
+        self.capacity = max(1, int(capacity))
+        self.codes = wp.zeros((height, width, self.capacity), dtype=wp.int32, device=device)
+        self.count = wp.zeros((height, width), dtype=wp.int32, device=device)
 
 
 class DoubleBuffer(Generic[T]):
