@@ -847,14 +847,15 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         y, x = wp.tid()
         key = pixel_key(sf, x, y, 3)
         r_new = res_in[y, x]
-        res_out[y, x] = r_new
-        s_out[y, x] = s_in[y, x]
         si = sf.si[y, x]
-        if si.valid == 0 or use_history == 0 or r_new.confidence <= 0.0:
+        tn = NeighborPixel()
+        tn.valid = 0
+        if si.valid != 0 and use_history != 0 and r_new.confidence > 0.0:
+            tn = temporal_neighbor(sf.g, sf.g_prev, x, y, SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH)
+        if tn.valid == 0:  # no history (or reprojection failed: the history is reset, seed 004, Sec. 5)
+            res_out[y, x] = r_new  # each output written once: these struct stores are most of the pass's traffic
+            s_out[y, x] = s_in[y, x]
             return
-        tn = temporal_neighbor(sf.g, sf.g_prev, x, y, SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH)
-        if tn.valid == 0:
-            return  # reprojection failed: the history is reset (seed 004, Sec. 5)
         wo = sf.wo[y, x]
         si_p = sf.si_prev[tn.y, tn.x]
         wo_p = sf.wo_prev[tn.y, tn.x]
@@ -930,11 +931,11 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         width = sf.si.shape[1]
         key = pixel_key(sf, x, y, 4)
         r_t = res_t[y, x]
-        res_out[y, x] = r_t
-        s_out[y, x] = s_t[y, x]
-        domain_count[y, x] = -1
         si = sf.si[y, x]
         if si.valid == 0 or r_t.confidence <= 0.0:
+            res_out[y, x] = r_t  # not resampled: passed through (the MIS stage writes every other pixel's sample)
+            s_out[y, x] = s_t[y, x]
+            domain_count[y, x] = -1
             return
         wo = sf.wo[y, x]
         out = reservoir_empty()
