@@ -121,6 +121,7 @@ DECOUPLED_HOOKS = PixelEstimateHooks(
     spatial_add=decoupled_spatial_add,
     spatial_end=decoupled_spatial_end,
     shade=shade_estimate,
+    spatial_state=SpatialDecoupled,
 )
 
 

@@ -243,6 +243,7 @@ RESTCV_HOOKS = PixelEstimateHooks(
     spatial_add=spatial_add,
     spatial_end=restcv_spatial_end,
     shade=shade_estimate,  # L_e(x₁) + ⟨F_i⟩ (seed 002, Listing 1 line 44)
+    spatial_state=SpatialCV,
 )
 STCV_HOOKS = dataclasses.replace(RESTCV_HOOKS, owner=__name__ + ".stcv", temporal=stcv_temporal, spatial_end=stcv_spatial_end)
 

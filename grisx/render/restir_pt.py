@@ -93,14 +93,14 @@ from grisx.render.base.path_shift import (
     target_to,
     vertex_from_hit,
 )
-from grisx.render.base.screen import ScreenSpaceRenderer, kernel_cache, pixel_key_of
+from grisx.render.base.screen import ScreenSpaceRenderer, arg_types, kernel_cache, pixel_key_of
 from grisx.render.base.reuse import (
     SIMILARITY_DEPTH,
     SIMILARITY_NORMAL_COS,
+    DomainList,
     NeighborPixel,
-    neighbor_set_add,
-    neighbor_set_empty,
-    neighbor_set_pixel,
+    domain_code,
+    domain_pixel,
     pixels_similar,
     spatial_neighbor,
     temporal_neighbor,
@@ -197,6 +197,9 @@ class PixelEstimateHooks:
       what the spatial pass stores;
     * ``shade(direct, pr) -> vec3``: the pixel value.
 
+    The spatial pass runs as two kernels (the canonical MIS loop, then the merge loop);
+    ``spatial_state`` is the Warp struct type of ``state``, kept per pixel between them.
+
     ``owner`` names the Warp modules of the variant's kernels.
     """
 
@@ -207,12 +210,24 @@ class PixelEstimateHooks:
     spatial_add: Any
     spatial_end: Any
     shade: Any
+    spatial_state: Any
 
 
 @wp.func
 def shade_estimate(direct: wp.vec3, pr: PathReservoir) -> wp.vec3:
     """A variant's pixel value: L_e(x₁) + the estimate its reservoir carries (a ``shade`` hook)."""
     return direct + pr.estimate
+
+
+class PassKernels(dict):
+    """A renderer's kernels by pass name, and ``spatial_state``: the struct its spatial stages hand over."""
+
+    spatial_state: Any = None
+
+
+@wp.struct
+class _NoSpatialState:
+    unused: int
 
 
 @kernel_cache
@@ -234,6 +249,9 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
     est_spatial_add = None if hooks is None else hooks.spatial_add
     est_spatial_end = None if hooks is None else hooks.spatial_end
     est_shade = None if hooks is None else hooks.shade
+
+    # what a variant's spatial pass carries from the canonical stage to the merge stage
+    state_t = _NoSpatialState if hooks is None else hooks.spatial_state
 
     # ---- primary vertices ----
     module = specialized_module(__name__ if hooks is None else hooks.owner, kinds)
@@ -271,7 +289,13 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
                 key = pixel_key_of(seed, frame, x, y, width, _STREAM_PATHS + cand)  # the path's seed: shifts replay it
                 pr = sample_paths(scene, dom, key, max_bounces, inv_n, sp, pr, random_subkey(ukey, cand))
             pr.res.confidence = 1.0  # one frame's canonical sample: the unit of the history cap
-        out[y, x] = settle(scene, dom, pr, sp)
+        out[y, x] = pr  # finalized by settle_pass: the path walk and the shift are two kernels, not one
+
+    @wp.kernel(module=module)
+    def settle_pass(scene: SceneData, sp: ShiftParams, domains: wp.array2d(dtype=Domain), out: wp.array2d(dtype=PathReservoir)):
+        """The kept candidate re-evaluated as the shifts see it, and the UCW (``settle``), in place."""
+        y, x = wp.tid()
+        out[y, x] = settle(scene, domains[y, x], out[y, x], sp)
 
     # ---- temporal reuse ----
     @wp.kernel(module=module)
@@ -332,9 +356,10 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
             res = est_temporal(cvo, g, g_prev, step, res)
         out[y, x] = res
 
-    # ---- spatial reuse ----
+    # ---- spatial reuse, in two stages (one shift each): the canonical path's pairwise weight, then the merge ----
     @wp.kernel(module=module)
-    def spatial_pass(
+    @arg_types(states=wp.array2d(dtype=state_t))
+    def spatial_canonical_pass(
         scene: SceneData,
         seed: int,
         frame: int,
@@ -347,26 +372,34 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
         domains: wp.array2d(dtype=Domain),
         inp: wp.array2d(dtype=PathReservoir),
         out: wp.array2d(dtype=PathReservoir),
+        codes: wp.array3d(dtype=wp.int32),
+        slots: wp.array3d(dtype=wp.int32),
+        count: wp.array2d(dtype=wp.int32),
+        m_canonical: wp.array2d(dtype=float),
+        states: Any,
     ):
         y, x = wp.tid()
         width = domains.shape[1]
         can = inp[y, x]
-        out[y, x] = can
+        count[y, x] = -1  # not resampled: the merge stage leaves the pixel as it is
         dom_i = domains[y, x]
         if dom_i.valid == 0:
+            out[y, x] = can
             return
         ukey = pixel_key_of(seed, frame, x, y, width, _STREAM_SPATIAL + round_index)
-        # ---- the neighbours, drawn once: every loop below reads this set (k and C of pairwise MIS) ----
-        ns = neighbor_set_empty()
+        # ---- the neighbours, drawn once into the DomainList: both stages read them (k and C of pairwise MIS) ----
         c_c = can.res.confidence
         total = c_c
-        for q in range(neighbors):
+        k = int(0)
+        for q in range(wp.min(neighbors, codes.shape[2])):
             nb = _spatial_candidate(g, domains, inp, x, y, radius, wp.vec2(random_uniform(ukey, 2 * q), random_uniform(ukey, 2 * q + 1)))
             if nb.valid != 0:
-                ns = neighbor_set_add(ns, nb, q)
+                codes[y, x, k] = domain_code(nb.x, nb.y, width, 0)
+                slots[y, x, k] = q
+                k += 1
                 total += inp[nb.y, nb.x].res.confidence
-        k = ns.count
         if k == 0:
+            out[y, x] = can
             return
         # the canonical path's pairwise weight m_c = Σ_q (pair q's canonical share)
         t_c = path_target(can.path)
@@ -374,12 +407,53 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
         if wp.static(est is not None):
             state = est_spatial_begin(cvo, can)
         for j in range(k):
-            nb = neighbor_set_pixel(ns, j)
+            nb = domain_pixel(codes[y, x, j], width)
             s_cq = shift(scene, domains[nb.y, nb.x], can.path, sp)
             t_cq = target_to(s_cq)  # p̂_{←q}(y_c), seed 001, Eq. 16
             if wp.static(est is not None):
                 state = est_spatial_keep(state, j, s_cq)
             m_c += pairwise_mis_canonical_term(inp[nb.y, nb.x].res.confidence, t_cq, c_c, t_c, k, total)
+        m_canonical[y, x] = m_c
+        if wp.static(est is not None):
+            states[y, x] = state
+        count[y, x] = k
+
+    @wp.kernel(module=module)
+    @arg_types(states=wp.array2d(dtype=state_t))
+    def spatial_merge_pass(
+        scene: SceneData,
+        seed: int,
+        frame: int,
+        round_index: int,
+        sp: ShiftParams,
+        cvo: CVOptions,
+        g: GBufferData,
+        domains: wp.array2d(dtype=Domain),
+        inp: wp.array2d(dtype=PathReservoir),
+        codes: wp.array3d(dtype=wp.int32),
+        slots: wp.array3d(dtype=wp.int32),
+        count: wp.array2d(dtype=wp.int32),
+        m_canonical: wp.array2d(dtype=float),
+        states: Any,
+        out: wp.array2d(dtype=PathReservoir),
+    ):
+        y, x = wp.tid()
+        k = int(count[y, x])
+        if k < 0:
+            return
+        width = domains.shape[1]
+        can = inp[y, x]
+        dom_i = domains[y, x]
+        ukey = pixel_key_of(seed, frame, x, y, width, _STREAM_SPATIAL + round_index)
+        c_c = can.res.confidence
+        total = c_c
+        for j in range(k):
+            nb = domain_pixel(codes[y, x, j], width)
+            total += inp[nb.y, nb.x].res.confidence
+        t_c = path_target(can.path)
+        m_c = m_canonical[y, x]
+        if wp.static(est is not None):
+            state = states[y, x]
         r = reservoir_empty()
         r = reservoir_update(r, resampling_weight(m_c, t_c, can.res.ucw, 1.0), t_c, c_c, random_uniform(ukey, 100))
         sel = path_sample_empty()
@@ -387,7 +461,7 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
             sel = can.path
         # each neighbour's path shifted here, weighted against the canonical domain
         for j in range(k):
-            nb = neighbor_set_pixel(ns, j)
+            nb = domain_pixel(codes[y, x, j], width)
             other = inp[nb.y, nb.x]
             s = shift(scene, dom_i, other.path, sp)
             t_qi = path_target(s.path)  # 0 where the shift failed
@@ -395,7 +469,7 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
             m_q = pairwise_mis_neighbor(other.res.confidence, t_qq, c_c, t_qi, k, total)
             if wp.static(est is not None):
                 state = est_spatial_add(cvo, state, g, SpatialStep(x=x, y=y, nb=nb, j=j, can=can, other=other, s_qi=s, m_q=m_q))
-            r = reservoir_merge(r, other.res, m_q, t_qi, s.jacobian, random_uniform(ukey, 101 + ns.slot[j]))  # seed 000, Eq. 9
+            r = reservoir_merge(r, other.res, m_q, t_qi, s.jacobian, random_uniform(ukey, 101 + slots[y, x, j]))  # seed 000, Eq. 9
             if r.selected:
                 sel = s.path
         res = path_reservoir(r, sel)
@@ -420,7 +494,9 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
             L = L + pr.path.f * pr.res.ucw  # f(y) · W_y (seed 000, Eq. 7)
         image[y, x] = finite_or_dropped(L, nonfinite)
 
-    kernels = {"primary": primary_pass, "initial": initial_pass, "temporal": temporal_pass, "spatial": spatial_pass, "shade": shade_pass}
+    kernels = PassKernels(primary=primary_pass, initial=initial_pass, settle=settle_pass, temporal=temporal_pass,
+                          spatial_canonical=spatial_canonical_pass, spatial_merge=spatial_merge_pass, shade=shade_pass)
+    kernels.spatial_state = state_t
     return kernels
 
 
@@ -501,6 +577,11 @@ class ReSTIRPT(ScreenSpaceRenderer):
             self.gbuffer = GBuffer(self.width, self.height, dev)
         self.domains = [wp.zeros(shape, dtype=Domain, device=dev) for _ in range(2)]  # current, previous
         self.buffers = [wp.zeros(shape, dtype=PathReservoir, device=dev) for _ in range(3)]  # 0: history, 1–2: scratch
+        # the spatial pass's two stages share the neighbours drawn, m_c, and a variant's per-pixel state
+        self.spatial_domains = DomainList(self.height, self.width, self.neighbors, dev)
+        self.m_canonical = wp.zeros(shape, dtype=float, device=dev)
+        state_t = getattr(self.k, "spatial_state", None) or _NoSpatialState  # a subclass with passes of its own has none
+        self.spatial_states = wp.zeros(shape if state_t is not _NoSpatialState else (1, 1), dtype=state_t, device=dev)
         self.direct = wp.zeros(shape, dtype=wp.vec3, device=dev)
         self.image = wp.zeros(shape, dtype=wp.vec3, device=dev)
         self.nonfinite = wp.zeros(1, dtype=wp.int32, device=dev)
@@ -541,6 +622,7 @@ class ReSTIRPT(ScreenSpaceRenderer):
                 outputs=[cur],
                 device=dev,
             )
+            wp.launch(k["settle"], dim=dim, inputs=[b.data, self.shift_params, dom], outputs=[cur], device=dev)
         if self.temporal and self.frames_rendered > 0:
             with self._phase("temporal"):
                 wp.launch(
@@ -553,10 +635,19 @@ class ReSTIRPT(ScreenSpaceRenderer):
             cur, other = other, cur
         for rnd in range(self.spatial_rounds):
             with self._phase("spatial"):
+                nbs = self.spatial_domains
                 wp.launch(
-                    k["spatial"],
+                    k["spatial_canonical"],
                     dim=dim,
                     inputs=[b.data, self.seed, int(frame), rnd, self.neighbors, self.radius, self.shift_params, self.cv_options, self.gbuffer.current, dom, cur],
+                    outputs=[other, nbs.codes, nbs.slots, nbs.count, self.m_canonical, self.spatial_states],
+                    device=dev,
+                )
+                wp.launch(
+                    k["spatial_merge"],
+                    dim=dim,
+                    inputs=[b.data, self.seed, int(frame), rnd, self.shift_params, self.cv_options, self.gbuffer.current, dom, cur,
+                            nbs.codes, nbs.slots, nbs.count, self.m_canonical, self.spatial_states],
                     outputs=[other],
                     device=dev,
                 )

@@ -218,7 +218,8 @@ def domain_flags(code: wp.int32) -> int:
 
 
 class DomainList:
-    """Per pixel, up to ``capacity`` domain codes (:func:`domain_code`) in drawing order, and their count.
+    """Per pixel, up to ``capacity`` domain codes (:func:`domain_code`) in drawing order, their draw indices
+    (``slots``: the random numbers beyond a neighbour's position are keyed by it), and their count.
 
     Written by the stage that draws the domains, read by the stages after it, so that every stage
     sees the very same domains (the :class:`NeighborSet` guarantee, across kernels). ``count`` < 0
@@ -228,6 +229,7 @@ class DomainList:
     def __init__(self, height: int, width: int, capacity: int, device: wp.context.Device) -> None:
         self.capacity = max(1, int(capacity))
         self.codes = wp.zeros((height, width, self.capacity), dtype=wp.int32, device=device)
+        self.slots = wp.zeros((height, width, self.capacity), dtype=wp.int32, device=device)  # each domain's draw index
         self.count = wp.zeros((height, width), dtype=wp.int32, device=device)
 
 

@@ -23,7 +23,7 @@ from grisx.theory.random import random_key, random_subkey
 
 wp.set_module_options({"enable_backward": False})
 
-__all__ = ["ScreenFrame", "screen_frame", "frame_key", "pixel_key", "pixel_key_of", "write_pixel", "visible_normal", "ScreenSpaceRenderer", "kernel_cache"]
+__all__ = ["ScreenFrame", "screen_frame", "frame_key", "pixel_key", "pixel_key_of", "write_pixel", "visible_normal", "ScreenSpaceRenderer", "kernel_cache", "arg_types"]
 
 
 @wp.struct
@@ -118,3 +118,17 @@ def kernel_cache(make: Callable[[frozenset[int]], Any]) -> Callable[[Iterable[in
     cached.__doc__ = make.__doc__
     cached.__name__ = make.__name__
     return cached
+
+
+def arg_types(**types: Any) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """Give a kernel's arguments types that a kernel builder chose (``wp.array2d(dtype=T)`` for its ``T``).
+
+    String annotations (``from __future__ import annotations``) cannot name the builder's local
+    variables; apply this under ``@wp.kernel``.
+    """
+
+    def annotate(func: Callable[..., Any]) -> Callable[..., Any]:
+        func.__annotations__.update(types)
+        return func
+
+    return annotate
