@@ -37,7 +37,9 @@ Both reservoir buffers are double-buffered, so a pass never reads what it writes
 **Stages** (``DESIGN.md``, "GPU execution"). Each phase runs as small kernels with one
 path tracer or one shift each: ``validate_pass`` (every ``validation_interval`` frames
 in scenes that move), ``direct_pass`` (sky, emission and direct light at x_v; whole
-paths on mirrors and glass), ``initial_pass`` (the sample and L_o at x_s),
+paths on mirrors and glass), ``initial_pass`` (the direction and the sample point x_s),
+``sample_radiance_pass`` (L_o at x_s: the path tracer alone in its kernel, with
+``exact_bsdf``'s records compiled in only when asked for), ``initial_target_pass``,
 ``temporal_pass``, ``spatial_resample_pass`` (draws the domains — history and
 neighbours — into a :class:`~grisx.render.base.reuse.DomainList` and streams their
 shifted candidates through one call site of the shift) and ``spatial_mis_pass`` (Z over
@@ -749,19 +751,22 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
             if traced_here and direct_mode != 0:
                 base[y, x] = cam_path.total - cam_path.prefix  # ReSTIR DI has the first two segments
 
+    # the sample itself in three stages, so that the path tracer runs in a kernel of its own with nothing
+    # else live across it (pt's occupancy): the sample point, L_o there, the target
     @wp.kernel(module=module)
     def initial_pass(
         scene: SceneData,
         sf: ScreenFrame,
         source: int,
-        target_mode: int,
         max_depth: int,
-        rr_depth: int,
         mb_fraction: float,
         exact_bsdf: int,
         res_out: wp.array2d(dtype=Reservoir),
         s_out: wp.array2d(dtype=GISample),
+        source_pdf: wp.array2d(dtype=float),
+        emitted: wp.array2d(dtype=wp.vec3),
     ):
+        """Alg. 2: a direction from the source pdf p_q and the ray to the sample point x_s."""
         y, x = wp.tid()
         width = sf.si.shape[1]
         key = pixel_key(sf, x, y, 0)
@@ -773,16 +778,13 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         s_out[y, x] = s
         if si.valid == 0 or path_traced_here(scene, si):
             return  # the sky, mirrors and glass: the direct pass has all of it
-        depth_from_xv = depth_from_visible_point(max_depth)
         r.confidence = 1.0  # one initial sample: M = 1 (Alg. 1 UPDATE), even if it carries no weight
         res_out[y, x] = r
         if max_depth >= 0 and max_depth <= 2:
             return  # nothing indirect to estimate
-        # ---- Alg. 2: a direction from the source pdf p_q ----
         nv = visible_normal(si, wo)
         ss = sample_source(scene, si, wo, nv, source, key)
-        source_pdf = ss.pdf
-        if source_pdf <= 0.0:
+        if ss.pdf <= 0.0:
             return
         wi = wp.normalize(ss.wi)
         if wp.dot(wi, nv) <= 0.0:
@@ -793,10 +795,8 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         hit = intersect(scene, o, wi, 1.0e30)
         if hit.valid == 0:
             return  # the sky: direct light's business
-        # ---- L_o at the sample point by path tracing (NEE + MIS), tile-level multi-bounce roulette ----
         s.multi = tile_multi_bounce(sf, x, y, width, mb_fraction)
         s.key = random_subkey(key, 2)
-        le = emitter_radiance(scene.lights, hit.tri, hit.ng, -wi)
         s.xv = si.p
         s.nv = nv
         s.xs = hit.p
@@ -806,26 +806,73 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         s.ns = ns
         s.ray_o = o
         s.ray_d = wi
-        sr = outgoing_radiance(scene, o, wi, le, s.key, depth_from_xv, rr_depth, s.multi, mb_fraction, exact_bsdf)
-        s.lo = sr.lo
         if exact_bsdf != 0:
-            s.exact = 2 - sr.recorded
             s.mat_s = hit.material
             s.uv_s = hit.uv
             s.ns_s = hit.ns
-            s.nee_wi = sr.nee_wi
-            s.nee_li = sr.nee_li
-            s.bs_wi = sr.bs_wi
-            s.bs_li = sr.bs_li
         s.valid = 1
+        s_out[y, x] = s
+        source_pdf[y, x] = ss.pdf
+        emitted[y, x] = emitter_radiance(scene.lights, hit.tri, hit.ng, -wi)
+
+    def make_sample_radiance_pass(record: int) -> Any:
+        """The path tracer's kernel with ``exact_bsdf``'s records compiled in or out (a runtime flag would
+        keep the records' registers live in every run)."""
+
+        @wp.kernel(module=module)
+        def sample_radiance_pass(
+            scene: SceneData,
+            max_depth: int,
+            rr_depth: int,
+            mb_fraction: float,
+            emitted: wp.array2d(dtype=wp.vec3),
+            samples: wp.array2d(dtype=GISample),
+        ):
+            """L_o at the sample point by path tracing (NEE + MIS), tile-level multi-bounce roulette."""
+            y, x = wp.tid()
+            s = samples[y, x]
+            if s.valid == 0:
+                return
+            sr = outgoing_radiance(scene, s.ray_o, s.ray_d, emitted[y, x], s.key, depth_from_visible_point(max_depth), rr_depth, s.multi,
+                                   mb_fraction, wp.static(record))
+            s.lo = sr.lo
+            if wp.static(record != 0):
+                s.exact = 2 - sr.recorded
+                s.nee_wi = sr.nee_wi
+                s.nee_li = sr.nee_li
+                s.bs_wi = sr.bs_wi
+                s.bs_li = sr.bs_li
+            samples[y, x] = s
+
+        return sample_radiance_pass
+
+    sample_radiance_pass = make_sample_radiance_pass(0)
+    sample_radiance_exact_pass = make_sample_radiance_pass(1)
+
+    @wp.kernel(module=module)
+    def initial_target_pass(
+        scene: SceneData,
+        sf: ScreenFrame,
+        target_mode: int,
+        source_pdf: wp.array2d(dtype=float),
+        samples: wp.array2d(dtype=GISample),
+        res_out: wp.array2d(dtype=Reservoir),
+    ):
+        """p̂ of the sample at its own visible point, and its one-sample reservoir (W = 1/p_q)."""
+        y, x = wp.tid()
+        s = samples[y, x]
+        if s.valid == 0:
+            return
+        si = sf.si[y, x]
+        wo = sf.wo[y, x]
         e = gi_eval(scene, si, wo, s, target_mode)
         if e.target > 0.0 and not sample_visible(scene, si, wo, e, s):
             # x_s was found as the first hit, but other pixels test it with a shadow ray: use the same test
             # here, so that every domain's support is decided by one function (else Z could miss a domain)
             e.target = 0.0
-        r = reservoir_update(r, ris_weight(1.0, e.target, source_pdf), e.target, 0.0, 0.0)  # seed 004, Eq. 5
+        r = res_out[y, x]
+        r = reservoir_update(r, ris_weight(1.0, e.target, source_pdf[y, x]), e.target, 0.0, 0.0)  # seed 004, Eq. 5
         res_out[y, x] = reservoir_finalize(r)  # W = 1/p_q
-        s_out[y, x] = s
 
     @wp.kernel(module=module)
     def temporal_pass(
@@ -1066,7 +1113,8 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         write_pixel(image, nonfinite, y, x, L)
 
     return types.SimpleNamespace(
-        gi_eval=gi_eval, validate_pass=validate_pass, direct_pass=direct_pass, initial_pass=initial_pass, temporal_pass=temporal_pass, spatial_resample_pass=spatial_resample_pass,
+        gi_eval=gi_eval, validate_pass=validate_pass, direct_pass=direct_pass, initial_pass=initial_pass,
+        sample_radiance_pass=sample_radiance_pass, sample_radiance_exact_pass=sample_radiance_exact_pass, initial_target_pass=initial_target_pass, temporal_pass=temporal_pass, spatial_resample_pass=spatial_resample_pass,
         spatial_mis_pass=spatial_mis_pass, shade_pass=shade_pass
     )
 
@@ -1155,6 +1203,9 @@ class ReSTIRGI(ScreenSpaceRenderer):
         # the spatial pass's two stages share the domains drawn and the kept sample's domain
         self.domains = DomainList(self.height, self.width, max(self.iterations_low, self.iterations_high) + 1, dev)
         self.kept = wp.zeros(shape, dtype=wp.int32, device=dev)
+        # the initial stages hand over p_q of the direction and the emission at x_s (subtracted from L_o)
+        self.source_pdf = wp.zeros(shape, dtype=float, device=dev)
+        self.emitted = wp.zeros(shape, dtype=wp.vec3, device=dev)
         self.base = wp.zeros(shape, dtype=wp.vec3, device=dev)
         self.image = wp.zeros(shape, dtype=wp.vec3, device=dev)
         self.nonfinite = wp.zeros(1, dtype=wp.int32, device=dev)
@@ -1167,7 +1218,9 @@ class ReSTIRGI(ScreenSpaceRenderer):
             self.di.reset(None if seed is None else int(seed) + 7919)
 
     def kernels(self) -> list[Any]:
-        ks = [gbuffer_kernel, self.k.validate_pass, self.k.direct_pass, self.k.initial_pass, self.k.temporal_pass, self.k.spatial_resample_pass, self.k.spatial_mis_pass, self.k.shade_pass]
+        radiance = self.k.sample_radiance_exact_pass if self.exact_bsdf else self.k.sample_radiance_pass
+        ks = [gbuffer_kernel, self.k.validate_pass, self.k.direct_pass, self.k.initial_pass, radiance, self.k.initial_target_pass,
+              self.k.temporal_pass, self.k.spatial_resample_pass, self.k.spatial_mis_pass, self.k.shade_pass]
         return ks + (self.di.kernels() if self.di is not None else [])
 
     def render_frame(self, frame: int) -> wp.array:
@@ -1204,8 +1257,22 @@ class ReSTIRGI(ScreenSpaceRenderer):
             wp.launch(
                 self.k.initial_pass,
                 dim=dim,
-                inputs=[data, sf, self.source, self.target, self.max_depth, self.rr_depth, self.mb_fraction, self.exact_bsdf],
-                outputs=[self.initial[0], self.initial[1]],
+                inputs=[data, sf, self.source, self.max_depth, self.mb_fraction, self.exact_bsdf],
+                outputs=[self.initial[0], self.initial[1], self.source_pdf, self.emitted],
+                device=dev,
+            )
+            wp.launch(
+                self.k.sample_radiance_exact_pass if self.exact_bsdf else self.k.sample_radiance_pass,
+                dim=dim,
+                inputs=[data, self.max_depth, self.rr_depth, self.mb_fraction, self.emitted],
+                outputs=[self.initial[1]],
+                device=dev,
+            )
+            wp.launch(
+                self.k.initial_target_pass,
+                dim=dim,
+                inputs=[data, sf, self.target, self.source_pdf, self.initial[1]],
+                outputs=[self.initial[0]],
                 device=dev,
             )
         t_out = self.temporal_buf.current
