@@ -16,19 +16,16 @@ Writes ``suffix_restir_passes.json``: per variant, milliseconds per frame of eac
 from __future__ import annotations
 
 import argparse
-import collections
 import json
 import sys
-import time
 from pathlib import Path
 from typing import Any
 
-import warp as wp
-
-import grisx.render.suffix_restir as suffix_restir
 from grisx.device import resolve_device
 from grisx.errors import GrisxError
 from grisx.render.driver import render
+
+from kernels import launch_seconds  # benchmarks/kernels.py
 
 #: (label, params) of the timed variants: the default, the paper's one borrowed suffix, no k-NN query, pairwise MIS
 VARIANTS: list[tuple[str, dict[str, Any]]] = [
@@ -41,23 +38,9 @@ VARIANTS: list[tuple[str, dict[str, Any]]] = [
 
 def time_kernels(scene: str, params: dict[str, Any], args: argparse.Namespace) -> dict[str, float]:
     """Milliseconds per frame of each kernel Suffix ReSTIR launches for ``params``."""
-    seconds: dict[str, float] = collections.defaultdict(float)
-    launch = wp.launch
-
-    def timed_launch(kernel: Any, *a: Any, **k: Any) -> Any:
-        wp.synchronize()
-        t0 = time.perf_counter()
-        out = launch(kernel, *a, **k)
-        wp.synchronize()
-        seconds[kernel.key.split("__")[-1]] += time.perf_counter() - t0
-        return out
-
-    suffix_restir.wp.launch = timed_launch  # the renderer's module calls wp.launch through its own import
-    try:
+    with launch_seconds(lambda kernel: kernel.key.split("__")[-1]) as seconds:
         render(scene, "suffix-restir", frames=args.frames, res=(args.width, args.height), device=args.device, seed=args.seed,
                params={"prefixes": args.prefixes, "max_depth": args.max_depth, **params}, camera="path")
-    finally:
-        suffix_restir.wp.launch = launch
     return {k: 1e3 * v / args.frames for k, v in sorted(seconds.items(), key=lambda kv: -kv[1])}
 
 
