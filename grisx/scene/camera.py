@@ -135,18 +135,24 @@ class CameraPath:
 
     The path loops back to its first key, so it can be rendered for any
     number of frames. Interpolating origin and target (rather than matrices)
-    keeps every in-between frame a proper ``lookat``.
+    keeps every in-between frame a proper ``lookat``. ``easing`` shapes the
+    time between keys: ``smoothstep`` (velocity continuous at the keys, zero
+    there) or ``linear`` (constant speed from the first frame on, what a test
+    of temporal reuse under a moving camera wants).
     """
 
     keys: list[tuple[Sequence[float], Sequence[float], Sequence[float]]]
     frames_per_key: float = 30.0
     loop: bool = True
+    easing: str = "smoothstep"
 
     def __post_init__(self) -> None:
         if len(self.keys) < 1:
             raise InvalidParameterError("a camera path needs at least one key")
         if self.frames_per_key <= 0:
             raise InvalidParameterError("frames_per_key must be positive")
+        if self.easing not in ("smoothstep", "linear"):
+            raise InvalidParameterError(f"camera path easing must be smoothstep or linear, got {self.easing!r}")
 
     def to_world(self, frame: float) -> np.ndarray:
         keys = [tuple(np.asarray(v, dtype=np.float64) for v in k) for k in self.keys]
@@ -161,8 +167,8 @@ class CameraPath:
             i = min(int(math.floor(s)), len(keys) - 2)
         f = s - i
         a, b = keys[i], keys[(i + 1) % len(keys)]
-        # smoothstep easing: velocity is continuous at keys
-        f = f * f * (3 - 2 * f)
+        if self.easing == "smoothstep":  # velocity is continuous at keys
+            f = f * f * (3 - 2 * f)
         return lookat(*(a[j] * (1 - f) + b[j] * f for j in range(3)))
 
 

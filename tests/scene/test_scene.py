@@ -10,6 +10,7 @@ import pytest
 import warp as wp
 
 from grisx.cli import main
+from grisx.errors import InvalidParameterError
 from grisx.scene.builtin import BUILTIN_SCENES, build_builtin, cornell_box_moving
 from grisx.scene.camera import Camera, CameraData, CameraPath, camera_project, camera_ray, lookat
 from grisx.scene.gbuffer import GBuffer
@@ -93,6 +94,16 @@ def test_camera_path_loops_and_starts_at_first_key():
     np.testing.assert_allclose(path.to_world(0), lookat(*keys[0]), atol=1e-12)
     np.testing.assert_allclose(path.to_world(10), lookat(*keys[1]), atol=1e-12)
     np.testing.assert_allclose(path.to_world(20), lookat(*keys[0]), atol=1e-12)
+
+
+def test_linear_camera_path_moves_at_constant_speed():
+    # smoothstep starts at rest (a tenth of the way in: 2.8% of the distance); linear covers a tenth at once
+    keys = [((0, 0, 5), (0, 0, 0), (0, 1, 0)), ((1, 0, 5), (1, 0, 0), (0, 1, 0))]
+    origin = {e: [CameraPath(keys=keys, frames_per_key=10, easing=e).to_world(f)[0, 3] for f in range(11)] for e in ("linear", "smoothstep")}
+    np.testing.assert_allclose(np.diff(origin["linear"]), 0.1, atol=1e-12)
+    assert origin["smoothstep"][1] == pytest.approx(0.028)
+    with pytest.raises(InvalidParameterError, match="easing"):
+        CameraPath(keys=keys, easing="cubic")
 
 
 # ---- BVH against brute force ----------------------------------------------------------
