@@ -32,7 +32,7 @@ import numpy as np
 from grisx.errors import UnknownNameError
 from grisx.scene.camera import Camera, CameraPath, lookat
 from grisx.scene.lights import ConstantEnvironment, EnvMap
-from grisx.scene.material import Conductor, Dielectric, Diffuse, RoughConductor, TextureRef, conductor_material
+from grisx.scene.material import Conductor, Dielectric, Diffuse, RoughConductor, RoughDielectric, TextureRef, conductor_material
 from grisx.scene.scene import Film, RigidMotion, Scene
 from grisx.scene.shapes import MeshData, cube, rectangle, sphere
 from grisx.scene.transform import compose, rotate, scale, translate
@@ -407,4 +407,16 @@ def cornell_box_moving() -> Scene:
     s.name = "cornell-box-moving"
     obj = next(i for i, o in enumerate(s.objects) if o.name == "smallbox")
     s.objects[obj].motion = RigidMotion(velocity=(0.01, 0, 0), angular_velocity=1.0, axis=(0, 1, 0), pivot=(0.335, -0.7, 0.38), period=60)
+    return s
+
+
+# Glass for the reuse tests: glossy-room's ball of rough glass and its box of smooth glass, beside the glossy floor.
+def glossy_room_glass() -> Scene:
+    s = glossy_room()
+    s.name = "glossy-room-glass"
+    s.description = "glossy-room with a ball of rough glass and a box of smooth glass"
+    materials = {"ball": s.add_material(RoughDielectric(alpha=0.15, int_ior=1.5), "rough-glass"),
+                 "box": s.add_material(Dielectric(int_ior=1.5), "glass")}
+    for o in s.objects:
+        o.material = materials.get(o.name, o.material)
     return s
