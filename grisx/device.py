@@ -18,7 +18,7 @@ import warp as wp
 
 from grisx.errors import DeviceError
 
-__all__ = ["init", "resolve_device", "cuda_available", "synchronize", "specialized_module", "load_kernels"]
+__all__ = ["init", "resolve_device", "cuda_available", "synchronize", "specialized_module", "load_kernels", "PATH_REGISTERS", "SHIFT_REGISTERS"]
 
 
 #: a line Warp's native library prints on every machine without a GPU; on such
@@ -103,6 +103,22 @@ def specialized_module(owner: str, kinds: Iterable[int]) -> wp.context.Module:
     module.options["enable_backward"] = False
     module.options["fast_math"] = FAST_MATH
     return module
+
+
+#: ``cuda_max_registers`` of the kernels that trace paths or shadow rays (the path tracer's sample
+#: pass, ReSTIR GI's stages). A Warp kernel runs in blocks of 256 threads and an SM has 64K
+#: registers, so occupancy only changes at 128 (2 blocks), 80 (3) and 64 (4) registers a thread;
+#: software BVH traversal is latency-bound, and more warps in flight pay for the spills. Measured
+#: at 1080p (``benchmarks/README.md``, "Register budgets"): pt's 1-spp frame on an H200 12.7 -> 10.2 ms
+#: (door-ajar), 19.1 -> 10.6 (glossy-room), 4.7 -> 3.6 (cornell-box); ReSTIR GI's frame on an H100
+#: 39.3 -> 26.1 ms (door-ajar), 45.2 -> 29.0 (glossy-room); 64 gives the same, 128 less. Kernels that
+#: lost at a cap keep none (ReSTIR DI's spatial pass: 7.1 -> 14.9 ms at 128). Ignored on the CPU.
+PATH_REGISTERS = 80
+#: the same for the kernels that run ReSTIR PT's hybrid shift or its candidate walk, whose live state
+#: (path samples) spills heavily below 128: at 128 ReSTIR PT's frame on door-ajar 44.0 -> 34.6 ms
+#: (H100, 1080p), at 80 40.7. Area ReSTIR's passes keep none (door-ajar 48.9 -> 39.4 ms at 128, but
+#: glossy-room 115 -> 135).
+SHIFT_REGISTERS = 128
 
 
 #: seconds a kernel load may take before the user is told that Warp is compiling (cached loads take milliseconds)

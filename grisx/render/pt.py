@@ -37,7 +37,7 @@ import numpy as np
 import warp as wp
 
 from grisx.render.base.screen import kernel_cache
-from grisx.device import specialized_module
+from grisx.device import PATH_REGISTERS, specialized_module
 from grisx.render.base.trace import STRATEGIES, make_trace_path
 from grisx.params import Param
 from grisx.render.base.registry import RenderMethod, register, renderer_params
@@ -58,7 +58,7 @@ def make_path_tracer_kernel(kinds: frozenset[int]) -> Any:
 
     module = specialized_module(__name__, kinds)
 
-    @wp.kernel(module=module)
+    @wp.kernel(module=module, cuda_max_registers=PATH_REGISTERS)
     def sample_pass(
         scene: SceneData,
         cam: CameraData,

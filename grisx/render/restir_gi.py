@@ -165,7 +165,7 @@ from typing import Any
 
 import warp as wp
 
-from grisx.device import specialized_module
+from grisx.device import PATH_REGISTERS, specialized_module
 from grisx.params import Param
 from grisx.render.base.registry import RenderMethod, composed_direct, create_renderer, register, renderer_params
 from grisx.scene.bsdf import MATERIAL_ROUGH_DIELECTRIC, cosine_hemisphere_pdf, make_bsdf, sample_cosine_hemisphere
@@ -698,7 +698,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
     module = specialized_module(__name__, kinds)
 
     # ---- the initial pass (Alg. 2) in three stages, one path tracer each: validation, direct light, the sample ----
-    @wp.kernel(module=module)
+    @wp.kernel(module=module, cuda_max_registers=PATH_REGISTERS)
     def validate_pass(
         scene: SceneData,
         sf: ScreenFrame,
@@ -717,7 +717,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
             return
         validate_history(scene, x, y, depth_from_visible_point(max_depth), rr_depth, mb_fraction, tolerance, res_t_prev, s_t_prev, res_s_prev, s_s_prev)
 
-    @wp.kernel(module=module)
+    @wp.kernel(module=module, cuda_max_registers=PATH_REGISTERS)
     def direct_pass(
         scene: SceneData,
         sf: ScreenFrame,
@@ -819,7 +819,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         """The path tracer's kernel with ``exact_bsdf``'s records compiled in or out (a runtime flag would
         keep the records' registers live in every run)."""
 
-        @wp.kernel(module=module)
+        @wp.kernel(module=module, cuda_max_registers=PATH_REGISTERS)
         def sample_radiance_pass(
             scene: SceneData,
             max_depth: int,
@@ -948,7 +948,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
                                res_t, s_t, res_s_prev, s_s_prev)
 
     # ---- the spatial pass (Alg. 4) in two stages: resample the candidates, then count Z over the same domains ----
-    @wp.kernel(module=module)
+    @wp.kernel(module=module, cuda_max_registers=PATH_REGISTERS)
     def spatial_resample_pass(
         scene: SceneData,
         sf: ScreenFrame,
@@ -1042,7 +1042,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         kept[y, x] = wp.int32(sel)
         domain_count[y, x] = wp.int32(count)
 
-    @wp.kernel(module=module)
+    @wp.kernel(module=module, cuda_max_registers=PATH_REGISTERS)
     def spatial_mis_pass(
         scene: SceneData,
         sf: ScreenFrame,

@@ -74,7 +74,7 @@ from typing import Any
 import numpy as np
 import warp as wp
 
-from grisx.device import specialized_module
+from grisx.device import SHIFT_REGISTERS, specialized_module
 from grisx.params import Param
 from grisx.render.base.registry import RenderMethod, composed_direct, create_renderer, register, renderer_params
 from grisx.errors import InvalidParameterError
@@ -264,7 +264,7 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
         direct[y, x] = g.emission[y, x]  # emission seen directly (the environment where nothing was hit)
 
     # ---- initial candidates ----
-    @wp.kernel(module=module)
+    @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
     def initial_pass(
         scene: SceneData,
         seed: int,
@@ -291,15 +291,51 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
             pr.res.confidence = 1.0  # one frame's canonical sample: the unit of the history cap
         out[y, x] = pr  # finalized by settle_pass: the path walk and the shift are two kernels, not one
 
-    @wp.kernel(module=module)
+    @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
     def settle_pass(scene: SceneData, sp: ShiftParams, domains: wp.array2d(dtype=Domain), out: wp.array2d(dtype=PathReservoir)):
         """The kept candidate re-evaluated as the shifts see it, and the UCW (``settle``), in place."""
         y, x = wp.tid()
         out[y, x] = settle(scene, domains[y, x], out[y, x], sp)
 
-    # ---- temporal reuse ----
-    @wp.kernel(module=module)
-    def temporal_pass(
+    # ---- temporal reuse, in two stages (one shift each): the canonical path into the history's domain, then the merge ----
+    @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
+    @arg_types(shifted=wp.array2d(dtype=PathShiftResult))
+    def temporal_canonical_pass(
+        scene: SceneData,
+        sp: ShiftParams,
+        g: GBufferData,
+        g_prev: GBufferData,
+        domains: wp.array2d(dtype=Domain),
+        domains_prev: wp.array2d(dtype=Domain),
+        canonical: wp.array2d(dtype=PathReservoir),
+        history: wp.array2d(dtype=PathReservoir),
+        out: wp.array2d(dtype=PathReservoir),
+        history_pixel: wp.array2d(dtype=wp.int32),
+        target_cj: wp.array2d(dtype=float),
+        shifted: Any,
+    ):
+        y, x = wp.tid()
+        can = canonical[y, x]
+        out[y, x] = can  # the merge stage overwrites it where there is a history
+        history_pixel[y, x] = -1
+        if domains[y, x].valid == 0:
+            return
+        nb = temporal_neighbor(g, g_prev, x, y, SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH)
+        if nb.valid == 0:
+            return
+        dom_j = domains_prev[nb.y, nb.x]
+        if dom_j.valid == 0 or history[nb.y, nb.x].res.confidence <= 0.0:
+            return
+        # canonical path y_c: p̂_{←j}(y_c) through T_{i→j} (seed 001, Eq. 16)
+        s_cj = shift(scene, dom_j, can.path, sp)
+        target_cj[y, x] = target_to(s_cj)
+        if wp.static(est is not None):
+            shifted[y, x] = s_cj  # a variant's estimate needs the whole shift
+        history_pixel[y, x] = domain_code(nb.x, nb.y, domains.shape[1], 0)
+
+    @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
+    @arg_types(shifted=wp.array2d(dtype=PathShiftResult))
+    def temporal_merge_pass(
         scene: SceneData,
         seed: int,
         frame: int,
@@ -309,31 +345,26 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
         g: GBufferData,
         g_prev: GBufferData,
         domains: wp.array2d(dtype=Domain),
-        domains_prev: wp.array2d(dtype=Domain),
         canonical: wp.array2d(dtype=PathReservoir),
         history: wp.array2d(dtype=PathReservoir),
+        history_pixel: wp.array2d(dtype=wp.int32),
+        target_cj: wp.array2d(dtype=float),
+        shifted: Any,
         out: wp.array2d(dtype=PathReservoir),
     ):
         y, x = wp.tid()
+        code = history_pixel[y, x]
+        if code < 0:
+            return  # no history: the canonical stage passed the canonical reservoir through
+        nb = domain_pixel(code, domains.shape[1])
         can = canonical[y, x]
-        out[y, x] = can
-        dom_i = domains[y, x]
-        if dom_i.valid == 0:
-            return
-        nb = temporal_neighbor(g, g_prev, x, y, SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH)
-        if nb.valid == 0:
-            return
         prev = history[nb.y, nb.x]
-        dom_j = domains_prev[nb.y, nb.x]
-        if dom_j.valid == 0 or prev.res.confidence <= 0.0:
-            return
+        dom_i = domains[y, x]
         ukey = pixel_key_of(seed, frame, x, y, domains.shape[1], _STREAM_TEMPORAL)
         c_i = can.res.confidence
         c_j = confidence_capped(prev.res.confidence, history_cap)
-        # canonical path y_c: p̂_i(y_c) and p̂_{←j}(y_c) through T_{i→j} (seed 001, Eq. 16)
         t_c = path_target(can.path)
-        s_cj = shift(scene, dom_j, can.path, sp)
-        t_cj = target_to(s_cj)
+        t_cj = target_cj[y, x]
         m_c = two_domain_balance(c_i, t_c, c_j, t_cj)  # seed 001, Eq. 15
         # history path y_t shifted into this pixel: p̂_i(T(y_t)) and p̂_{←j}(T(y_t)) = p̂_j(y_t) / |J|
         s_t = shift(scene, dom_i, prev.path, sp)
@@ -352,12 +383,12 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
             sel = s_t.path
         res = path_reservoir(r, sel)
         if wp.static(est is not None):
-            step = TemporalStep(x=x, y=y, nb=nb, can=can, prev=prev, c_j=c_j, s_cj=s_cj, s_t=s_t, m_c=m_c, m_t=m_t)
+            step = TemporalStep(x=x, y=y, nb=nb, can=can, prev=prev, c_j=c_j, s_cj=shifted[y, x], s_t=s_t, m_c=m_c, m_t=m_t)
             res = est_temporal(cvo, g, g_prev, step, res)
         out[y, x] = res
 
     # ---- spatial reuse, in two stages (one shift each): the canonical path's pairwise weight, then the merge ----
-    @wp.kernel(module=module)
+    @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
     @arg_types(states=wp.array2d(dtype=state_t))
     def spatial_canonical_pass(
         scene: SceneData,
@@ -418,7 +449,7 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
             states[y, x] = state
         count[y, x] = k
 
-    @wp.kernel(module=module)
+    @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
     @arg_types(states=wp.array2d(dtype=state_t))
     def spatial_merge_pass(
         scene: SceneData,
@@ -494,7 +525,8 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
             L = L + pr.path.f * pr.res.ucw  # f(y) · W_y (seed 000, Eq. 7)
         image[y, x] = finite_or_dropped(L, nonfinite)
 
-    kernels = PassKernels(primary=primary_pass, initial=initial_pass, settle=settle_pass, temporal=temporal_pass,
+    kernels = PassKernels(primary=primary_pass, initial=initial_pass, settle=settle_pass, temporal_canonical=temporal_canonical_pass,
+                          temporal_merge=temporal_merge_pass,
                           spatial_canonical=spatial_canonical_pass, spatial_merge=spatial_merge_pass, shade=shade_pass)
     kernels.spatial_state = state_t
     return kernels
@@ -581,6 +613,10 @@ class ReSTIRPT(ScreenSpaceRenderer):
         self.spatial_domains = DomainList(self.height, self.width, self.neighbors, dev)
         self.m_canonical = wp.zeros(shape, dtype=float, device=dev)
         state_t = getattr(self.k, "spatial_state", None) or _NoSpatialState  # a subclass with passes of its own has none
+        # the temporal pass's two stages share the history pixel, p̂_{←j}(y_c) and (for a variant) T_{i→j}(y_c)
+        self.history_pixel = wp.zeros(shape, dtype=wp.int32, device=dev)
+        self.target_cj = wp.zeros(shape, dtype=float, device=dev)
+        self.shifted_canonical = wp.zeros(shape if state_t is not _NoSpatialState else (1, 1), dtype=PathShiftResult, device=dev)
         self.spatial_states = wp.zeros(shape if state_t is not _NoSpatialState else (1, 1), dtype=state_t, device=dev)
         self.direct = wp.zeros(shape, dtype=wp.vec3, device=dev)
         self.image = wp.zeros(shape, dtype=wp.vec3, device=dev)
@@ -625,10 +661,19 @@ class ReSTIRPT(ScreenSpaceRenderer):
             wp.launch(k["settle"], dim=dim, inputs=[b.data, self.shift_params, dom], outputs=[cur], device=dev)
         if self.temporal and self.frames_rendered > 0:
             with self._phase("temporal"):
+                g, g_prev = self.gbuffer.current, self.gbuffer.previous
                 wp.launch(
-                    k["temporal"],
+                    k["temporal_canonical"],
                     dim=dim,
-                    inputs=[b.data, self.seed, int(frame), self.shift_params, self.history_cap, self.cv_options, self.gbuffer.current, self.gbuffer.previous, dom, dom_prev, cur, history],
+                    inputs=[b.data, self.shift_params, g, g_prev, dom, dom_prev, cur, history],
+                    outputs=[other, self.history_pixel, self.target_cj, self.shifted_canonical],
+                    device=dev,
+                )
+                wp.launch(
+                    k["temporal_merge"],
+                    dim=dim,
+                    inputs=[b.data, self.seed, int(frame), self.shift_params, self.history_cap, self.cv_options, g, g_prev, dom, cur, history,
+                            self.history_pixel, self.target_cj, self.shifted_canonical],
                     outputs=[other],
                     device=dev,
                 )
