@@ -33,7 +33,7 @@ So the protocol measures, per scene, camera and method:
 Scenes: ``cornell-box``, ``door-ajar``, ``glossy-room``, ``closed-room``,
 ``many-lights`` (``--scenes``); cameras: the static camera and the scene's
 camera path; methods: ``pt``, ``restir-di``, ``restir-gi`` (with ``direct=nee`` and
-``direct=restir-di``) and ``restir-pt``
+``direct=restir-di``), ``restir-pt``, ``restcv`` and ``area-restir``
 (``--methods``, ``label=method:k=v:k=v`` to add a configuration; every
 renderer added later joins with one entry). Depth: each scene's own
 ``max_depth`` (the built-in scenes: 16; ``closed-room``: −1).
@@ -69,7 +69,7 @@ from typing import Any
 import numpy as np
 
 SCENES = ("cornell-box", "door-ajar", "glossy-room", "closed-room", "many-lights")
-METHODS = ("pt", "restir-di", "restir-gi", "restir-gi-di=restir-gi:direct=restir-di", "restir-pt")
+METHODS = ("pt", "restir-di", "restir-gi", "restir-gi-di=restir-gi:direct=restir-di", "restir-pt", "restcv", "area-restir")
 CAMERAS = ("static", "moving")
 
 
