@@ -58,6 +58,15 @@ estimators own disjoint sets of paths and their sum estimates ``pt``'s image.
 (:func:`build_restir_pt_kernels`; ReSTCV, :mod:`grisx.render.restcv`, is one). Without hooks the
 kernels are ReSTIR PT's alone.
 
+**Stages** (``DESIGN.md``, "GPU execution"). Each phase runs as kernels with at most one
+inlined shift or walk: ``initial_pass`` (the candidate walk) then ``settle_pass`` (the kept
+path's own shift); ``temporal_canonical_pass`` (T_{i→j}(y_c)) then ``temporal_merge_pass``;
+per spatial round ``spatial_canonical_pass`` (draws the neighbours into a
+:class:`~grisx.render.base.reuse.DomainList`, m_c) then ``spatial_merge_pass``. What one stage
+hands the next (the neighbours, m_c, p̂_{←j}(y_c), a variant's state) goes through per-pixel
+buffers; the images are bit-identical to the one-kernel passes. On CUDA these kernels run
+under :data:`~grisx.device.SHIFT_REGISTERS`.
+
 Temporal reuse evaluates the previous frame's domains with the current
 frame's geometry: exact for static scenes (how accumulation converges),
 an approximation when objects move (as in Lin et al. 2022).
