@@ -99,9 +99,9 @@ from grisx.scene.lights import (
     sample_light,
 )
 from grisx.render.base.reuse import (
-    neighbor_set_add,
-    neighbor_set_empty,
-    neighbor_set_pixel,
+    DomainList,
+    domain_code,
+    domain_pixel,
     SIMILARITY_DEPTH,
     SIMILARITY_NORMAL_COS,
     DoubleBuffer,
@@ -531,6 +531,8 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
         res_in: wp.array2d(dtype=Reservoir),
         lp_in: wp.array2d(dtype=LightPoint),
         est_in: wp.array2d(dtype=wp.vec3),
+        codes: wp.array3d(dtype=wp.int32),
+        slots: wp.array3d(dtype=wp.int32),
         res_out: wp.array2d(dtype=Reservoir),
         lp_out: wp.array2d(dtype=LightPoint),
         est_out: wp.array2d(dtype=wp.vec3),
@@ -548,15 +550,17 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
         if si.valid == 0:
             return
         wo = sf.wo[y, x]
-        # ---- choose the neighbours (similar G-buffer only), drawn once; k counts the accepted ones ----
-        ns = neighbor_set_empty()
+        # ---- choose the neighbours (similar G-buffer only), drawn once into a DomainList (global memory,
+        # not a per-thread array); k counts the accepted ones ----
         total = r_c.confidence
-        for i in range(neighbors):
+        k = int(0)
+        for i in range(wp.min(neighbors, codes.shape[2])):
             nb = spatial_neighbor(x, y, width, height, radius, wp.vec2(random_uniform(key, 4 * i), random_uniform(key, 4 * i + 1)))
             if nb.valid != 0 and pixels_similar(sf.g, x, y, sf.g, nb.x, nb.y, normal_cos, depth_tol):
-                ns = neighbor_set_add(ns, nb, i)
+                codes[y, x, k] = domain_code(nb.x, nb.y, width, 0)
+                slots[y, x, k] = i
+                k += 1
                 total += confidence_capped(res_in[nb.y, nb.x].confidence, history_cap)
-        k = ns.count
         if k == 0:
             return
         # ---- merge each neighbour with its pairwise MIS weight; collect the canonical weight ----
@@ -569,13 +573,13 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
         if wp.static(cv):
             aux_c = own_aux(scene, si, wo, r_c, y_c)
         for j in range(k):
-            nb = neighbor_set_pixel(ns, j)
+            nb = domain_pixel(codes[y, x, j], width)
             r_n = res_in[nb.y, nb.x]
             y_n = lp_in[nb.y, nb.x]
             r_n.confidence = confidence_capped(r_n.confidence, history_cap)
             si_n = sf.si[nb.y, nb.x]
             wo_n = sf.wo[nb.y, nb.x]
-            step = pairwise_step(scene, out, si, wo, r_c, y_c, si_n, wo_n, r_n, y_n, k, total, unbiased, random_uniform(key, 4 * ns.slot[j] + 2))
+            step = pairwise_step(scene, out, si, wo, r_c, y_c, si_n, wo_n, r_n, y_n, k, total, unbiased, random_uniform(key, 4 * slots[y, x, j] + 2))
             out = step.res
             m_c += step.canonical
             if out.selected:
@@ -678,6 +682,7 @@ class ReSTIRDI(ScreenSpaceRenderer):
         self.initial = triple()
         self.temporal_out = triple()
         self.final = DoubleBuffer(triple)  # this frame's / last frame's final reservoirs
+        self.spatial_domains = DomainList(self.height, self.width, self.neighbors, dev)  # the spatial pass's neighbours
         self.base = wp.zeros(shape, dtype=wp.vec3, device=dev)
         self.image = wp.zeros(shape, dtype=wp.vec3, device=dev)
         self.nonfinite = wp.zeros(1, dtype=wp.int32, device=dev)
@@ -732,7 +737,7 @@ class ReSTIRDI(ScreenSpaceRenderer):
                     dim=dim,
                     inputs=[
                         data, sf, self.neighbors, self.radius, self.history_cap, self.unbiased, SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH,
-                        self.cv_options, src[0], src[1], src[2],
+                        self.cv_options, src[0], src[1], src[2], self.spatial_domains.codes, self.spatial_domains.slots,
                     ],
                     outputs=[dst[0], dst[1], dst[2]],
                     device=dev,
