@@ -82,9 +82,8 @@ from grisx.render.base.registry import METHODS, RenderMethod, create_renderer, r
 from grisx.render.base.reuse import (
     SIMILARITY_DEPTH,
     SIMILARITY_NORMAL_COS,
-    neighbor_set_add,
-    neighbor_set_empty,
-    neighbor_set_pixel,
+    domain_code,
+    domain_pixel,
     pixels_similar,
     spatial_neighbor,
     temporal_neighbor,
@@ -125,7 +124,6 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     shifts = make_path_shift(kinds)
     shift = shifts.shift
     sample_paths = shifts.stream_candidates
-    settle = shifts.settle
     module = specialized_module(__name__, kinds)
 
     @wp.func
@@ -167,7 +165,7 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             key = pixel_key_of(seed, frame, x, y, width, _STREAM_PATHS + cand)
             pr = sample_paths(scene, dom, key, max_bounces, inv_n, sp, pr, random_subkey(ukey, cand))
         pr.res.confidence = 1.0  # also where the ray missed: those u are part of the pixel's domain
-        out[y, x] = settle(scene, dom, pr, sp)
+        out[y, x] = pr  # finalized by ReSTIR PT's settle pass (the walk and the shift are two kernels)
 
     # ---- temporal reuse ----
     @wp.kernel(module=module)
@@ -218,63 +216,94 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         out[y, x] = path_reservoir(r, sel)
         film_out[y, x] = sel_fs
 
-    # ---- spatial reuse ----
+    # ---- spatial reuse, in two stages (one film shift each): the canonical sample's pairwise weight, then the merge ----
     @wp.kernel(module=module)
-    def spatial_pass(
+    def spatial_canonical_pass(
         scene: SceneData, cam: CameraData, seed: int, frame: int, round_index: int, neighbors: int, radius: float, sp: ShiftParams,
         g: GBufferData,
         inp: wp.array2d(dtype=PathReservoir), film_in: wp.array2d(dtype=FilmSample),
         out: wp.array2d(dtype=PathReservoir), film_out: wp.array2d(dtype=FilmSample),
+        codes: wp.array3d(dtype=wp.int32), slots: wp.array3d(dtype=wp.int32), count: wp.array2d(dtype=wp.int32),
+        m_canonical: wp.array2d(dtype=float),
     ):
         y, x = wp.tid()
         width = inp.shape[1]
         height = inp.shape[0]
         can = inp[y, x]
         fs_c = film_in[y, x]
-        out[y, x] = can
-        film_out[y, x] = fs_c
+        count[y, x] = -1  # not resampled: the merge stage leaves the pixel as it is
         ukey = pixel_key_of(seed, frame, x, y, width, _STREAM_SPATIAL + round_index)
-        # ---- the neighbours, drawn once from the G-buffer alone ----
-        ns = neighbor_set_empty()
+        # ---- the neighbours, drawn once from the G-buffer alone into the DomainList ----
         c_c = can.res.confidence
         total = c_c
-        for q in range(neighbors):
+        k = int(0)
+        for q in range(wp.min(neighbors, codes.shape[2])):
             nb = spatial_neighbor(x, y, width, height, radius, wp.vec2(random_uniform(ukey, 2 * q), random_uniform(ukey, 2 * q + 1)))
             if nb.valid != 0 and pixels_similar(g, x, y, g, nb.x, nb.y, SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH):
-                ns = neighbor_set_add(ns, nb, q)
+                codes[y, x, k] = domain_code(nb.x, nb.y, width, 0)
+                slots[y, x, k] = q
+                k += 1
                 total += inp[nb.y, nb.x].res.confidence
-        k = ns.count
         if k == 0:
+            out[y, x] = can
+            film_out[y, x] = fs_c
             return
         # the canonical sample's pairwise weight: (u_c, l_c, y_c) moved to each neighbour
         t_c = path_target(can.path)
         m_c = float(0.0)
         for j in range(k):
-            nb = neighbor_set_pixel(ns, j)
+            nb = domain_pixel(codes[y, x, j], width)
             t_cq = target_to(film_shift(scene, cam, nb.x, nb.y, fs_c, can, sp))  # p̂_{←q}(y_c), seed 001, Eq. 16
             m_c += pairwise_mis_canonical_term(inp[nb.y, nb.x].res.confidence, t_cq, c_c, t_c, k, total)
+        m_canonical[y, x] = m_c
+        count[y, x] = k
+
+    @wp.kernel(module=module)
+    def spatial_merge_pass(
+        scene: SceneData, cam: CameraData, seed: int, frame: int, round_index: int, sp: ShiftParams,
+        inp: wp.array2d(dtype=PathReservoir), film_in: wp.array2d(dtype=FilmSample),
+        codes: wp.array3d(dtype=wp.int32), slots: wp.array3d(dtype=wp.int32), count: wp.array2d(dtype=wp.int32),
+        m_canonical: wp.array2d(dtype=float),
+        out: wp.array2d(dtype=PathReservoir), film_out: wp.array2d(dtype=FilmSample),
+    ):
+        y, x = wp.tid()
+        k = int(count[y, x])
+        if k < 0:
+            return
+        width = inp.shape[1]
+        can = inp[y, x]
+        fs_c = film_in[y, x]
+        ukey = pixel_key_of(seed, frame, x, y, width, _STREAM_SPATIAL + round_index)
+        c_c = can.res.confidence
+        total = c_c
+        for j in range(k):
+            nb = domain_pixel(codes[y, x, j], width)
+            total += inp[nb.y, nb.x].res.confidence
+        t_c = path_target(can.path)
+        m_c = m_canonical[y, x]
         r = reservoir_empty()
         r = reservoir_update(r, resampling_weight(m_c, t_c, can.res.ucw, 1.0), t_c, c_c, random_uniform(ukey, 100))
         sel = can.path
         sel_fs = fs_c
         # each neighbour's sample moved here by the whole-pixel translation, weighted against the canonical
         for j in range(k):
-            nb = neighbor_set_pixel(ns, j)
+            nb = domain_pixel(codes[y, x, j], width)
             other = inp[nb.y, nb.x]
             fs_q = film_in[nb.y, nb.x]
             s = film_shift(scene, cam, x, y, fs_q, other, sp)
             t_qi = path_target(s.path)
             t_qq = target_back(other.path, s)
             m_q = pairwise_mis_neighbor(other.res.confidence, t_qq, c_c, t_qi, k, total)
-            r = reservoir_merge(r, other.res, m_q, t_qi, s.jacobian, random_uniform(ukey, 101 + ns.slot[j]))  # seed 000, Eq. 9
+            r = reservoir_merge(r, other.res, m_q, t_qi, s.jacobian, random_uniform(ukey, 101 + slots[y, x, j]))  # seed 000, Eq. 9
             if r.selected:
                 sel = s.path
                 sel_fs = fs_q
         out[y, x] = path_reservoir(r, sel)
         film_out[y, x] = sel_fs
 
-    return {"primary": primary_pass, "initial": initial_pass, "temporal": temporal_pass, "spatial": spatial_pass,
-            "shade": make_restir_pt_kernels(kinds)["shade"]}
+    pt = make_restir_pt_kernels(kinds)  # ReSTIR PT's settle and shade passes serve as they are
+    return {"primary": primary_pass, "initial": initial_pass, "settle": pt["settle"], "temporal": temporal_pass,
+            "spatial_canonical": spatial_canonical_pass, "spatial_merge": spatial_merge_pass, "shade": pt["shade"]}
 
 
 class AreaReSTIR(ReSTIRPT):
@@ -314,6 +343,7 @@ class AreaReSTIR(ReSTIRPT):
         cur = self.buffers[1]
         with self._phase("initial"):
             wp.launch(k["initial"], dim=dim, inputs=[b.data, self.seed, sf, self.candidates, self.max_bounces, self.shift_params, self.domains[0]], outputs=[cur], device=dev)
+            wp.launch(k["settle"], dim=dim, inputs=[b.data, self.shift_params, self.domains[0]], outputs=[cur], device=dev)
         return cur, film
 
     def after_canonical(self, reservoirs: wp.array) -> None:
@@ -345,9 +375,15 @@ class AreaReSTIR(ReSTIRPT):
         for rnd in range(self.spatial_rounds):
             film_out = film_b if film_cur is not film_b else film_a
             with self._phase("spatial"):
+                nbs = self.spatial_domains
                 wp.launch(
-                    k["spatial"], dim=dim,
+                    k["spatial_canonical"], dim=dim,
                     inputs=[b.data, cam, self.seed, int(frame), rnd, self.neighbors, self.radius, self.shift_params, g, cur, film_cur],
+                    outputs=[other, film_out, nbs.codes, nbs.slots, nbs.count, self.m_canonical], device=dev,
+                )
+                wp.launch(
+                    k["spatial_merge"], dim=dim,
+                    inputs=[b.data, cam, self.seed, int(frame), rnd, self.shift_params, cur, film_cur, nbs.codes, nbs.slots, nbs.count, self.m_canonical],
                     outputs=[other, film_out], device=dev,
                 )
             cur, other = other, cur
