@@ -89,7 +89,7 @@ from grisx.render.base.reuse import (
     temporal_neighbor,
 )
 from grisx.render.base.screen import kernel_cache, pixel_key_of
-from grisx.render.restir_pt import ReSTIRPT, make_restir_pt_kernels, path_reservoir
+from grisx.render.restir_pt import ReSTIRPT, confidence_total, make_restir_pt_kernels, path_reservoir
 from grisx.scene.camera import CameraData
 from grisx.scene.gbuffer import GBufferData
 from grisx.scene.scene import SceneData
@@ -275,10 +275,7 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         fs_c = film_in[y, x]
         ukey = pixel_key_of(seed, frame, x, y, width, _STREAM_SPATIAL + round_index)
         c_c = can.res.confidence
-        total = c_c
-        for j in range(k):
-            nb = domain_pixel(codes[y, x, j], width)
-            total += inp[nb.y, nb.x].res.confidence
+        total = confidence_total(inp, codes, y, x, k, c_c)
         t_c = path_target(can.path)
         m_c = m_canonical[y, x]
         r = reservoir_empty()

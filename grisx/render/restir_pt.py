@@ -123,7 +123,7 @@ from grisx.theory.reservoir import Reservoir, confidence_capped, reservoir_empty
 
 wp.set_module_options({"enable_backward": False})
 
-__all__ = ["PathReservoir", "path_reservoir", "ReSTIRPT", "create_restir_pt", "make_restir_pt_kernels", "build_restir_pt_kernels", "PixelEstimateHooks", "TemporalStep", "SpatialStep", "shade_estimate"]
+__all__ = ["PathReservoir", "path_reservoir", "confidence_total", "ReSTIRPT", "create_restir_pt", "make_restir_pt_kernels", "build_restir_pt_kernels", "PixelEstimateHooks", "TemporalStep", "SpatialStep", "shade_estimate"]
 
 #: where direct light comes from: the path reservoirs' own NEE, or ReSTIR DI (Lin et al. 2022 handle it apart)
 DIRECT_CHOICES = ("nee", "restir-di")
@@ -141,6 +141,17 @@ def path_reservoir(r: Reservoir, path: PathSample) -> PathReservoir:
     pr.res = reservoir_finalize(r)
     pr.path = path
     return pr
+
+
+@wp.func
+def confidence_total(inp: wp.array2d(dtype=PathReservoir), codes: wp.array3d(dtype=wp.int32), y: int, x: int, k: int, c_c: float) -> float:
+    """Pairwise MIS's total confidence C = c_c + Σ of the k domains drawn into ``codes`` (in drawing order,
+    as the canonical stage summed it)."""
+    total = c_c
+    for j in range(k):
+        nb = domain_pixel(codes[y, x, j], inp.shape[1])
+        total += inp[nb.y, nb.x].res.confidence
+    return total
 
 
 @wp.func
@@ -486,10 +497,7 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
         dom_i = domains[y, x]
         ukey = pixel_key_of(seed, frame, x, y, width, _STREAM_SPATIAL + round_index)
         c_c = can.res.confidence
-        total = c_c
-        for j in range(k):
-            nb = domain_pixel(codes[y, x, j], width)
-            total += inp[nb.y, nb.x].res.confidence
+        total = confidence_total(inp, codes, y, x, k, c_c)
         t_c = path_target(can.path)
         m_c = m_canonical[y, x]
         if wp.static(est is not None):
