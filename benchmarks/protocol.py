@@ -262,7 +262,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--frames", type=int, default=32, help="frames per run (the second half is evaluated; all but the first timed)")
     ap.add_argument("--reference-spp", type=int, default=None, help="spp of each reference (default 1024 on CUDA, 256 on CPU)")
     ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--jobs", type=int, default=1, help="scenes rendered at once, one process each")
+    ap.add_argument("--jobs", type=int, default=1, help="compile processes at once, one per (scene, method); the measurements run one scene at a time")
     ap.add_argument("--quick", action="store_true", help="2 scenes, 8 frames, 64x36")
     ap.add_argument("--out", type=Path, default=Path(__file__).resolve().parent / "results" / "protocol")
     ap.add_argument("--scene-worker", default=None, help=argparse.SUPPRESS)
@@ -292,10 +292,13 @@ def main(argv: list[str] | None = None) -> int:
     worker_args = ["--device", args.device, "--res", f"{args.res[0]}x{args.res[1]}", "--frames", str(args.frames),
                    "--reference-spp", str(args.reference_spp), "--seed", str(args.seed), "--methods", methods_text]
     warm = []
-    for scene in scenes:  # compile in parallel
-        warm.append(subprocess.Popen([sys.executable, __file__, *worker_args, "--warmup-worker", scene], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=os.environ))
-        while sum(p.poll() is None for p in warm) >= args.jobs:
-            time.sleep(0.5)
+    entries = [e.strip() for e in methods_text.split(",") if e.strip()]
+    for scene in scenes:  # compile in parallel: one process per (scene, method), each module compiles on its own core
+        for entry in entries:
+            cmd = [sys.executable, __file__, *worker_args[:-2], "--methods", entry, "--warmup-worker", scene]
+            warm.append(subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=os.environ))
+            while sum(p.poll() is None for p in warm) >= args.jobs:
+                time.sleep(0.5)
     for p in warm:
         p.wait()
     procs = []
