@@ -15,10 +15,19 @@ Supported subset
 Document
     ``<scene version="X.Y.Z">`` (required; versions < 2 — Mitsuba 0.x files —
     have their camelCase parameter names converted to snake_case, as Mitsuba 3
-    does). ``<default name value>`` (top level) and ``$name`` in any
-    attribute value: the ``params`` argument overrides defaults; an unknown
-    ``$name`` is an error. ``id`` on any object and ``<ref id [name]>`` to
-    BSDFs and textures (in any order; ids are unique).
+    does). ``<default name value>`` (top level of a file) and ``$name`` in any
+    attribute value: the ``params`` argument overrides defaults (the first
+    default of a name wins; a default may follow its use); an unknown
+    ``$name`` is an error, and so is a ``params`` name the files never use.
+    ``<path value>`` (top level): a folder searched for file names before
+    the ones given earlier and the scene's folder (Mitsuba's file resolver;
+    relative to the file that holds it). ``<include filename>`` anywhere: the
+    file (found next to the including file, else through the resolver) is
+    read in place — a ``<scene>``'s children, or its one object; its own
+    ``<path>``, ``<default>`` and version apply; errors in it name it.
+    ``id`` on any object and ``<ref id [name]>`` to BSDFs, textures, and to
+    top-level ``film``/``sampler``/``rfilter`` objects from a sensor (in any
+    order; ids are unique).
 Values
     ``float``, ``integer``, ``boolean`` (true/false), ``string``,
     ``point``/``vector`` (``x, y, z`` attributes or ``value="x, y, z"``),
@@ -88,8 +97,8 @@ Transforms ``<transform name="to_world">``
     Both take ``to_uv`` (a ``<transform>``; its x/y rows and translation make
     Mitsuba's 2D affine map). Textures are supported as diffuse ``reflectance`` only.
 
-File names are relative to the XML file's directory (the current directory
-for XML given as a string). Elements not listed (``include``, ``medium``,
+File names are looked up in the ``<path>`` folders, then the XML file's directory (the current directory
+for XML given as a string). Elements not listed (``medium``,
 ``shapegroup``, ``instance``, other plugin types ...) are errors.
 
 References
@@ -166,6 +175,8 @@ _TRANSFORM_OPS = {"translate", "rotate", "scale", "matrix", "lookat"}
 _ALLOWED_ATTRS: dict[str, set[str]] = {
     "scene": {"version"},
     "default": {"name", "value"},
+    "path": {"value"},
+    "include": {"filename", "name"},
     "ref": {"id", "name"},
     "transform": {"name"},
     "float": {"name", "value"},
@@ -195,6 +206,7 @@ class _Node:
     attrs: dict[str, str]
     line: int
     children: list[_Node] = dataclasses.field(default_factory=list)
+    path: str | None = None  # the file it was read from (an <include>d file's own), None for XML given as a string
 
     def label(self) -> str:
         """How the element is named in messages: tag plus its type/name/id attributes."""
@@ -203,28 +215,42 @@ class _Node:
 
 
 class _Ctx:
-    """Where the file is, for messages and relative paths."""
+    """Where the file is, for messages and relative paths.
+
+    ``search`` is Mitsuba's file resolver: the folders that ``<path>`` elements
+    prepend, then the scene file's folder; a relative file name is looked up in
+    each in turn (:meth:`resolve`).
+    """
 
     def __init__(self, path: str | None, base_dir: Path):
         self.path, self.base_dir = path, base_dir
+        self.search: list[Path] = [base_dir]
+
+    def resolve(self, filename: str) -> Path:
+        """A file name as Mitsuba's resolver finds it: the first search folder that has it (else the scene's folder)."""
+        for folder in self.search:
+            candidate = folder / filename
+            if candidate.exists():
+                return candidate
+        return self.base_dir / filename
 
     def error(self, node: _Node | None, message: str, attribute: str | None = None) -> SceneFileError:
         return SceneFileError(
             message,
-            path=self.path,
+            path=node.path if node is not None and node.path is not None else self.path,
             line=None if node is None else node.line,
             element=None if node is None else node.label(),
             attribute=attribute,
         )
 
 
-def _parse_xml(data: bytes, ctx: _Ctx) -> _Node:
+def _parse_xml(data: bytes, ctx: _Ctx, path: str | None = None) -> _Node:
     parser = expat.ParserCreate()
     stack: list[_Node] = []
     roots: list[_Node] = []
 
     def start(tag: str, attrs: dict[str, str]) -> None:
-        node = _Node(tag, dict(attrs), parser.CurrentLineNumber)
+        node = _Node(tag, dict(attrs), parser.CurrentLineNumber, path=path)
         (stack[-1].children if stack else roots).append(node)
         stack.append(node)
 
@@ -243,7 +269,7 @@ def _parse_xml(data: bytes, ctx: _Ctx) -> _Node:
         parser.Parse(data, True)
     except expat.ExpatError as exc:
         raise SceneFileError(
-            f"malformed XML: {expat.ErrorString(exc.code)} (column {exc.offset + 1})", path=ctx.path, line=exc.lineno
+            f"malformed XML: {expat.ErrorString(exc.code)} (column {exc.offset + 1})", path=path or ctx.path, line=exc.lineno
         ) from None
     return roots[0]
 
@@ -252,52 +278,143 @@ def _camel_to_snake(name: str) -> str:
     return re.sub(r"(?<=[a-z0-9])(?=[A-Z])", "_", name).lower()  # toWorld → to_world, intIOR → int_ior
 
 
-def _prepare(root: _Node, ctx: _Ctx, params: dict[str, Any] | None) -> None:
-    """Check the root, apply ``default``/``$param`` substitution and attribute whitelists, upgrade 0.x names."""
-    if root.tag != "scene":
-        raise ctx.error(root, "the root element must be <scene>")
+#: Mitsuba's limit on nested <include>s (MI_XML_INCLUDE_MAX_RECURSION); deeper means a cycle, in practice
+_MAX_INCLUDE_DEPTH = 15
+
+
+def _version_major(root: _Node, ctx: _Ctx) -> int:
     version = root.attrs.get("version")
     if version is None:
         raise ctx.error(root, "missing attribute 'version' (e.g. version=\"3.0.0\")", "version")
     try:
-        major = int(version.split(".")[0])
+        return int(version.split(".")[0])
     except ValueError:
         raise ctx.error(root, f"attribute 'version': cannot parse '{version}'", "version") from None
-    defaults: dict[str, str] = {}
-    for child in root.children:
-        if child.tag == "default":
-            for a in ("name", "value"):
-                if a not in child.attrs:
-                    raise ctx.error(child, f"missing attribute '{a}'", a)
-            defaults[child.attrs["name"]] = child.attrs["value"]
-    values = dict(defaults)
-    for k, v in (params or {}).items():
-        values[str(k)] = v if isinstance(v, str) else (str(v).lower() if isinstance(v, bool) else repr(v) if isinstance(v, float) else str(v))
 
-    def visit(node: _Node, top: bool) -> None:
+
+def _upgrade(node: _Node) -> None:
+    """Mitsuba 0.x names → Mitsuba 3's, as its ``upgrade_tree`` does: camelCase → snake_case, ``lookAt`` → ``lookat``,
+    a diffuse BSDF's ``diffuse_reflectance`` → ``reflectance``."""
+    if node.tag == "lookAt":
+        node.tag = "lookat"
+    if "name" in node.attrs and node.tag != "default":
+        node.attrs["name"] = _camel_to_snake(node.attrs["name"])
+    for child in node.children:
+        _upgrade(child)
+        if node.tag == "bsdf" and node.attrs.get("type") == "diffuse" and child.attrs.get("name") == "diffuse_reflectance":
+            child.attrs["name"] = "reflectance"
+
+
+def _param_text(v: Any) -> str:
+    return v if isinstance(v, str) else (str(v).lower() if isinstance(v, bool) else repr(v) if isinstance(v, float) else str(v))
+
+
+class _Expander:
+    """Reads ``<path>`` into the file resolver and splices ``<include>``d files in place (first pass, in document
+    order, as Mitsuba's parser does); then applies ``<default>``/``$name`` substitution and the attribute
+    whitelists to the whole tree (second pass, so a default may come after its use, e.g. in a later include)."""
+
+    def __init__(self, ctx: _Ctx, params: dict[str, Any] | None):
+        self.ctx = ctx
+        self.values = {str(k): _param_text(v) for k, v in (params or {}).items()}
+        self.given = set(self.values)
+        self.used: set[str] = set()
+
+    # -- first pass: <default>, <path>, <include>
+    def expand(self, node: _Node, depth: int, top: bool) -> list[_Node]:
+        """``node``'s children with includes spliced in; ``top``: ``node`` is a file's <scene>."""
+        out: list[_Node] = []
+        for child in node.children:
+            if child.tag in ("default", "path", "include"):
+                self.attributes(child)
+            if child.tag in ("default", "path") and not top:
+                raise self.ctx.error(child, f"<{child.tag}> is only allowed directly inside <scene>")
+            if child.tag == "default":
+                for a in ("name", "value"):
+                    if a not in child.attrs:
+                        raise self.ctx.error(child, f"missing attribute '{a}'", a)
+                self.used.add(child.attrs["name"])
+                self.values.setdefault(child.attrs["name"], child.attrs["value"])  # a caller's value, or the first, wins
+            elif child.tag == "path":
+                self.path(child)
+            elif child.tag == "include":
+                out.extend(self.include(child, depth))
+            else:
+                child.children = self.expand(child, depth, top=False)
+                out.append(child)
+        return out
+
+    def _folder(self, node: _Node) -> Path:
+        return Path(node.path).resolve().parent if node.path is not None else self.ctx.base_dir
+
+    def _find(self, node: _Node, attr: str, what: str, exists: Any) -> Path:
+        """``node``'s ``attr``: relative to its file's folder, else found by the resolver (Mitsuba's order)."""
+        if attr not in node.attrs:
+            raise self.ctx.error(node, f"missing attribute '{attr}'", attr)
+        value = node.attrs[attr]
+        for found in (self._folder(node) / value, self.ctx.resolve(value)):
+            if exists(found):
+                return found
+        raise self.ctx.error(node, f"attribute '{attr}': {what} '{value}' not found (relative to {self._folder(node)})", attr)
+
+    def path(self, node: _Node) -> None:
+        """``<path value>``: a folder, searched first from now on."""
+        self.ctx.search.insert(0, self._find(node, "value", "folder", Path.is_dir).resolve())
+
+    def include(self, node: _Node, depth: int) -> list[_Node]:
+        """``<include filename>``: the file's <scene> children (or its one object) in place of the element."""
+        path = self._find(node, "filename", "included file", Path.is_file)
+        if depth >= _MAX_INCLUDE_DEPTH:
+            raise self.ctx.error(node, f"<include> nested deeper than {_MAX_INCLUDE_DEPTH} files (does a file include itself?)")
+        root = _parse_xml(path.read_bytes(), self.ctx, str(path))
+        if _version_major(root, self.ctx) < 2:
+            _upgrade(root)
+        del root.attrs["version"]
+        if root.tag == "scene":
+            return self.expand(root, depth + 1, top=True)
+        root.children = self.expand(root, depth + 1, top=False)
+        return [root]
+
+    # -- second pass: $name substitution and attribute whitelists
+    def attributes(self, node: _Node) -> None:
         allowed = _ALLOWED_ATTRS.get(node.tag)
         if allowed is None:
-            raise ctx.error(node, f"unsupported element <{node.tag}>")
-        if node.tag == "default" and not top:
-            raise ctx.error(node, "<default> is only allowed directly inside <scene>")
+            raise self.ctx.error(node, f"unsupported element <{node.tag}>")
         for attr, raw in list(node.attrs.items()):
             if attr not in allowed:
-                raise ctx.error(node, f"unsupported attribute '{attr}'", attr)
+                raise self.ctx.error(node, f"unsupported attribute '{attr}'", attr)
 
             def sub(m: re.Match[str], attr: str = attr) -> str:
-                if m.group(1) not in values:
-                    raise ctx.error(node, f"attribute '{attr}': unknown parameter '${m.group(1)}' "
-                                          f"(no <default> and not passed in params)", attr)
-                return values[m.group(1)]
+                if m.group(1) not in self.values:
+                    raise self.ctx.error(node, f"attribute '{attr}': unknown parameter '${m.group(1)}' "
+                                               f"(no <default> and not passed in params)", attr)
+                self.used.add(m.group(1))
+                return self.values[m.group(1)]
 
-            if node.tag != "default":
-                node.attrs[attr] = _PARAM_RE.sub(sub, raw)
-        if major < 2 and "name" in node.attrs:
-            node.attrs["name"] = _camel_to_snake(node.attrs["name"])
+            node.attrs[attr] = _PARAM_RE.sub(sub, raw)
+
+    def visit(self, node: _Node) -> None:
         for child in node.children:
-            visit(child, top=node is root)
+            self.attributes(child)
+            self.visit(child)
 
-    visit(root, top=False)
+
+def _prepare(root: _Node, ctx: _Ctx, params: dict[str, Any] | None) -> None:
+    """Check the root; apply ``default``/``$param`` substitution, ``<path>``, ``<include>`` and the attribute
+    whitelists; upgrade 0.x names. A ``params`` name that the file never uses is an error (as in Mitsuba)."""
+    if root.tag != "scene":
+        raise ctx.error(root, "the root element must be <scene>")
+    if _version_major(root, ctx) < 2:
+        _upgrade(root)
+    expander = _Expander(ctx, params)
+    root.children = expander.expand(root, 0, top=True)
+    expander.attributes(root)
+    expander.visit(root)
+    unknown = sorted(expander.given - expander.used)
+    if unknown:
+        known = sorted(n for n in expander.used if n not in expander.given) or ["none"]
+        raise SceneFileError(f"unknown scene parameter(s) {', '.join(repr(n) for n in unknown)}: the file has no "
+                             f"<default> or $name by that name (its parameters: {', '.join(known)})", path=ctx.path)
 
 
 # ---- numbers and transforms ------------------------------------------------------
@@ -629,8 +746,8 @@ class _Loader:
     def run(self) -> None:
         for child in self.root.children:
             tag = child.tag
-            if tag == "default":
-                continue
+            if tag in ("film", "sampler", "rfilter") and "id" in child.attrs:
+                continue  # read where a sensor references it (Mitsuba instantiates these by reference too)
             if tag == "shape":
                 self.shape(child)
             elif tag == "bsdf":
@@ -676,7 +793,7 @@ class _Loader:
         return TextureRef(self.texture_id(node))
 
     def image(self, node: _Node, filename: str, raw: bool = False) -> np.ndarray:
-        path = self.ctx.base_dir / filename
+        path = self.ctx.resolve(filename)
         try:
             return load_image(path, raw=raw)
         except GrisxError as exc:
@@ -794,7 +911,7 @@ class _Loader:
                 suffix = Path(filename).suffix.lower()
                 if suffix != "." + t:
                     raise self.ctx.error(p.values["filename"], f"a <shape type=\"{t}\"> needs a .{t} file, got '{filename}'", "filename")
-                mesh = shapes.load_mesh(self.ctx.base_dir / filename, face_normals=face_normals,
+                mesh = shapes.load_mesh(self.ctx.resolve(filename), face_normals=face_normals,
                                         flip_normals=flip, flip_tex_coords=flip_tex)
         except GrisxError as exc:
             if isinstance(exc, SceneFileError):
@@ -873,7 +990,7 @@ class _Loader:
             to_world = p.transform("to_world")
             p.bool("mis_compensation", False)  # a sampling choice: the expected image is the same
             try:
-                image = load_envmap_image(self.ctx.base_dir / filename)
+                image = load_envmap_image(self.ctx.resolve(filename))
             except GrisxError as exc:
                 raise self.ctx.error(p.values["filename"], f"parameter 'filename': {exc}", "filename") from None
             env = EnvMap(image=image, scale=scale, to_world=np.eye(4) if to_world is None else to_world)

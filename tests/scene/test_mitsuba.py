@@ -386,7 +386,9 @@ ERRORS = [
     ("<scene>\n</scene>", 1, "scene", "version", "version"),
     ('<scenes version="3.0.0"/>', 1, "scenes", None, "root element"),
     (doc('<medium type="homogeneous"/>'), 2, "medium", None, "unsupported element"),
-    (doc('<include filename="x.xml"/>'), 2, "include", None, "unsupported element"),
+    (doc('<include filename="x.xml"/>'), 2, "include", "filename", "included file 'x.xml' not found"),
+    (doc('<path value="no/such/folder"/>'), 2, "path", "value", "folder 'no/such/folder' not found"),
+    (doc('<shape type="cube">\n<path value="."/></shape>'), 3, "path", None, "only allowed directly inside <scene>"),
     (doc('<shape type="shapegroup"/>'), 2, "shape", "type", "unsupported shape type 'shapegroup'"),
     (doc('<shape type="cube">\n<bsdf type="plastic"/>\n</shape>'), 3, "bsdf", "type", "plastic"),
     (doc('<shape type="cube">\n<bsdf type="diffuse">\n<float name="foo" value="1"/></bsdf></shape>'), 4, "float", "foo", "unsupported parameter 'foo'"),
@@ -487,3 +489,74 @@ def test_spot_lights_point_along_local_z_with_mitsubas_cone_defaults():
     assert a.cutoff_angle == 20.0 and a.beam_width == 15.0  # Mitsuba: cutoff 20°, beam ¾ of it
     np.testing.assert_allclose(b.direction, [0, 0, 1])
     assert (b.cutoff_angle, b.beam_width) == (40.0, 5.0)
+
+
+# ---- <path>, <include>, <default> and params across files ----------------------------------------------
+
+
+def _write(path: Path, text: str) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text)
+    return path
+
+
+@pytest.fixture
+def tree(tmp_path):
+    """A scene in scenes/ that finds a mesh through <path> and includes a file that holds the default it uses."""
+    root = tmp_path / "data"
+    (root / "common" / "meshes").mkdir(parents=True)
+    (root / "common" / "meshes" / "quad.ply").write_bytes((DATA / "quad.ply").read_bytes())
+    _write(root / "scenes" / "include" / "parts.xml", '<scene version="3.0.0">\n'
+           '    <path value="../../common"/>\n'
+           '    <default name="spp" value="12"/>\n'
+           '    <shape type="ply"><string name="filename" value="meshes/quad.ply"/><ref id="mat"/></shape>\n'
+           '</scene>\n')
+    _write(root / "scenes" / "include" / "bsdf.xml", '<bsdf version="3.0.0" type="diffuse" id="mat">\n'
+           '    <rgb name="reflectance" value="$albedo"/>\n</bsdf>\n')
+    main = _write(root / "scenes" / "main.xml", '<scene version="3.0.0">\n'
+                  '    <path value="../common"/>\n'
+                  '    <default name="albedo" value="0.25"/>\n'
+                  '    <sensor type="perspective"><sampler type="independent">\n'
+                  '        <integer name="sample_count" value="$spp"/></sampler></sensor>\n'
+                  '    <include filename="include/bsdf.xml"/>\n'
+                  '    <include filename="include/parts.xml"/>\n'
+                  '</scene>\n')
+    return main
+
+
+def test_path_and_include_splice_files_in_document_order(tree):
+    s = load_mitsuba(tree)
+    assert s.defaults["spp"] == 12  # a default from an included file, after its use
+    assert [type(m) for m in s.materials] == [Diffuse] and s.materials[0].reflectance == (0.25, 0.25, 0.25)
+    assert s.triangle_count == len(shapes.load_mesh(DATA / "quad.ply").faces)  # found through the included file's <path>
+
+
+def test_params_override_defaults_of_included_files(tree):
+    s = load_mitsuba(tree, params={"spp": 3, "albedo": "0.5"})
+    assert s.defaults["spp"] == 3 and s.materials[0].reflectance == (0.5, 0.5, 0.5)
+
+
+def test_unknown_param_names_are_refused(tree):
+    with pytest.raises(SceneFileError, match=r"unknown scene parameter\(s\) 'sp'.*its parameters: albedo, spp"):
+        load_mitsuba(tree, params={"sp": 3})
+
+
+def test_errors_in_included_files_name_that_file_and_line(tree):
+    inc = tree.parent / "include" / "parts.xml"
+    inc.write_text(inc.read_text().replace('<ref id="mat"/>', '<bsdf type="glossy"/>'))
+    with pytest.raises(SceneFileError) as info:
+        load_mitsuba(tree)
+    assert info.value.path == str(inc) and info.value.line == 4 and f"{inc}:4:" in str(info.value)
+
+
+def test_an_include_cycle_is_refused(tmp_path):
+    f = _write(tmp_path / "a.xml", '<scene version="3.0.0">\n<include filename="a.xml"/>\n</scene>\n')
+    with pytest.raises(SceneFileError, match="nested deeper"):
+        load_mitsuba(f)
+
+
+def test_a_referenced_top_level_sampler_and_film():
+    s = load_mitsuba(doc('<sampler type="independent" id="smp"><integer name="sample_count" value="7"/></sampler>\n'
+                         '<film type="hdrfilm" id="flm"><integer name="width" value="32"/></film>\n'
+                         '<sensor type="perspective"><ref id="smp"/><ref id="flm"/></sensor>'))
+    assert s.defaults["spp"] == 7 and s.film.width == 32
