@@ -67,7 +67,8 @@ Transforms ``<transform name="to_world">``
 ``shape``
     ``rectangle``, ``cube`` (``face_normals``), ``sphere`` (``center``,
     ``radius``), ``cylinder`` (``p0``, ``p1``, ``radius``), ``disk``, ``obj`` (``filename``, ``face_normals``, ``flip_tex_coords`` [true]),
-    ``ply`` (``filename``, ``face_normals``, ``flip_tex_coords`` [false]); all with ``to_world`` and
+    ``ply`` (``filename``, ``face_normals``, ``flip_tex_coords`` [false]), ``serialized`` (``filename``,
+    ``shape_index`` [0], ``face_normals``; :mod:`grisx.scene.serialized`); all with ``to_world`` and
     ``flip_normals``; a nested or referenced ``bsdf`` (default: diffuse 0.5 — black
     on a shape with an emitter, as in Mitsuba 3) and a nested ``emitter type="area"``. Geometry: :mod:`grisx.scene.shapes`.
 ``bsdf``
@@ -121,6 +122,7 @@ import numpy as np
 
 from grisx.errors import GrisxError, SceneFileError
 from grisx.scene import shapes
+from grisx.scene.serialized import load_serialized
 from grisx.scene import transform as xf
 from grisx.scene.camera import Camera, lookat
 from grisx.scene.lights import ConstantEnvironment, EnvMap, load_envmap_image
@@ -873,7 +875,7 @@ class _Loader:
 
     # -- shapes
     def shape(self, node: _Node) -> None:
-        t = self._require_type(node, ("obj", "ply", "rectangle", "cube", "sphere", "disk", "cylinder"))
+        t = self._require_type(node, ("obj", "ply", "serialized", "rectangle", "cube", "sphere", "disk", "cylinder"))
         p = _Props(self, node)
         to_world = p.transform("to_world")
         to_world = np.eye(4) if to_world is None else to_world
@@ -904,6 +906,13 @@ class _Loader:
                 # cylinder.cpp: to_world · translate(p0) · to_frame(Frame3f(d / |d|)) · scale(radius, radius, |d|)
                 to_world = to_world @ xf.translate(p0) @ xf.to_frame((p1 - p0) / length) @ xf.scale((radius, radius, length))
                 mesh = shapes.cylinder(flip_normals=flip)
+            elif t == "serialized":
+                filename = p.string("filename")
+                index = p.int("shape_index", 0)
+                if index < 0:
+                    raise self.ctx.error(p.values["shape_index"], f"shape_index must be >= 0, got {index}", "shape_index")
+                mesh = shapes.finish_mesh(load_serialized(self.ctx.resolve(filename), index),
+                                          face_normals=p.bool("face_normals", False), flip_normals=flip)
             else:
                 filename = p.string("filename")
                 face_normals = p.bool("face_normals", False)

@@ -83,6 +83,7 @@ __all__ = [
     "vertex_normals",
     "mesh_area",
     "face_normals_of",
+    "finish_mesh",
 ]
 
 
@@ -476,6 +477,12 @@ def load_mesh(
         mesh = load_ply(path, flip_tex_coords=bool(flip_tex_coords))
     else:
         raise _mesh_error(path, f"unknown mesh format '{suffix}' (expected .obj or .ply)")
+    return finish_mesh(mesh, face_normals, flip_normals)
+
+
+def finish_mesh(mesh: MeshData, face_normals: bool = False, flip_normals: bool = False) -> MeshData:
+    """A file's mesh as Mitsuba renders it: face normals if asked, else the file's vertex normals or
+    Mitsuba's smooth ones where it has none; turned inside out with ``flip_normals``."""
     if face_normals:
         mesh = MeshData(mesh.vertices, mesh.faces, None, mesh.uvs)
     elif mesh.normals is None:
