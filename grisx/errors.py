@@ -15,7 +15,12 @@ __all__ = [
     "InvalidValueError",
     "DeviceError",
     "SceneFileError",
+    "GrisxWarning",
+    "INT32_MAX",
 ]
+
+#: the largest integer a kernel argument holds (Warp passes ``int`` as int32); larger values would wrap
+INT32_MAX = 2**31 - 1
 
 
 class GrisxError(ValueError):
@@ -57,3 +62,10 @@ class SceneFileError(GrisxError):
             where += f":{line}"
         what = f" <{element}>" if element else ""
         super().__init__(f"{where}:{what} {message}")
+
+
+class GrisxWarning(UserWarning):
+    """Something the user should know that did not stop the work (e.g. non-finite samples dropped).
+
+    The CLI prints each as one line ``grisx: warning: ...`` on stderr.
+    """

@@ -434,7 +434,12 @@ def _numbers(ctx: _Ctx, node: _Node, attr: str, counts: tuple[int, ...]) -> list
     if len(vals) not in counts or not all(math.isfinite(v) for v in vals):
         want = " or ".join(str(c) for c in counts)
         raise ctx.error(node, f"attribute '{attr}': expected {want} finite number(s), got '{raw}'", attr)
+    if any(abs(v) > _FLOAT32_MAX for v in vals):  # kernels compute in float32: it would be Inf there
+        raise ctx.error(node, f"attribute '{attr}': '{raw}' is beyond float32's range (|x| <= 3.4e38)", attr)
     return vals
+
+
+_FLOAT32_MAX = float(np.finfo(np.float32).max)
 
 
 def _xyz(ctx: _Ctx, node: _Node, default: float) -> np.ndarray:
@@ -1122,7 +1127,11 @@ def load_mitsuba(path_or_string: str | os.PathLike, params: dict[str, Any] | Non
         ctx = _Ctx(None, Path.cwd())
         name = "mitsuba"
     else:
+        if not str(path_or_string).strip():
+            raise GrisxError("the scene file path is empty (give a Mitsuba XML file, or XML text starting with '<')")
         path = Path(path_or_string)
+        if path.is_dir():
+            raise SceneFileError(f"'{path}' is a directory, not a scene file", path=str(path))
         if not path.is_file():
             raise SceneFileError(f"no such scene file '{path}'", path=str(path))
         data = path.read_bytes()
