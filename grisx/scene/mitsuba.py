@@ -64,6 +64,15 @@ Transforms ``<transform name="to_world">``
     unbounded] → ``scene.defaults["max_depth"]`` with Mitsuba's meaning (1 =
     directly visible emitters only, 2 = direct lighting, ...); ``rr_depth``
     [5] → ``scene.defaults["rr_depth"]``; ``hide_emitters`` false only.
+    Others are read as what they estimate: ``ptracer`` (the same image traced
+    from the lights) as path tracing at its ``max_depth``; ``direct``
+    (``emitter_samples``, ``bsdf_samples``, ``shading_samples``: sampling
+    choices) as ``max_depth`` 2; ``moment`` and ``aov`` as their one nested
+    integrator (their extra channels are not rendered); ``volpathmis``,
+    ``prb``, ``prb_basic``, ``prbvolpath`` and Mitsuba 0.x's ``bdpt``,
+    ``pssmlt``, ``mlt``, ``erpt`` (unbiased estimators of the same image) as
+    path tracing, with a :class:`~grisx.errors.GrisxWarning` saying so.
+    ``stokes`` (polarization) is refused.
 ``shape``
     ``rectangle``, ``cube`` (``face_normals``), ``sphere`` (``center``,
     ``radius``), ``cylinder`` (``p0``, ``p1``, ``radius``), ``disk``, ``obj`` (``filename``, ``face_normals``, ``flip_tex_coords`` [true]),
@@ -114,13 +123,14 @@ import dataclasses
 import math
 import os
 import re
+import warnings
 from pathlib import Path
 from typing import Any
 from xml.parsers import expat
 
 import numpy as np
 
-from grisx.errors import GrisxError, SceneFileError
+from grisx.errors import GrisxError, GrisxWarning, SceneFileError
 from grisx.scene import shapes
 from grisx.scene.serialized import load_serialized
 from grisx.scene import transform as xf
@@ -236,6 +246,10 @@ class _Ctx:
                 return candidate
         return self.base_dir / filename
 
+    def where(self, node: _Node) -> str:
+        """``file:line: <element>``, as errors begin."""
+        return str(self.error(node, "")).rstrip()
+
     def error(self, node: _Node | None, message: str, attribute: str | None = None) -> SceneFileError:
         return SceneFileError(
             message,
@@ -279,6 +293,15 @@ def _parse_xml(data: bytes, ctx: _Ctx, path: str | None = None) -> _Node:
 def _camel_to_snake(name: str) -> str:
     return re.sub(r"(?<=[a-z0-9])(?=[A-Z])", "_", name).lower()  # toWorld → to_world, intIOR → int_ior
 
+
+#: why some elements and plugin types are refused (what grisx cannot render), said in their error
+_WHY_NOT = {
+    **dict.fromkeys(("medium", "phase", "volume", "homogeneous", "heterogeneous", "volpath_media"),
+                    "participating media are not rendered by grisx (surfaces only)"),
+    **dict.fromkeys(("stokes", "measured_polarized", "polarizer", "retarder", "pplastic"),
+                    "polarization is not rendered by grisx (RGB radiance only)"),
+    "depth": "grisx integrators render radiance", "orthographic": "grisx cameras are perspective or thin-lens",
+}
 
 #: Mitsuba's limit on nested <include>s (MI_XML_INCLUDE_MAX_RECURSION); deeper means a cycle, in practice
 _MAX_INCLUDE_DEPTH = 15
@@ -381,7 +404,8 @@ class _Expander:
     def attributes(self, node: _Node) -> None:
         allowed = _ALLOWED_ATTRS.get(node.tag)
         if allowed is None:
-            raise self.ctx.error(node, f"unsupported element <{node.tag}>")
+            why = _WHY_NOT.get(node.tag, "")
+            raise self.ctx.error(node, f"unsupported element <{node.tag}>{why and ': ' + why}")
         for attr, raw in list(node.attrs.items()):
             if attr not in allowed:
                 raise self.ctx.error(node, f"unsupported attribute '{attr}'", attr)
@@ -746,7 +770,8 @@ class _Loader:
         if not t:
             raise self.ctx.error(node, "missing attribute 'type'", "type")
         if t not in supported:
-            raise self.ctx.error(node, f"unsupported {node.tag} type '{t}' (supported: {', '.join(supported)})", "type")
+            why = _WHY_NOT.get(t, "")
+            raise self.ctx.error(node, f"unsupported {node.tag} type '{t}'{why and ': ' + why} (supported: {', '.join(supported)})", "type")
         return t
 
     # -- top level
@@ -1099,10 +1124,34 @@ class _Loader:
         self.scene.defaults["spp"] = spp
 
     def integrator(self, node: _Node) -> None:
-        self._require_type(node, ("path", "volpath"))
+        """An integrator read as what it estimates: path tracing at its ``max_depth`` (see the module docstring)."""
+        node = self._deref(node, "integrator")
+        t = self._require_type(node, _PATH_INTEGRATORS + _DIRECT_INTEGRATORS + _WRAPPER_INTEGRATORS + tuple(_PT_ALIKE))
         p = _Props(self, node)
-        max_depth = p.int("max_depth", -1)
-        rr_depth = p.int("rr_depth", 5)
+        if t in _WRAPPER_INTEGRATORS:  # moment / aov: the image channels are the nested integrator's
+            if t == "aov":
+                p.string("aovs", "")  # extra channels; grisx renders the image only
+            inner = p.take_objects(("integrator",))
+            p.finish()
+            if len(inner) != 1:
+                raise self.ctx.error(node, f"a {t} integrator needs exactly one nested integrator here, got {len(inner)}")
+            self.integrator(inner[0])
+            return
+        if t in _DIRECT_INTEGRATORS:  # direct illumination = paths of two segments, sampled as the estimator likes
+            for name in ("shading_samples", "emitter_samples", "bsdf_samples"):
+                p.int(name, 1)
+            max_depth, rr_depth = 2, 5
+        else:
+            max_depth = p.int("max_depth", -1)
+            rr_depth = p.int("rr_depth", 5)
+        if t == "ptracer":
+            p.int("samples_per_pass", 0)  # a scheduling choice
+        if t in _PT_ALIKE:
+            for name in _PT_ALIKE[t]:
+                if name in p.values:
+                    p.used.add(name)  # the estimator's own sampling options: the expected image is the same
+            warnings.warn(f"{self.ctx.where(node)} read as path tracing (pt) at max_depth {max_depth}: "
+                          f"an unbiased estimator of the same image", GrisxWarning, stacklevel=2)
         if p.bool("hide_emitters", False):
             raise self.ctx.error(p.values["hide_emitters"], "hide_emitters=true is not supported", "hide_emitters")
         p.finish()
@@ -1112,6 +1161,25 @@ class _Loader:
             raise self.ctx.error(p.values.get("rr_depth", node), f"rr_depth must be >= 1, got {rr_depth}", "rr_depth")
         self.scene.defaults["max_depth"] = max_depth
         self.scene.defaults["rr_depth"] = rr_depth
+
+
+_PATH_INTEGRATORS = ("path", "volpath", "ptracer")  # volpath without media is path; ptracer: the same image from the lights
+_DIRECT_INTEGRATORS = ("direct",)
+_WRAPPER_INTEGRATORS = ("moment", "aov")
+#: unbiased estimators of the path-traced image (Mitsuba 3 and 0.x plugins), read as ``pt`` with a notice;
+#: the names are the sampling options they take, which change no expected value
+_PT_ALIKE: dict[str, tuple[str, ...]] = {
+    "volpathmis": (),
+    "prb": (),
+    "prb_basic": (),
+    "prbvolpath": (),
+    "bdpt": ("light_image", "sample_direct"),
+    "pssmlt": ("bidirectional", "direct_samples", "luminance_samples", "two_stage", "p_large"),
+    "mlt": ("direct_samples", "luminance_samples", "two_stage", "bidirectional_mutation", "lens_perturbation",
+            "multi_chain_perturbation", "caustic_perturbation", "manifold_perturbation", "lambda"),
+    "erpt": ("direct_samples", "luminance_samples", "chain_length", "num_chains", "max_chains",
+             "lens_perturbation", "multi_chain_perturbation", "caustic_perturbation", "manifold_perturbation", "lambda"),
+}
 
 
 def load_mitsuba(path_or_string: str | os.PathLike, params: dict[str, Any] | None = None) -> Scene:

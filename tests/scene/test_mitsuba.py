@@ -385,7 +385,7 @@ ERRORS = [
     ("<scene version='3.0.0'>\n<shape type=\"cube\"/>\n<shape", 3, None, None, "malformed XML"),
     ("<scene>\n</scene>", 1, "scene", "version", "version"),
     ('<scenes version="3.0.0"/>', 1, "scenes", None, "root element"),
-    (doc('<medium type="homogeneous"/>'), 2, "medium", None, "unsupported element"),
+    (doc('<medium type="homogeneous"/>'), 2, "medium", None, "unsupported element <medium>: participating media"),
     (doc('<include filename="x.xml"/>'), 2, "include", "filename", "included file 'x.xml' not found"),
     (doc('<path value="no/such/folder"/>'), 2, "path", "value", "folder 'no/such/folder' not found"),
     (doc('<shape type="cube">\n<path value="."/></shape>'), 3, "path", None, "only allowed directly inside <scene>"),
@@ -404,7 +404,8 @@ ERRORS = [
     (doc('<shape type="cube"><bsdf type="diffuse">\n<spectrum name="reflectance" value="400:0.1, 700:0.5"/></bsdf></shape>'),
      3, "spectrum", "value", "wavelength"),
     (doc('<sensor type="perspective"><film type="hdrfilm">\n<rfilter type="tent"/></film></sensor>'), 3, "rfilter", "type", "tent"),
-    (doc('<integrator type="bdpt"/>'), 2, "integrator", "type", "bdpt"),
+    (doc('<integrator type="stokes"><integrator type="path"/></integrator>'), 2, "integrator", "type", "polarization"),
+    (doc('<integrator type="moment"/>'), 2, "integrator", None, "exactly one nested integrator"),
     (doc('<sensor type="orthographic"/>'), 2, "sensor", "type", "orthographic"),
     (doc('<emitter type="area"><rgb name="radiance" value="1"/></emitter>'), 2, "emitter", "type", "nested inside a <shape>"),
     (doc('<emitter type="constant"/>\n<emitter type="constant"/>'), 3, "emitter", None, "only one environment"),
@@ -560,3 +561,27 @@ def test_a_referenced_top_level_sampler_and_film():
                          '<film type="hdrfilm" id="flm"><integer name="width" value="32"/></film>\n'
                          '<sensor type="perspective"><ref id="smp"/><ref id="flm"/></sensor>'))
     assert s.defaults["spp"] == 7 and s.film.width == 32
+
+
+# ---- integrators read as what they estimate --------------------------------------------------------
+
+
+@pytest.mark.parametrize("xml, max_depth, rr_depth", [
+    ('<integrator type="moment"><integrator type="path"><integer name="max_depth" value="3"/></integrator></integrator>', 3, 5),
+    ('<integrator type="aov"><string name="aovs" value="nn:sh_normal"/><integrator type="volpath" name="image">'
+     '<integer name="rr_depth" value="2"/></integrator></integrator>', -1, 2),
+    ('<integrator type="direct"><integer name="emitter_samples" value="0"/><integer name="bsdf_samples" value="4"/></integrator>', 2, 5),
+    ('<integrator type="ptracer"><integer name="max_depth" value="7"/><integer name="samples_per_pass" value="9"/></integrator>', 7, 5),
+])
+def test_integrators_read_as_path_tracing_at_their_depth(xml, max_depth, rr_depth):
+    s = load_mitsuba(doc(xml))
+    assert (s.defaults["max_depth"], s.defaults["rr_depth"]) == (max_depth, rr_depth)
+
+
+def test_other_unbiased_integrators_read_as_pt_with_a_notice():
+    from grisx.errors import GrisxWarning
+
+    with pytest.warns(GrisxWarning, match=r'<string>:2: <integrator type="bdpt"> read as path tracing \(pt\) at max_depth 6'):
+        s = load_mitsuba(doc('<integrator type="bdpt"><integer name="max_depth" value="6"/>\n'
+                             '<boolean name="light_image" value="true"/></integrator>'))
+    assert s.defaults["max_depth"] == 6
