@@ -31,8 +31,12 @@ Document
 Values
     ``float``, ``integer``, ``boolean`` (true/false), ``string``,
     ``point``/``vector`` (``x, y, z`` attributes or ``value="x, y, z"``),
-    ``rgb`` (``value``: 3 numbers, or 1 broadcast), ``spectrum`` (one constant
-    ``value`` only). Numbers may be separated by commas and/or spaces.
+    ``rgb`` (``value``: 3 numbers, or 1 broadcast), ``spectrum`` (a constant
+    ``value``, ``wavelength:value`` pairs, an ``.spd`` ``filename``, or
+    ``type="blackbody"`` with ``temperature`` [K], ``wavelength_min``,
+    ``wavelength_max`` in emitters), reduced to RGB as Mitsuba 3's RGB variants
+    do — a flat emission spectrum is not white under sRGB's D65 white point
+    (:mod:`grisx.scene.spectrum`). Numbers may be separated by commas and/or spaces.
     Where a colour is expected, ``rgb``, ``spectrum`` and ``float`` are accepted.
 Transforms ``<transform name="to_world">``
     ``translate`` (x/y/z or value), ``rotate`` (axis as x/y/z or value,
@@ -92,7 +96,8 @@ Transforms ``<transform name="to_world">``
     ``specular_reflectance``, ``specular_transmittance``); ``twosided`` around
     one non-transmissive BSDF.
 ``emitter``
-    ``area`` (inside a shape; ``radiance``, required), ``constant``
+    ``area`` (inside a shape, or top-level with an ``id`` that one shape
+    references; ``radiance``, required), ``constant``
     (``radiance`` [1]), ``envmap`` (``filename``, ``scale`` [1], ``to_world``;
     ``mis_compensation`` accepted, ignored), ``point`` (``position`` or
     ``to_world``, ``intensity`` [1]), ``spot`` (``to_world``: the cone points
@@ -131,7 +136,7 @@ from xml.parsers import expat
 import numpy as np
 
 from grisx.errors import GrisxError, GrisxWarning, SceneFileError
-from grisx.scene import shapes
+from grisx.scene import shapes, spectrum
 from grisx.scene.serialized import load_serialized
 from grisx.scene import transform as xf
 from grisx.scene.camera import Camera, lookat
@@ -196,7 +201,7 @@ _ALLOWED_ATTRS: dict[str, set[str]] = {
     "boolean": {"name", "value"},
     "string": {"name", "value"},
     "rgb": {"name", "value"},
-    "spectrum": {"name", "value"},
+    "spectrum": {"name", "value", "filename", "type", "id"},
     "point": {"name", "value", "x", "y", "z"},
     "vector": {"name", "value", "x", "y", "z"},
     "translate": {"value", "x", "y", "z"},
@@ -666,8 +671,10 @@ class _Props:
         node = self._get(name, ("transform",))
         return None if node is None else _parse_transform(self.ctx, node)
 
-    def color(self, name: str, default: float | tuple[float, ...] | None, texture: bool = False) -> Any:
-        """RGB from ``rgb``/``spectrum``/``float``, or a :class:`TextureRef` where ``texture``."""
+    def color(self, name: str, default: float | tuple[float, ...] | None, texture: bool = False, kind: str = "reflectance") -> Any:
+        """RGB from ``rgb``/``spectrum``/``float``, or a :class:`TextureRef` where ``texture``. ``kind``: what the
+        colour is — ``reflectance`` (bounded), ``unbounded`` (eta, k) or ``emission`` — which decides how
+        Mitsuba reduces a spectrum to RGB."""
         node = self.values.get(name)
         if node is None:
             if default is None:
@@ -681,12 +688,48 @@ class _Props:
                                            f"'reflectance'; give a constant <rgb>", name)
             return self.loader.texture_ref(node)
         node = self._get(name, ("rgb", "spectrum", "float"))
-        if node.tag == "spectrum" and ":" in node.attrs.get("value", ""):
-            raise self.ctx.error(node, f"parameter '{name}': wavelength-sampled spectra are not supported "
-                                       f"(give one constant value or an <rgb>)", "value")
+        if node.tag == "spectrum":
+            return self._spectrum(name, node, kind)
         counts = (1, 3) if node.tag == "rgb" else (1,)
         v = _numbers(self.ctx, node, "value", counts)
         return tuple(v * 3 if len(v) == 1 else v)
+
+    def _spectrum(self, name: str, node: _Node, kind: str) -> tuple[float, float, float]:
+        """A ``<spectrum>`` as Mitsuba's RGB variants reduce it (:mod:`grisx.scene.spectrum`)."""
+        emitter = kind == "emission"
+        if "type" in node.attrs:  # a spectrum plugin
+            t = self.loader._require_type(node, ("blackbody",))
+            if not emitter:
+                raise self.ctx.error(node, f"parameter '{name}': a {t} spectrum is an emission spectrum "
+                                           f"(give it to an emitter's radiance or intensity)", "type")
+            p = _Props(self.loader, node)
+            temperature = p.float("temperature")
+            lo, hi = p.float("wavelength_min", spectrum.CIE_MIN), p.float("wavelength_max", spectrum.CIE_MAX)
+            p.finish()
+            try:
+                return spectrum.blackbody_rgb(temperature, lo, hi)
+            except GrisxError as exc:
+                raise self.ctx.error(node, f"parameter '{name}': {exc}") from None
+        if ("value" in node.attrs) == ("filename" in node.attrs):
+            raise self.ctx.error(node, "a <spectrum> takes either 'value' or 'filename'", "value")
+        try:
+            if "filename" in node.attrs:
+                wavelengths, values = spectrum.read_spd(self.ctx.resolve(node.attrs["filename"]))
+            elif ":" not in node.attrs["value"]:
+                return spectrum.uniform_rgb(_numbers(self.ctx, node, "value", (1,))[0], emitter)
+            else:
+                pairs = [p.split(":") for p in re.split(r"[,\s]+", node.attrs["value"].strip()) if p]
+                if any(len(pair) != 2 for pair in pairs):
+                    raise GrisxError(f"expected wavelength:value pairs, got '{node.attrs['value']}'")
+                try:
+                    wavelengths, values = np.array([[float(a), float(b)] for a, b in pairs]).T
+                except ValueError:
+                    raise GrisxError(f"cannot parse wavelength:value pairs from '{node.attrs['value']}'") from None
+            # reflectances are seen under D65 and clamped to [0, 1]; emission and unbounded values (eta, k) are not
+            return spectrum.spectrum_list_to_srgb(wavelengths, values, bounded=kind == "reflectance", d65=not emitter)
+        except GrisxError as exc:
+            attr = "filename" if "filename" in node.attrs else "value"
+            raise self.ctx.error(node, f"parameter '{name}', attribute '{attr}': {exc}", attr) from None
 
     def ior(self, name: str, default: str) -> float:
         node = self.values.get(name)
@@ -734,6 +777,7 @@ class _Loader:
         self.texture_ids: dict[int, int] = {}  # id(node) -> scene texture id
         self.default_materials: dict[str, int] = {}  # "default" / "default_emitter" -> scene material id
         self.shape_count = 0
+        self.area_emitters_used: set[int] = set()  # id(node) of area emitters attached to a shape
         self.sensor_seen: _Node | None = None
         self.environment_seen: _Node | None = None
         self._collect_ids(root)
@@ -776,7 +820,8 @@ class _Loader:
 
     # -- top level
     def run(self) -> None:
-        for child in self.root.children:
+        emitters = [c for c in self.root.children if c.tag == "emitter"]  # after the shapes that reference them
+        for child in [c for c in self.root.children if c.tag != "emitter"] + emitters:
             tag = child.tag
             if tag in ("film", "sampler", "rfilter") and "id" in child.attrs:
                 continue  # read where a sensor references it (Mitsuba instantiates these by reference too)
@@ -855,8 +900,8 @@ class _Loader:
             if p.has("eta") or p.has("k") or material == "none":
                 if material != "none":
                     raise self.ctx.error(node, "give either 'material' or 'eta'/'k', not both", "material")
-                kw["eta"] = p.color("eta", 0.0)
-                kw["k"] = p.color("k", 1.0)
+                kw["eta"] = p.color("eta", 0.0, kind="unbounded")
+                kw["k"] = p.color("k", 1.0, kind="unbounded")
             else:
                 try:
                     kw["eta"], kw["k"] = conductor_material(material)
@@ -964,12 +1009,13 @@ class _Loader:
         if len(emitters) > 1:
             raise self.ctx.error(emitters[1], "a shape takes one emitter")
         if emitters:
-            em = emitters[0]
-            if em.tag == "ref":
-                raise self.ctx.error(em, "area emitters must be nested in their shape, not referenced")
+            em = self._deref(emitters[0], "emitter")  # nested, or a top-level area emitter by reference
+            if id(em) in self.area_emitters_used:
+                raise self.ctx.error(emitters[0], f"the area emitter on line {em.line} is attached to two shapes")
+            self.area_emitters_used.add(id(em))
             self._require_type(em, ("area",))
             ep = _Props(self, em)
-            emission = ep.color("radiance", None)
+            emission = ep.color("radiance", None, kind="emission")
             ep.finish()
         if bsdfs:
             mid = self.material_id(bsdfs[0])
@@ -987,14 +1033,16 @@ class _Loader:
     # -- emitters outside shapes
     def emitter(self, node: _Node) -> None:
         t = self._type(node)
+        if t == "area" and (node.attrs.get("id") is None or id(node) not in self.area_emitters_used):
+            raise self.ctx.error(node, "an area emitter must be nested inside a <shape> or referenced by one", "type")
         if t == "area":
-            raise self.ctx.error(node, "an area emitter must be nested inside a <shape>", "type")
+            return
         t = self._require_type(node, ("constant", "envmap", "point", "spot"))
         p = _Props(self, node)
         if t == "spot":  # a cone along the local +z of to_world (Mitsuba's spotlight)
             to_world = p.transform("to_world")
             m = np.eye(4) if to_world is None else to_world
-            intensity = p.color("intensity", 1.0)
+            intensity = p.color("intensity", 1.0, kind="emission")
             cutoff = p.float("cutoff_angle", 20.0)
             beam = p.float("beam_width", cutoff * 0.75)
             if not (0.0 < cutoff <= 90.0) or not (0.0 <= beam <= cutoff):
@@ -1011,7 +1059,7 @@ class _Loader:
             if to_world is not None and p.has("position"):
                 raise self.ctx.error(node, "give either 'position' or 'to_world', not both", "position")
             pos = to_world[:3, 3] if to_world is not None else p.point("position", (0.0, 0.0, 0.0))
-            intensity = p.color("intensity", 1.0)
+            intensity = p.color("intensity", 1.0, kind="emission")
             p.finish()
             try:
                 self.scene.add_point_light(tuple(float(x) for x in pos), intensity)
@@ -1022,7 +1070,7 @@ class _Loader:
             raise self.ctx.error(node, f"only one environment emitter is allowed (first on line {self.environment_seen.line})")
         self.environment_seen = node
         if t == "constant":
-            env: Any = ConstantEnvironment(radiance=p.color("radiance", 1.0))
+            env: Any = ConstantEnvironment(radiance=p.color("radiance", 1.0, kind="emission"))
         else:
             filename = p.string("filename")
             scale = p.float("scale", 1.0)

@@ -401,8 +401,16 @@ ERRORS = [
      3, "rgb", "value", "unknown parameter '$albedo'"),
     (doc('<shape type="cube">\n<ref id="nowhere"/></shape>'), 3, "ref", "id", "unknown id 'nowhere'"),
     (doc('<sensor type="perspective" id="cam"/>\n<shape type="cube">\n<ref id="cam"/></shape>'), 4, "ref", None, "unexpected"),
-    (doc('<shape type="cube"><bsdf type="diffuse">\n<spectrum name="reflectance" value="400:0.1, 700:0.5"/></bsdf></shape>'),
-     3, "spectrum", "value", "wavelength"),
+    (doc('<shape type="cube"><bsdf type="diffuse">\n<spectrum name="reflectance" value="400:0.1, 700"/></bsdf></shape>'),
+     3, "spectrum", "value", "wavelength:value pairs"),
+    (doc('<shape type="cube"><bsdf type="diffuse">\n<spectrum name="reflectance" value="700:0.1, 400:0.5"/></bsdf></shape>'),
+     3, "spectrum", "value", "must increase"),
+    (doc('<shape type="cube"><bsdf type="diffuse">\n<spectrum name="reflectance" filename="none.spd"/></bsdf></shape>'),
+     3, "spectrum", "filename", "no such file"),
+    (doc('<shape type="cube"><bsdf type="diffuse">\n<spectrum type="blackbody" name="reflectance">'
+         '<float name="temperature" value="3000"/></spectrum></bsdf></shape>'), 3, "spectrum", "type", "emission spectrum"),
+    (doc('<shape type="cube"><emitter type="area">\n<spectrum type="blackbody" name="radiance">'
+         '<float name="temperature" value="-3"/></spectrum></emitter></shape>'), 3, "spectrum", None, "positive temperature"),
     (doc('<sensor type="perspective"><film type="hdrfilm">\n<rfilter type="tent"/></film></sensor>'), 3, "rfilter", "type", "tent"),
     (doc('<integrator type="stokes"><integrator type="path"/></integrator>'), 2, "integrator", "type", "polarization"),
     (doc('<integrator type="moment"/>'), 2, "integrator", None, "exactly one nested integrator"),
