@@ -31,6 +31,7 @@ Document
 Values
     ``float``, ``integer``, ``boolean`` (true/false), ``string``,
     ``point``/``vector`` (``x, y, z`` attributes or ``value="x, y, z"``),
+    Mitsuba 0.x's ``srgb`` (sRGB-encoded: 1 or 3 numbers, or ``#rrggbb``),
     ``rgb`` (``value``: 3 numbers, or 1 broadcast), ``spectrum`` (a constant
     ``value``, ``wavelength:value`` pairs, an ``.spd`` ``filename``, or
     ``type="blackbody"`` with ``temperature`` [K], ``wavelength_min``,
@@ -186,7 +187,7 @@ NAMED_IORS: dict[str, float] = {
     "diamond": 2.419,
 }
 
-_VALUE_TAGS = {"float", "integer", "boolean", "string", "point", "vector", "rgb", "spectrum"}
+_VALUE_TAGS = {"float", "integer", "boolean", "string", "point", "vector", "rgb", "srgb", "spectrum"}
 _OBJECT_TAGS = {"shape", "bsdf", "emitter", "sensor", "film", "rfilter", "sampler", "integrator", "texture"}
 _TRANSFORM_OPS = {"translate", "rotate", "scale", "matrix", "lookat"}
 _ALLOWED_ATTRS: dict[str, set[str]] = {
@@ -201,6 +202,7 @@ _ALLOWED_ATTRS: dict[str, set[str]] = {
     "boolean": {"name", "value"},
     "string": {"name", "value"},
     "rgb": {"name", "value"},
+    "srgb": {"name", "value"},
     "spectrum": {"name", "value", "filename", "type", "id"},
     "point": {"name", "value", "x", "y", "z"},
     "vector": {"name", "value", "x", "y", "z"},
@@ -305,6 +307,8 @@ _WHY_NOT = {
                     "participating media are not rendered by grisx (surfaces only)"),
     **dict.fromkeys(("stokes", "measured_polarized", "polarizer", "retarder", "pplastic"),
                     "polarization is not rendered by grisx (RGB radiance only)"),
+    **dict.fromkeys(("tent", "mitchell", "lanczos", "catmullrom"),
+                    "grisx films filter with box or gaussian only (another filter would change the camera kernels)"),
     "depth": "grisx integrators render radiance", "orthographic": "grisx cameras are perspective or thin-lens",
 }
 
@@ -687,9 +691,16 @@ class _Props:
                 raise self.ctx.error(node, f"parameter '{name}': textures are supported only as diffuse "
                                            f"'reflectance'; give a constant <rgb>", name)
             return self.loader.texture_ref(node)
-        node = self._get(name, ("rgb", "spectrum", "float"))
+        node = self._get(name, ("rgb", "srgb", "spectrum", "float"))
         if node.tag == "spectrum":
             return self._spectrum(name, node, kind)
+        if node.tag == "srgb":  # Mitsuba 0.x: sRGB-encoded, as numbers in [0, 1] or "#rrggbb"
+            raw = node.attrs.get("value", "").strip()
+            if re.fullmatch(r"#[0-9a-fA-F]{6}", raw):
+                v = [int(raw[i:i + 2], 16) / 255.0 for i in (1, 3, 5)]
+            else:
+                v = _numbers(self.ctx, node, "value", (1, 3))
+            return tuple(float(c) for c in srgb_to_linear(np.array(v * 3 if len(v) == 1 else v)))
         counts = (1, 3) if node.tag == "rgb" else (1,)
         v = _numbers(self.ctx, node, "value", counts)
         return tuple(v * 3 if len(v) == 1 else v)

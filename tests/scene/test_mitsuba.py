@@ -593,3 +593,21 @@ def test_other_unbiased_integrators_read_as_pt_with_a_notice():
         s = load_mitsuba(doc('<integrator type="bdpt"><integer name="max_depth" value="6"/>\n'
                              '<boolean name="light_image" value="true"/></integrator>'))
     assert s.defaults["max_depth"] == 6
+
+
+def test_mitsuba_0x_files_srgb_colours_and_lookAt():
+    from grisx.imageio import srgb_decode
+
+    s = load_mitsuba('<scene version="0.5.0">\n<sensor type="perspective"><transform name="toWorld">\n'
+                     '<lookAt origin="0, 0, 5" target="0, 0, 0" up="0, 1, 0"/></transform></sensor>\n'
+                     '<shape type="sphere"><bsdf type="diffuse"><srgb name="diffuseReflectance" value="#336699"/></bsdf></shape>\n'
+                     '<shape type="sphere"><bsdf type="diffuse"><srgb name="reflectance" value="0.5"/></bsdf></shape>\n</scene>')
+    np.testing.assert_allclose(s.materials[0].reflectance, srgb_decode(np.array([0x33, 0x66, 0x99]) / 255.0))
+    np.testing.assert_allclose(s.materials[1].reflectance, [float(srgb_decode(np.array(0.5)))] * 3)
+    np.testing.assert_allclose(s.camera.to_world[:3, 3], [0, 0, 5])
+
+
+def test_reconstruction_filters_without_a_film_hook_are_refused_with_the_reason():
+    with pytest.raises(SceneFileError, match=r"<string>:3: <rfilter type=\"mitchell\"> unsupported rfilter type 'mitchell': "
+                                             r"grisx films filter with box or gaussian only"):
+        load_mitsuba(doc('<sensor type="perspective"><film type="hdrfilm">\n<rfilter type="mitchell"/></film></sensor>'))
