@@ -12,18 +12,21 @@
     grisx compare TEST.exr REF.exr [--metrics mse,relmse,flip] [--json]
     grisx bench toys|render ...       (see grisx bench --help)
 
-Bad input prints one line ``grisx: error: …`` on stderr and exits with 2.
+Bad input prints one line ``grisx: error: …`` on stderr and exits with 2; something the user should know
+that did not stop the work (e.g. non-finite samples dropped) prints one line ``grisx: warning: …``.
+Every ``--json`` prints strict JSON: ``null`` where a number is undefined (NaN, Inf).
 """
 
 from __future__ import annotations
 
 import argparse
-import json
+import re
 import sys
+import warnings
 from collections.abc import Sequence
 from typing import Any, NoReturn
 
-from grisx.errors import GrisxError, InvalidParameterError
+from grisx.errors import GrisxError, GrisxWarning, InvalidParameterError
 
 __all__ = ["main", "build_parser"]
 
@@ -121,7 +124,9 @@ def _toy_list(args: argparse.Namespace) -> int:
 
     problems = [p.describe() for p in PROBLEMS.values()]
     if args.json:
-        print(json.dumps({"problems": problems}, ensure_ascii=False))
+        from grisx.eval.files import json_line
+
+        print(json_line({"problems": problems}))
         return 0
     for p in problems:
         print(f"{p['name']}: {p['summary']}")
@@ -137,7 +142,8 @@ def _toy_list(args: argparse.Namespace) -> int:
 
 
 def _toy_run(args: argparse.Namespace) -> int:
-    from grisx.theory.toys import run_toy
+    from grisx.eval.files import json_line
+    from grisx.theory.toys import PROBLEMS, run_toy
 
     params: dict[str, Any] = {}
     for key, value in args.param:
@@ -145,20 +151,32 @@ def _toy_run(args: argparse.Namespace) -> int:
             raise InvalidParameterError(f"--param '{key}' given twice")
         params[key] = value
     est = run_toy(args.name, args.method, trials=args.trials, seed=args.seed, params=params, device=args.device)
+    why = biased_by_design(PROBLEMS[est.problem], est.method, est.params)
     if args.json:
-        print(json.dumps(est.to_dict(), ensure_ascii=False))
+        print(json_line({**est.to_dict(), "biased_by_design": why}))
         return 0
     print(format_estimate(est))
+    if why is not None:
+        print(f"  note: biased by design ({why}): a large |z| is what this variant is expected to show")
     return 0
 
 
+def biased_by_design(problem: Any, method: str, params: dict[str, Any]) -> str | None:
+    """Why ``method`` with ``params`` is biased by construction (a declared biased variant), or None."""
+    return next((b.why for b in problem.biased_variants if b.matches(method, params)), None)
+
+
 def format_estimate(est: Any) -> str:
-    """Human-readable estimate ± stderr beside the exact value and z."""
+    """Human-readable estimate ± stderr beside the exact value and z (n/a where one trial gives no stderr)."""
     import numpy as np
 
     head = f"{est.problem} / {est.method}  ({est.trials:,} trials, {est.seconds:.3f} s, {est.device})"
     ests, ses, exs, zs = (np.atleast_1d(np.asarray(a, dtype=float)) for a in (est.estimate, est.stderr, est.exact, est.z))
-    rows = [f"  [{i}] {e: .6f} ± {s:.6f}   exact {x: .6f}   z = {z:+.2f}" for i, (e, s, x, z) in enumerate(zip(ests, ses, exs, zs))]
+    known = est.trials > 1
+    rows = [f"  [{i}] {e: .6f} ± {f'{s:.6f}' if known else 'n/a'}   exact {x: .6f}   z = {f'{z:+.2f}' if known and np.isfinite(z) else 'n/a'}"
+            for i, (e, s, x, z) in enumerate(zip(ests, ses, exs, zs))]
+    if not known:
+        rows.append("  (one trial has no standard error: run at least 2)")
     return "\n".join([head, *rows])
 
 
@@ -169,17 +187,37 @@ def _demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def _values_that_look_like_options(argv: list[str]) -> list[str]:
+    """``--res -5x5`` → ``--res=-5x5``: a value starting with '-' and a digit is the option's value (argparse would
+    take it for an option and say "expected one argument"), so the option's own check names the problem."""
+    out: list[str] = []
+    for tok in argv:
+        if out and out[-1].startswith("--") and "=" not in out[-1] and re.match(r"^-[0-9.]", tok):
+            out[-1] = f"{out[-1]}={tok}"
+        else:
+            out.append(tok)
+    return out
+
+
+def _show_warning(message: Any, category: type, filename: str, lineno: int, file: Any = None, line: Any = None) -> None:
+    """grisx's own warnings as one line ``grisx: warning: ...``; others as Python prints them."""
+    if issubclass(category, GrisxWarning):
+        print(f"grisx: warning: {str(message).splitlines()[0]}", file=sys.stderr)
+    else:
+        _python_showwarning(message, category, filename, lineno, file, line)
+
+
+_python_showwarning = warnings.showwarning
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
-    argv = list(sys.argv[1:] if argv is None else argv)
+    argv = _values_that_look_like_options(list(sys.argv[1:] if argv is None else argv))
     try:
-        if argv[:1] == ["render"] and ("-h" in argv or "--help" in argv) and "--method" in argv[:-1]:
-            from grisx.render.cli import method_help  # 'render --method M --help': that method's params
-
-            print(method_help(argv[argv.index("--method") + 1]))
-            return 0
-        args = parser.parse_args(argv)
-        return int(args.handler(args))
+        with warnings.catch_warnings():
+            warnings.simplefilter("always", GrisxWarning)
+            warnings.showwarning = _show_warning
+            return _run(parser, argv)
     except GrisxError as exc:
         message = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         print(f"grisx: error: {message}", file=sys.stderr)
@@ -187,6 +225,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("grisx: interrupted", file=sys.stderr)
         return 130
+
+
+def _run(parser: argparse.ArgumentParser, argv: list[str]) -> int:
+    if argv[:1] == ["render"] and ("-h" in argv or "--help" in argv) and "--method" in argv[:-1]:
+        from grisx.render.cli import method_help  # 'render --method M --help': that method's params
+
+        print(method_help(argv[argv.index("--method") + 1]))
+        return 0
+    args = parser.parse_args(argv)
+    return int(args.handler(args))
 
 
 if __name__ == "__main__":

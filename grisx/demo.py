@@ -25,7 +25,6 @@ cuda`` runs the same at full size.
 
 from __future__ import annotations
 
-import json
 import os
 import time
 from pathlib import Path
@@ -75,12 +74,18 @@ DEMO_RUNS: tuple[tuple[str, str, dict[str, Any], float], ...] = (
 def run_demo(out: str | os.PathLike = "grisx-demo.png", trials: int = 100_000, seed: int = 0, device: str = "cpu",
              scene: bool = True) -> dict[str, Any]:
     """Run :data:`DEMO_RUNS` and the scene comparison, print each result, write the figure and a JSON summary."""
+    from grisx.errors import InvalidParameterError
+    from grisx.imageio import check_writable_dir
+
     out = Path(out)
     if out.suffix.lower() != ".png":
-        from grisx.errors import InvalidParameterError
-
         raise InvalidParameterError(f"--out must name a .png file, got '{out}'")
-    out.parent.mkdir(parents=True, exist_ok=True)
+
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InvalidParameterError(f"--out '{out}': cannot create directory '{out.parent}': {exc.strerror or exc}") from None
+    check_writable_dir(out.parent, f"--out '{out}'")  # before the work, not after it
     start = time.perf_counter()
     results, runs = [], {}
     print("# every toy problem: estimate beside its exact value\n")
@@ -101,7 +106,9 @@ def run_demo(out: str | os.PathLike = "grisx-demo.png", trials: int = 100_000, s
     seconds = time.perf_counter() - start
     summary = {"trials": trials, "seed": seed, "device": device, "figure": str(out), "seconds": round(seconds, 1), "runs": results,
                "scene": None if scene_result is None else {k: v for k, v in scene_result.items() if k != "images"}}
-    out.with_suffix(".json").write_text(json.dumps(summary, indent=1, ensure_ascii=False))
+    from grisx.eval.files import write_json
+
+    write_json(out.with_suffix(".json"), summary)
     print(f"wrote {out} and {out.with_suffix('.json')} ({seconds:.0f} s)")
     return summary
 

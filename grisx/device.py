@@ -18,7 +18,7 @@ import warp as wp
 
 from grisx.errors import DeviceError
 
-__all__ = ["init", "resolve_device", "cuda_available", "synchronize", "specialized_module", "load_kernels", "PATH_REGISTERS", "SHIFT_REGISTERS"]
+__all__ = ["init", "resolve_device", "cuda_available", "available_memory", "synchronize", "specialized_module", "load_kernels", "PATH_REGISTERS", "SHIFT_REGISTERS"]
 
 
 #: a line Warp's native library prints on every machine without a GPU; on such
@@ -73,6 +73,24 @@ def resolve_device(device: str | None = "cpu") -> wp.context.Device:
         except (RuntimeError, ValueError) as exc:
             raise DeviceError(f"device '{name}' is not available: {exc}") from None
     raise DeviceError(f"unknown device '{name}' (use cpu, cuda or cuda:N)")
+
+
+def available_memory(device: wp.context.Device) -> int | None:
+    """Bytes free for new allocations on ``device`` (host: MemAvailable), or None where it cannot be told."""
+    if getattr(device, "is_cuda", False):
+        free = getattr(device, "free_memory", None)
+        return int(free) if free else None
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return int(os.sysconf("SC_AVPHYS_PAGES")) * int(os.sysconf("SC_PAGE_SIZE"))
+    except (ValueError, OSError, AttributeError):
+        return None
 
 
 def synchronize(device: wp.context.Device) -> None:

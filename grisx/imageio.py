@@ -11,6 +11,10 @@ Channel layout
   channel is accepted, whatever its name);
 * ``(H, W, 3)`` ↔ ``R``, ``G``, ``B``; ``(H, W, 4)`` ↔ ``R``, ``G``, ``B``, ``A``.
 
+:func:`write_exr_layers` writes several images into one file as named layers
+(``albedo.R``, ``albedo.G``, ``albedo.B``, ``depth.Y``, ...), as Mitsuba's AOV
+files do; :func:`read_exr` reads single images only.
+
 Half and uint channels are converted to float32 on reading. Other layouts
 (several unnamed channels, layers) raise :class:`~grisx.errors.GrisxError`
 naming the channels found. Writing goes to a temporary file in the target
@@ -33,7 +37,7 @@ import numpy as np
 
 from grisx.errors import GrisxError
 
-__all__ = ["read_exr", "write_exr", "write_png", "srgb_encode", "srgb_decode"]
+__all__ = ["read_exr", "write_exr", "write_exr_layers", "write_png", "check_writable_dir", "srgb_encode", "srgb_decode"]
 
 
 def _openexr():
@@ -65,10 +69,8 @@ def read_exr(path: str | os.PathLike) -> np.ndarray:
                      f"(expected one channel, R,G,B or R,G,B,A)")
 
 
-def write_exr(path: str | os.PathLike, array: np.ndarray) -> Path:
-    """Write ``array`` ((H, W) or (H, W, 1|3|4)) as a float32 ZIP-compressed EXR; return the path."""
-    OpenEXR = _openexr()
-    path = Path(path)
+def _exr_planes(path: Path, array: np.ndarray, layer: str = "") -> dict[str, np.ndarray]:
+    """``array``'s channels by EXR name (``Y``; ``R``, ``G``, ``B`` [, ``A``]), each prefixed ``layer.`` if given."""
     a = np.asarray(array)
     if a.dtype.kind not in "fiub":
         raise GrisxError(f"cannot write EXR '{path}': array must hold real numbers, got dtype {a.dtype}")
@@ -84,10 +86,35 @@ def write_exr(path: str | os.PathLike, array: np.ndarray) -> Path:
         raise GrisxError(f"cannot write EXR '{path}': shape {a.shape} is not (H, W) or (H, W, 1|3|4)")
     if a.shape[0] == 0 or a.shape[1] == 0:
         raise GrisxError(f"cannot write EXR '{path}': image is empty (shape {a.shape})")
+    prefix = f"{layer}." if layer else ""
+    return {prefix + n: np.ascontiguousarray(p, dtype=np.float32) for n, p in zip(names, planes)}
+
+
+def write_exr(path: str | os.PathLike, array: np.ndarray) -> Path:
+    """Write ``array`` ((H, W) or (H, W, 1|3|4)) as a float32 ZIP-compressed EXR; return the path."""
+    path = Path(path)
+    return _write_channels(path, _exr_planes(path, array))
+
+
+def write_exr_layers(path: str | os.PathLike, layers: dict[str, np.ndarray]) -> Path:
+    """Write several same-sized images into one EXR, each a named layer (``albedo.R``, ``depth.Y``, ...).
+
+    :func:`read_exr` reads single images only; OpenEXR tools (and Mitsuba's AOV files) show the layers.
+    """
+    path = Path(path)
+    channels: dict[str, np.ndarray] = {}
+    for name, array in layers.items():
+        channels.update(_exr_planes(path, array, name))
+    if len({c.shape for c in channels.values()}) > 1:
+        raise GrisxError(f"cannot write EXR '{path}': layers of different sizes")
+    return _write_channels(path, channels)
+
+
+def _write_channels(path: Path, channels: dict[str, np.ndarray]) -> Path:
+    OpenEXR = _openexr()
     if not path.parent.is_dir():
         raise GrisxError(f"cannot write EXR '{path}': directory '{path.parent}' does not exist")
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-    channels = {n: np.ascontiguousarray(p, dtype=np.float32) for n, p in zip(names, planes)}
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp.exr", dir=path.parent)
     os.close(fd)
     umask = os.umask(0)
@@ -101,6 +128,20 @@ def write_exr(path: str | os.PathLike, array: np.ndarray) -> Path:
         Path(tmp).unlink(missing_ok=True)
         raise GrisxError(f"cannot write EXR '{path}': {exc}") from None
     return path
+
+
+def check_writable_dir(folder: str | os.PathLike, what: str) -> None:
+    """Raise a one-line :class:`~grisx.errors.GrisxError` unless a file can be created in ``folder``.
+
+    It creates and removes a temporary file there: permission bits do not tell (root, read-only mounts,
+    immutable directories, ``/proc``), so this is how an output is checked before the work that makes it.
+    """
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=".grisx-write-check.", dir=folder)
+    except OSError as exc:
+        raise GrisxError(f"{what}: cannot write in '{folder}': {exc.strerror or exc}") from None
+    os.close(fd)
+    os.unlink(tmp)
 
 
 def srgb_decode(encoded: np.ndarray) -> np.ndarray:

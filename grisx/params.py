@@ -12,9 +12,12 @@ import dataclasses
 import math
 from typing import Any
 
-from grisx.errors import InvalidParameterError
+from grisx.errors import INT32_MAX, InvalidParameterError
 
 __all__ = ["Param"]
+
+#: the largest finite float32 (kernels compute in float32)
+FLOAT32_MAX = 3.4028234663852886e38
 
 _TRUE = {"true", "1", "yes", "on"}
 _FALSE = {"false", "0", "no", "off"}
@@ -65,6 +68,10 @@ class Param:
             raise InvalidParameterError(f"{where} must be >= {self.minimum:g}, got {number:g}")
         if self.maximum is not None and number > self.maximum:
             raise InvalidParameterError(f"{where} must be <= {self.maximum:g}, got {number:g}")
+        if self.kind == "int" and not -INT32_MAX - 1 <= number <= INT32_MAX:  # kernels take int32: it would wrap
+            raise InvalidParameterError(f"{where} must be within 32-bit integers [-2^31, 2^31 - 1], got {number}")
+        if self.kind == "float" and abs(number) > FLOAT32_MAX:  # kernels take float32: it would be Inf
+            raise InvalidParameterError(f"{where} must be within float32's range (|x| <= 3.4e38), got {number:g}")
         return number
 
     def describe(self) -> dict[str, Any]:

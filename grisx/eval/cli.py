@@ -22,12 +22,12 @@ metric names; text mode prints one ``name value`` line per metric. Errors are
 from __future__ import annotations
 
 import argparse
-import json
 import math
 from typing import Any
 
 from grisx.errors import InvalidParameterError
 from grisx.eval import metrics as M
+from grisx.eval.files import json_line
 
 __all__ = ["add_parser", "compare_command", "bench_toys_command", "bench_render_command"]
 
@@ -217,7 +217,7 @@ def compare_command(args: argparse.Namespace) -> int:
     values = M.compare(test, ref, names, per_channel=args.per_channel, epsilon=args.epsilon, exposure=args.exposure,
                        test_name=f"test '{args.test}'", ref_name=f"reference '{args.reference}'")
     if args.json:
-        print(json.dumps(values))
+        print(json_line(values))
     else:
         for name, value in values.items():
             print(f"{name} {_fmt(value)}")
@@ -225,9 +225,7 @@ def compare_command(args: argparse.Namespace) -> int:
 
 
 def _print_json(study: dict[str, Any]) -> None:
-    from grisx.eval.files import plain
-
-    print(json.dumps(plain(study), ensure_ascii=False))
+    print(json_line(study))
 
 
 def bench_toys_command(args: argparse.Namespace) -> int:

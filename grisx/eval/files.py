@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["plain", "write_atomic", "write_json", "write_csv"]
+__all__ = ["plain", "json_line", "write_atomic", "write_json", "write_csv"]
 
 
 def plain(x: Any) -> Any:
@@ -37,6 +37,11 @@ def plain(x: Any) -> Any:
     if isinstance(x, Path):
         return str(x)
     return x
+
+
+def json_line(obj: Any) -> str:
+    """One line of strict JSON (numpy → Python, NaN/Inf → null): what every ``--json`` prints."""
+    return json.dumps(plain(obj), allow_nan=False, ensure_ascii=False, default=str)
 
 
 def write_atomic(path: str | os.PathLike, data: bytes) -> Path:

@@ -83,8 +83,8 @@ are given) by log-log interpolation between the frames around T, and divides
 the baseline's (first method's) error by each method's: a ratio > 1 means
 better at equal time.
 
-Long work shows a progress bar on stderr when stderr is a terminal, and none
-otherwise.
+Long work reports on stderr through :class:`grisx.progress.Progress`: a bar
+when stderr is a terminal, a plain line with the ETA every ~10 s otherwise.
 """
 
 from __future__ import annotations
@@ -95,17 +95,17 @@ import inspect
 import math
 import os
 import platform
-import sys
 import time
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Any, TextIO
+from typing import Any
 
 import numpy as np
 
 from grisx.errors import GrisxError, InvalidParameterError, InvalidValueError
 from grisx.eval import metrics as M
 from grisx.eval.files import plain, write_csv, write_json
+from grisx.progress import Progress
 
 __all__ = [
     "MethodSpec",
@@ -173,43 +173,6 @@ def _specs(methods: Sequence[Any]) -> list[MethodSpec]:
     if dup:
         raise InvalidParameterError(f"method '{sorted(dup)[0]}' is listed twice")
     return specs
-
-
-# ---- progress --------------------------------------------------------------------------
-class Progress:
-    """A one-line progress bar on ``stream`` (stderr); silent unless the stream is a terminal.
-
-    ``enabled=None`` decides from ``stream.isatty()``; ``True``/``False`` force it.
-    """
-
-    def __init__(self, total: int, desc: str = "", *, enabled: bool | None = None, stream: TextIO | None = None):
-        self.stream = stream if stream is not None else sys.stderr
-        if enabled is None:
-            isatty = getattr(self.stream, "isatty", None)
-            enabled = bool(isatty and isatty())
-        self.enabled, self.total, self.desc, self.done = enabled, max(int(total), 1), desc, 0
-        self.start = time.perf_counter()
-        self._last = -1.0
-
-    def update(self, n: int = 1, note: str = "") -> None:
-        self.done = min(self.done + n, self.total)
-        if not self.enabled:
-            return
-        now = time.perf_counter()
-        if now - self._last < 0.1 and self.done < self.total:
-            return  # at most ten redraws a second
-        self._last = now
-        frac = self.done / self.total
-        bar = "#" * int(24 * frac)
-        elapsed = now - self.start
-        eta = elapsed / frac - elapsed if frac > 0 else 0.0
-        self.stream.write(f"\r{self.desc} [{bar:<24}] {self.done}/{self.total} {elapsed:5.1f}s eta {eta:5.1f}s {note[:40]:<40}")
-        self.stream.flush()
-
-    def close(self) -> None:
-        if self.enabled:
-            self.stream.write("\n")
-            self.stream.flush()
 
 
 # ---- writing ------------------------------------------------------------------------------
@@ -306,7 +269,7 @@ def toy_study(
     env = environment(device)
 
     rows: list[dict[str, Any]] = []
-    bar = Progress(len(specs) * (len(ladder) if trials is not None else 1), f"toys {problem}", enabled=progress)
+    bar = Progress(len(specs) * (len(ladder) if trials is not None else 1), f"toys {problem}", unit="run", enabled=progress)
     for spec in specs:
         # warm-up: compiles/loads the kernels and touches the allocator, so the first timed run is not an outlier
         run(problem, spec.method, trials=min(ladder[0], 1000), seed=seeds[0], params=spec.params, device=device)
@@ -489,7 +452,8 @@ def study_job(
     lines: list[np.ndarray] = []
     kept: dict[int, np.ndarray] = {}
     state: dict[str, Any] = {"callback": 0.0, "average": np.zeros_like(spec_ref)}
-    bar = Progress(total_frames if budget is None else 100, f"{scene} {label}", enabled=progress)
+    bar = Progress(total_frames if budget is None else 100, f"{scene} {label}", unit="frame" if budget is None else "% of budget",
+                   enabled=progress)
 
     def on_frame(index: int, image: np.ndarray, seconds_elapsed: float) -> None:
         entered = time.perf_counter()

@@ -20,7 +20,6 @@ successful solve.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 from typing import Any
 
@@ -87,7 +86,9 @@ def run(args: argparse.Namespace) -> int:
         "energy": _number(result.energy),
     }
     if args.json:
-        print(json.dumps(report))
+        from grisx.eval.files import json_line
+
+        print(json_line(report))
     else:
         print(f"wrote {out} ({w}x{h}, {result.norm} {result.solver} on {result.device}, "
               f"{result.seconds * 1e3:.1f} ms, relative residual {result.residual:.2e})")

@@ -8,25 +8,33 @@
     grisx reference SCENE_OR_FILE [--spp N] [--res WxH] [--max-depth D] [--device cpu|cuda] [--force] [--out PATH.exr] [--json]
                     [--devices cuda:0,cuda:1 | --executor ray [--address HOST:PORT]] [--retries N] [--chunk-spp N]
 
-``render`` writes the linear EXR, a tonemapped sRGB PNG beside it and a JSON
-sidecar (settings, grisx version, device, seed, timings). ``--method
-gbuffer`` writes one EXR per G-buffer field (``PATH.<field>.exr``) and a
-contact-sheet PNG. ``--json`` prints one object with ``method``, ``scene``,
-``width``, ``height``, ``frames``, ``spp``, ``seconds`` (total and per pass),
-``device`` and ``output`` (the paths written).
+``render`` writes ``--out`` under exactly its name (linear EXR, PNG or NPY), a
+tonemapped sRGB PNG beside an EXR, and a JSON sidecar (settings, grisx
+version, device, seed, timings, the paths written). ``--method gbuffer``
+writes every G-buffer field as a named layer of the EXR (``albedo.R``,
+``depth.Y``, ...), one EXR per field beside it (``PATH.<field>.exr``) and a
+contact-sheet PNG whose panels are labelled. ``--json`` prints the sidecar's
+record on stdout (one schema): ``method``, ``scene``, ``width``, ``height``,
+``frames``, ``spp``, ``seconds`` (total and per pass), ``device``, ``output``
+(the paths written) and the rest of the settings.
+
+What can be checked before rendering is: the output's folder must take a new
+file, no output may be a directory, integers must fit the kernels' 32 bits,
+and the film must fit in memory. Long renders show progress on stderr
+(:mod:`grisx.progress`), per frame and per sample pass.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from grisx.errors import InvalidParameterError
+from grisx.eval.files import json_line
 
 __all__ = ["add_parsers", "write_outputs"]
 
@@ -63,7 +71,7 @@ def add_parsers(sub: Any, key_value: Any, count: Any, seed: Any) -> None:
     r.add_argument("--out", default=None, help="output path: .exr (linear, with a tonemapped PNG beside it), .png (tonemapped) or .npy "
                    "(linear float32); a JSON sidecar always (default SCENE-METHOD.exr)")
     r.add_argument("--exr", action="store_true", help="with a .png or .npy --out: also write the linear EXR beside it")
-    r.add_argument("--json", action="store_true", help="print one JSON object")
+    r.add_argument("--json", action="store_true", help="print one JSON object: the sidecar's record (the files are written as usual)")
     r.set_defaults(handler=_render)
 
     ref = sub.add_parser(
@@ -93,7 +101,7 @@ def _scenes(args: argparse.Namespace) -> int:
 
     summaries = scene_summaries()
     if args.json:
-        print(json.dumps({"scenes": [{"name": k, "summary": v} for k, v in summaries.items()]}))
+        print(json_line({"scenes": [{"name": k, "summary": v} for k, v in summaries.items()]}))
         return 0
     width = max(len(k) for k in summaries)
     for name, text in summaries.items():
@@ -101,33 +109,69 @@ def _scenes(args: argparse.Namespace) -> int:
     return 0
 
 
-class _Progress:
-    """A one-line progress bar on stderr, only when it is a terminal."""
+class _RenderProgress:
+    """Frames and, for the methods that take ``spp``, samples per pixel within each frame, as one :class:`Progress`."""
 
-    def __init__(self, label: str) -> None:
-        self.label = label
-        self.active = sys.stderr.isatty()
+    def __init__(self, label: str, frames: int) -> None:
+        from grisx.progress import Progress
 
-    def __call__(self, done: int, total: int) -> None:
-        if not self.active or total <= 1:
-            return
-        bar = "#" * int(30 * done / total)
-        sys.stderr.write(f"\r{self.label} [{bar:<30}] {done}/{total}")
-        if done == total:
-            sys.stderr.write("\n")
-        sys.stderr.flush()
+        self.bar = Progress(frames, label, unit="frame")
+        self.frames, self.frames_done, self.spp = frames, 0, 1
+
+    def frame(self, done: int, frames: int) -> None:
+        self.frames_done = done
+        self.bar(done * self.spp, frames * self.spp)
+
+    def sample(self, done: int, spp: int) -> None:
+        self.spp = spp
+        self.bar(self.frames_done * spp + done, self.frames * spp, unit="spp")
 
 
 #: what ``--out`` may name
 OUTPUT_FORMATS = (".exr", ".png", ".npy")
 
 
-def check_output(out: Path) -> None:
-    """A one-line error before any rendering if ``out`` cannot be written as asked."""
-    if out.suffix.lower() not in OUTPUT_FORMATS:
-        raise InvalidParameterError(f"--out must end in {', '.join(OUTPUT_FORMATS)}, got '{out}'")
+def check_output(out: str | Path, flag: str = "--out", formats: tuple[str, ...] = OUTPUT_FORMATS) -> Path:
+    """``out`` as a Path, or a one-line error before any rendering if it cannot be written as asked."""
+    from grisx.imageio import check_writable_dir
+
+    text = str(out)
+    if not text.strip():
+        raise InvalidParameterError(f"{flag} must name a file, got '{text}'")
+    out = Path(text)
+    if out.is_dir():
+        raise InvalidParameterError(f"{flag} '{out}' is a directory; name a file (e.g. '{out / ('image' + formats[0])}')")
+    if out.suffix.lower() not in formats:
+        raise InvalidParameterError(f"{flag} must end in {', '.join(formats)}, got '{out}'")
     if not out.parent.is_dir():
-        raise InvalidParameterError(f"--out: directory '{out.parent}' does not exist")
+        raise InvalidParameterError(f"{flag}: directory '{out.parent}' does not exist")
+    check_writable_dir(out.parent, f"{flag} '{out}'")
+    return out
+
+
+def planned_outputs(out: Path, method: str, exr: bool = False, fields: tuple[str, ...] = ()) -> list[Path]:
+    """Every path ``write_outputs`` writes for ``out`` (``out`` itself first, the JSON sidecar last)."""
+    from grisx.render.driver import METHODS
+
+    suffix = out.suffix.lower()
+    kind = METHODS[method].kind if method in METHODS else "radiance"  # an unknown name is render()'s error
+    paths = [out]
+    if exr and suffix != ".exr":
+        paths.append(out.with_suffix(".exr"))
+    if suffix != ".npy":
+        if suffix != ".png":
+            paths.append(out.with_suffix(".png"))
+        if kind != "debug" or (method == "gbuffer" and (suffix == ".exr" or exr)):
+            paths += [out.with_suffix(f".{name}.exr") for name in fields]
+    paths.append(out.with_suffix(".json"))
+    return paths
+
+
+def check_planned(paths: list[Path]) -> None:
+    """No path to be written is a directory (found before rendering, not after)."""
+    for p in paths:
+        if p.is_dir():
+            raise InvalidParameterError(f"cannot write '{p}': it is a directory")
 
 
 def _write_npy(path: Path, array: np.ndarray) -> Path:
@@ -145,43 +189,78 @@ def _write_npy(path: Path, array: np.ndarray) -> Path:
     return path
 
 
+#: the labels of the G-buffer contact sheet's panels: at least this many pixels wide, a band this tall above each
+SHEET_PANEL_WIDTH, SHEET_LABEL_HEIGHT = 96, 14
+
+
+def contact_sheet(panels: dict[str, np.ndarray], cols: int = 4) -> np.ndarray:
+    """Display-referred panels ((H, W, 3) in [0, 1]) on a grid, each enlarged to at least
+    :data:`SHEET_PANEL_WIDTH` pixels and labelled with its name in a band above it; returns (H', W', 3) in [0, 1]."""
+    from PIL import Image, ImageDraw, ImageFont
+
+    h, w = next(iter(panels.values())).shape[:2]
+    k = max(1, -(-SHEET_PANEL_WIDTH // w))  # whole-pixel enlargement: every pixel stays visible as it is
+    ph, pw = SHEET_LABEL_HEIGHT + h * k, w * k
+    rows = -(-len(panels) // cols)
+    sheet = np.zeros((rows * ph, cols * pw, 3), dtype=np.uint8)
+    for i, tile in enumerate(panels.values()):
+        r, c = divmod(i, cols)
+        big = np.repeat(np.repeat(np.clip(tile[:, :, :3], 0, 1), k, axis=0), k, axis=1)
+        sheet[r * ph + SHEET_LABEL_HEIGHT : (r + 1) * ph, c * pw : (c + 1) * pw] = np.round(big * 255).astype(np.uint8)
+    img = Image.fromarray(sheet)
+    draw, font = ImageDraw.Draw(img), ImageFont.load_default()
+    for i, name in enumerate(panels):
+        r, c = divmod(i, cols)
+        draw.text((c * pw + 2, r * ph + 1), name, fill=(255, 255, 255), font=font)
+    return np.asarray(img, dtype=np.float64) / 255.0
+
+
+def _gbuffer_panels(extra: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    from grisx.imageio import srgb_encode
+    from grisx.render.views import display_image
+
+    panels = {}
+    for name, img in extra.items():
+        view = {"normal_geo": "normal", "tri": "tri", "material": "material", "hit": "material"}.get(name, name)
+        disp, encode = display_image(view, img if img.ndim == 3 else np.repeat(img[:, :, None], 3, axis=2))
+        panels[name] = srgb_encode(disp) if encode else np.clip(disp, 0, 1)
+    return panels
+
+
 def write_outputs(result: Any, out: Path, method: str, exr: bool = False) -> list[str]:
-    """Write the image as ``out`` asks (.exr + PNG, .png, .npy; ``exr``: the EXR too) and the JSON sidecar; returns the paths."""
-    from grisx import __version__
-    from grisx.imageio import write_exr, write_png
+    """Write the image as ``out`` asks (.exr + PNG, .png, .npy; ``exr``: the EXR too) and the JSON sidecar; returns the paths.
+
+    ``out`` itself is written under exactly its name; the files beside it share its stem. ``gbuffer`` writes
+    every field as a named layer of ``out`` (.exr), one EXR per field beside it, and a labelled contact sheet.
+    """
+    from grisx.imageio import write_exr, write_exr_layers, write_png
     from grisx.render.driver import METHODS
     from grisx.render.views import display_image
 
-    check_output(out)
+    out = check_output(out)
+    fields = tuple(result.extra)
+    paths = planned_outputs(out, method, exr, fields)
+    check_planned(paths)
     suffix = out.suffix.lower()
-    linear = suffix == ".exr" or exr
+    exr_path = out if suffix == ".exr" else out.with_suffix(".exr") if exr else None
+    png = out if suffix == ".png" else out.with_suffix(".png")
     written = []
     if suffix == ".npy":
         written.append(str(_write_npy(out, result.image)))
-    if linear:
-        written.append(str(write_exr(out.with_suffix(".exr"), result.image)))
-    png = out.with_suffix(".png")
+    if exr_path is not None:
+        if method == "gbuffer":  # every field a named layer: the file is not any one field in disguise
+            written.append(str(write_exr_layers(exr_path, result.extra)))
+        else:
+            written.append(str(write_exr(exr_path, result.image)))
+    extras: dict[str, Any] = {}
     if suffix == ".npy":
         pass  # data only (and the EXR if asked)
     elif METHODS[method].kind == "debug":
         if method == "gbuffer":
-            tiles = []
-            for name, img in result.extra.items():
-                if linear:
-                    written.append(str(write_exr(out.with_suffix(f".{name}.exr"), img)))
-                view = {"normal_geo": "normal", "tri": "tri", "material": "material", "hit": "material"}.get(name, name)
-                disp, encode = display_image(view, img if img.ndim == 3 else np.repeat(img[:, :, None], 3, axis=2))
-                from grisx.imageio import srgb_encode
-
-                tiles.append(srgb_encode(disp) if encode else np.clip(disp, 0, 1))
-            cols = 4
-            rows = -(-len(tiles) // cols)
-            h, w = tiles[0].shape[:2]
-            sheet = np.zeros((rows * h, cols * w, 3))
-            for i, t in enumerate(tiles):
-                r, c = divmod(i, cols)
-                sheet[r * h : (r + 1) * h, c * w : (c + 1) * w] = t[:, :, :3]
-            written.append(str(write_png(png, sheet, encode=False)))
+            if exr_path is not None:
+                written += [str(write_exr(out.with_suffix(f".{name}.exr"), img)) for name, img in result.extra.items()]
+            written.append(str(write_png(png, contact_sheet(_gbuffer_panels(result.extra)), encode=False)))
+            extras["panels"] = list(fields)  # the contact sheet's panels, row by row, four to a row
         else:
             disp, encode = display_image(method, result.image)
             written.append(str(write_png(png, disp, encode=encode)))
@@ -190,16 +269,39 @@ def write_outputs(result: Any, out: Path, method: str, exr: bool = False) -> lis
         for name, img in result.extra.items():  # gradient-domain methods: primal, dx, dy beside the reconstruction
             written.append(str(write_exr(out.with_suffix(f".{name}.exr"), img)))
     sidecar = out.with_suffix(".json")
-    meta = {
-        "grisx_version": __version__,
-        "device": result.device,
-        "seconds": result.seconds,
-        "pass_seconds": result.pass_seconds,
-        **result.settings,
-    }
-    sidecar.write_text(json.dumps(meta, indent=2, default=_plain))
     written.append(str(sidecar))
+    from grisx.eval.files import write_json
+
+    write_json(sidecar, render_record(result, written, **extras))
     return written
+
+
+def render_record(result: Any, written: list[str], **extras: Any) -> dict[str, Any]:
+    """What ``render --json`` prints and the JSON sidecar holds: one schema (the CLI contract's keys first)."""
+    from grisx import __version__
+
+    s = result.settings
+    return {
+        "method": s["method"],
+        "scene": s["scene"],
+        "width": s["width"],
+        "height": s["height"],
+        "frames": result.frames,
+        "spp": result.spp,
+        "seconds": {"total": result.seconds, **result.pass_seconds},
+        "device": result.device,
+        "output": list(written),
+        "seed": s["seed"],
+        "params": s["params"],
+        "nonfinite_samples": s.get("nonfinite_samples", 0),
+        **({"statistics": s["statistics"]} if "statistics" in s else {}),
+        "accumulate": s["accumulate"],
+        "camera": s["camera"],
+        "features": s["features"],
+        "triangles": s["triangles"],
+        "grisx_version": __version__,
+        **extras,
+    }
 
 
 def method_help(name: str) -> str:
@@ -245,13 +347,13 @@ def _methods(args: argparse.Namespace) -> int:
         if args.json:
             m = METHODS.get(args.method)
             method_help(args.method)  # the one-line error for an unknown name
-            print(json.dumps({"method": m.name, "summary": m.summary, "kind": m.kind, "uses_spp": m.uses_spp,
-                              "reference_max_depth": m.reference_max_depth, "params": [p.describe() for p in m.params]}, default=_plain))
+            print(json_line({"method": m.name, "summary": m.summary, "kind": m.kind, "uses_spp": m.uses_spp,
+                             "reference_max_depth": m.reference_max_depth, "params": [p.describe() for p in m.params]}))
         else:
             print(method_help(args.method))
         return 0
     if args.json:
-        print(json.dumps({name: {"summary": m.summary, "kind": m.kind, "params": [p.name for p in m.params]} for name, m in METHODS.items()}))
+        print(json_line({name: {"summary": m.summary, "kind": m.kind, "params": [p.name for p in m.params]} for name, m in METHODS.items()}))
         return 0
     if args.markdown:
         print(methods_markdown())
@@ -272,10 +374,12 @@ def _reference(args: argparse.Namespace) -> int:
 
     from grisx.executor import executor_from_args
 
-    out = Path(args.out) if args.out else None
-    if out is not None and (out.suffix.lower() != ".exr" or not out.parent.is_dir()):
-        raise InvalidParameterError(f"--out must name an .exr file in an existing directory, got '{out}'")
-    with executor_from_args(args) as executor:
+    from grisx.progress import Progress
+
+    out = check_output(args.out, formats=(".exr",)) if args.out is not None else None
+    if out is not None:
+        check_planned([out, out.with_suffix(".variance.exr"), out.with_suffix(".png")])
+    with executor_from_args(args) as executor, Progress(args.spp, f"reference {args.scene}", unit="spp") as bar:
         ref = reference(
             args.scene,
             res=parse_res(args.res) if args.res else None,
@@ -284,7 +388,7 @@ def _reference(args: argparse.Namespace) -> int:
             device=args.device,
             seed=args.seed,
             force=args.force,
-            progress=_Progress(f"reference {args.scene}"),
+            progress=bar,
             executor=executor,
             chunk_spp=args.chunk_spp,
         )
@@ -295,7 +399,7 @@ def _reference(args: argparse.Namespace) -> int:
         write_png(out.with_suffix(".png"), ref.image)
         written += [str(out), str(out.with_suffix(".variance.exr")), str(out.with_suffix(".png"))]
     if args.json:
-        print(json.dumps({**ref.settings, "cached": ref.cached, "output": written}, default=_plain))
+        print(json_line({**ref.settings, "cached": ref.cached, "output": written}))
     else:
         state = "cached" if ref.cached else f"rendered in {ref.settings.get('seconds', 0):.1f} s"
         for worker, d in ({} if ref.cached else ref.settings.get("throughput", {})).items():
@@ -306,14 +410,6 @@ def _reference(args: argparse.Namespace) -> int:
             print(f"  retried {r['key']}: {r['attempts']} attempts ({'; '.join(r['errors'])})")
         print(f"{args.scene}: reference {ref.settings['width']}x{ref.settings['height']}, {ref.settings['spp']} spp ({state}) -> {ref.path}")
     return 0
-
-
-def _plain(v: Any) -> Any:
-    if isinstance(v, (np.integer, np.floating)):
-        return v.item()
-    if isinstance(v, np.ndarray):
-        return v.tolist()
-    return str(v)
 
 
 def _render(args: argparse.Namespace) -> int:
@@ -327,38 +423,28 @@ def _render(args: argparse.Namespace) -> int:
         params[key] = value
     res = parse_res(args.res) if args.res else None
     stem = Path(args.scene).stem if args.scene.lower().endswith(".xml") else args.scene
-    out = Path(args.out) if args.out else Path(f"{stem}-{args.method}.exr")
-    check_output(out)
-    result = render(
-        args.scene,
-        args.method,
-        spp=args.spp,
-        frames=args.frames,
-        accumulate=args.accumulate,
-        res=res,
-        device=args.device,
-        seed=args.seed,
-        params=params,
-        progress=_Progress(f"{stem} {args.method}"),
-    )
+    out = check_output(args.out if args.out is not None else f"{stem}-{args.method}.exr")
+    check_planned(planned_outputs(out, args.method, args.exr))
+    progress = _RenderProgress(f"{stem} {args.method}", args.frames)
+    try:
+        result = render(
+            args.scene,
+            args.method,
+            spp=args.spp,
+            frames=args.frames,
+            accumulate=args.accumulate,
+            res=res,
+            device=args.device,
+            seed=args.seed,
+            params=params,
+            progress=progress.frame,
+            on_sample=progress.sample,
+        )
+    finally:
+        progress.bar.close()
     written = write_outputs(result, out, args.method, exr=args.exr)
     if args.json:
-        s = result.settings
-        print(json.dumps({
-            "method": args.method,
-            "scene": s["scene"],
-            "width": s["width"],
-            "height": s["height"],
-            "frames": result.frames,
-            "spp": result.spp,
-            "seconds": {"total": result.seconds, **result.pass_seconds},
-            "device": result.device,
-            "seed": args.seed,
-            "params": s["params"],
-            "nonfinite_samples": s.get("nonfinite_samples", 0),
-            **({"statistics": s["statistics"]} if "statistics" in s else {}),
-            "output": written,
-        }, default=_plain))
+        print(json_line(json.loads(Path(written[-1]).read_text())))  # the sidecar, as written
     else:
         print(f"{result.settings['scene']}: {args.method}, {result.settings['width']}x{result.settings['height']}, "
               f"{result.frames} frame(s) x {result.spp} spp in {result.seconds:.3f} s on {result.device} -> {written[0]}")

@@ -21,9 +21,11 @@ G-buffer every renderer reads.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import time
-from collections.abc import Callable, Mapping
+import warnings
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -31,11 +33,12 @@ import numpy as np
 import warp as wp
 
 from grisx.device import load_kernels, resolve_device, synchronize
-from grisx.errors import InvalidParameterError, InvalidValueError, UnknownNameError
+from grisx.errors import INT32_MAX, GrisxWarning, InvalidParameterError, InvalidValueError, UnknownNameError
 from grisx.render.base.registry import METHODS, RenderContext, RenderMethod, load_plugins, method_params
 from grisx.scene.material import MATERIAL_KIND_NAMES
 
-__all__ = ["METHODS", "RenderMethod", "RenderContext", "RenderResult", "PassTimer", "render", "load_scene", "parse_res", "method_params"]
+__all__ = ["METHODS", "RenderMethod", "RenderContext", "RenderResult", "PassTimer", "render", "load_scene", "parse_res", "check_res",
+           "method_params"]
 
 
 wp.set_module_options({"enable_backward": False})
@@ -79,15 +82,47 @@ class _PassScope:
         self.timer.seconds[self.name] = self.timer.seconds.get(self.name, 0.0) + time.perf_counter() - self.start
 
 
+#: the largest film side ``res`` may ask for
+MAX_RES = 16384
+#: a floor on the memory one pixel takes while rendering (image, sums, host copies, output encoding): a
+#: ``res`` that needs more than the memory available is refused before anything is allocated
+PIXEL_BYTES = 256
+
+
 def parse_res(text: str) -> tuple[int, int]:
     """'WxH' → (W, H)."""
     try:
         w, h = (int(v) for v in str(text).lower().split("x"))
     except ValueError:
         raise InvalidParameterError(f"--res expects WxH (e.g. 640x480), got '{text}'") from None
-    if not (1 <= w <= 16384 and 1 <= h <= 16384):
-        raise InvalidParameterError(f"--res must be between 1x1 and 16384x16384, got '{text}'")
+    if not (1 <= w <= MAX_RES and 1 <= h <= MAX_RES):
+        raise InvalidParameterError(f"--res must be between 1x1 and {MAX_RES}x{MAX_RES}, got '{text}'")
     return w, h
+
+
+def check_res(res: Any) -> tuple[int, int]:
+    """``res`` as (width, height) of whole numbers in [1, MAX_RES]; anything else is one clear error."""
+    if isinstance(res, (str, bytes)) or not hasattr(res, "__len__") or len(res) != 2:
+        raise InvalidParameterError(f"res must be (width, height), got {res!r}")
+    out = []
+    for name, v in zip(("width", "height"), res):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)):
+            raise InvalidParameterError(f"res: {name} must be an integer, got {v!r}")
+        if not 1 <= v <= MAX_RES:
+            raise InvalidParameterError(f"res: {name} must be between 1 and {MAX_RES}, got {v}")
+        out.append(int(v))
+    return out[0], out[1]
+
+
+def check_memory(width: int, height: int, dev: Any, what: str) -> None:
+    """Refuse a film that cannot fit: at least :data:`PIXEL_BYTES` a pixel against the memory available."""
+    from grisx.device import available_memory
+
+    need = width * height * PIXEL_BYTES
+    free = available_memory(dev)
+    if free is not None and need > free:
+        raise InvalidParameterError(f"{what} at {width}x{height} needs at least {need / 2**30:.1f} GiB "
+                                    f"({PIXEL_BYTES} bytes a pixel); {dev} has {free / 2**30:.1f} GiB available")
 
 
 def load_scene(scene: str, params: Mapping[str, Any] | None = None) -> Any:
@@ -98,6 +133,8 @@ def load_scene(scene: str, params: Mapping[str, Any] | None = None) -> Any:
         return build_builtin(scene)
     path = Path(scene)
     if path.suffix.lower() == ".xml" or path.exists():
+        if path.is_dir():
+            raise InvalidParameterError(f"scene '{scene}' is a directory, not a Mitsuba XML file")
         if not path.is_file():
             raise InvalidParameterError(f"scene file '{scene}' does not exist")
         from grisx.scene.mitsuba import load_mitsuba
@@ -135,6 +172,7 @@ def render(
     on_frame: Callable[[int, np.ndarray, float], None] | None = None,
     progress: Callable[[int, int], None] | None = None,
     camera: str = "auto",
+    on_sample: Callable[[int, int], None] | None = None,
 ) -> RenderResult:
     """Render ``scene`` with ``method`` for ``frames`` frames; see the module docstring.
 
@@ -146,11 +184,19 @@ def render(
     scene's default camera), ``"path"`` (its camera path, frame by frame) or
     ``"auto"``: the path when several frames are rendered without
     ``accumulate`` (averaging frames only converges under a static camera).
+    ``progress(frames_done, frames)`` is called after each frame and, for the
+    methods that take ``spp``, ``on_sample(samples_done, spp)`` after each
+    sample pass within a frame. Non-finite samples that a renderer dropped are
+    reported as a :class:`~grisx.errors.GrisxWarning`.
     """
     from grisx.scene.scene import Scene
 
-    if method not in METHODS:
-        raise UnknownNameError("render method", method, sorted(METHODS))
+    if not isinstance(method, str) or method not in METHODS:
+        raise UnknownNameError("render method", str(method), sorted(METHODS))
+    if not isinstance(scene, (str, Path, Scene)):
+        raise InvalidParameterError(f"scene must be a built-in name, a Mitsuba XML path or a Scene, got {type(scene).__name__}")
+    if params is not None and not isinstance(params, Mapping):
+        raise InvalidParameterError(f"params must be a mapping of param name to value, got {type(params).__name__}")
     spec = METHODS[method]
     resolved = method_params(method, params)
     if isinstance(frames, bool) or not isinstance(frames, (int, np.integer)) or frames < 1:
@@ -172,14 +218,39 @@ def render(
             raise InvalidParameterError(f"method '{method}' takes one sample per pixel per frame: spp does not apply (use --frames)")
         spp = 1
     spp = int(sc.defaults.get("spp", 16)) if spp is None else spp
-    width, height = res if res is not None else (sc.film.width, sc.film.height)
+    if int(spp) * int(frames) > INT32_MAX:  # the counter RNG numbers samples (frame * spp + s) in int32
+        raise InvalidParameterError(f"spp x frames must be at most 2^31 - 1, got {spp} x {frames}")
+    width, height = check_res(res if res is not None else (sc.film.width, sc.film.height))
     dev = resolve_device(device)
+    check_memory(width, height, dev, f"render '{method}'")
     if camera not in ("auto", "static", "path"):
         raise InvalidParameterError(f"camera must be auto, static or path, got {camera!r}")
     built = sc.build(dev)
     built.animate_camera = camera == "path" or (camera == "auto" and frames > 1 and not accumulate)
     timer = PassTimer(dev)
+    with _out_of_memory(width, height, dev, method):
+        return _run(spec, method, sc, built, dev, timer, resolved, width, height, int(spp), int(frames), bool(accumulate),
+                    int(seed), on_frame, progress, on_sample)
+
+
+@contextlib.contextmanager
+def _out_of_memory(width: int, height: int, dev: Any, method: str) -> Iterator[None]:
+    """An allocation that fails (Warp's RuntimeError, numpy's MemoryError) as one clear error."""
+    try:
+        yield
+    except (MemoryError, RuntimeError) as exc:
+        if isinstance(exc, RuntimeError) and "allocate" not in str(exc):
+            raise
+        raise InvalidParameterError(f"not enough memory to render '{method}' at {width}x{height} on {dev}: "
+                                    f"{str(exc) or type(exc).__name__}") from None
+
+
+def _run(spec: RenderMethod, method: str, sc: Any, built: Any, dev: Any, timer: PassTimer, resolved: dict[str, Any],
+         width: int, height: int, spp: int, frames: int, accumulate: bool, seed: int,
+         on_frame: Any, progress: Any, on_sample: Any) -> RenderResult:
     renderer = spec.create(RenderContext(built, width, height, {**resolved, "spp": int(spp)}, int(seed), timer, method))
+    if on_sample is not None and spec.uses_spp:
+        renderer.on_sample = _SampleTicks(on_sample, spp, dev)
     # compiling is not rendering: keep it off the clock, and say so when it takes a while
     kinds = ", ".join(MATERIAL_KIND_NAMES[k] for k in sorted(built.features.material_kinds))
     load_kernels([*(renderer.kernels() if hasattr(renderer, "kernels") else ()), _accumulate, _average], dev, f"{method} ({kinds})")
@@ -245,6 +316,9 @@ def render(
         settings["statistics"] = renderer.statistics()  # a method's own tallies (e.g. seed 003's Table 1)
     if hasattr(renderer, "nonfinite_samples"):
         settings["nonfinite_samples"] = renderer.nonfinite_samples  # dropped NaN/Inf samples; 0 expected
+        if settings["nonfinite_samples"]:
+            warnings.warn(f"{method} dropped {settings['nonfinite_samples']} non-finite (NaN/Inf) samples of scene "
+                          f"'{sc.name}': values beyond float32's range (an emitter too bright?)", GrisxWarning, stacklevel=3)
     return RenderResult(
         image=image,
         frames=int(frames),
@@ -256,6 +330,26 @@ def render(
         settings=settings,
         extra=extra,
     )
+
+
+class _SampleTicks:
+    """A renderer's ``on_sample()`` hook: counts sample passes within a frame and reports them to ``report(done, spp)``.
+
+    On an asynchronous device it synchronizes at most twice a second, so that the count (and an ETA made
+    from it) follows the work done rather than the work queued.
+    """
+
+    def __init__(self, report: Callable[[int, int], None], spp: int, dev: Any) -> None:
+        self.report, self.spp, self.dev = report, spp, dev
+        self.done, self.synced = 0, time.perf_counter()
+
+    def __call__(self) -> None:
+        self.done = self.done % self.spp + 1
+        now = time.perf_counter()
+        if now - self.synced > 0.5:
+            synchronize(self.dev)
+            self.synced = now
+        self.report(self.done, self.spp)
 
 
 load_plugins()  # every renderer module registers itself (grisx.render.base.registry.PLUGINS)

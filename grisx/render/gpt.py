@@ -108,6 +108,8 @@ class GradientFromPrimal(AreaReSTIR):
 class GradientPT(GradientFromPrimal):
     """Gradient-domain path tracing (B.2): ``spp`` fresh samples per pixel and frame, no reuse (module docstring)."""
 
+    on_sample: Any = None  # called after each sample pass (the driver's progress)
+
     def __init__(self, built: Any, width: int, height: int, *, spp: int = 1, **options: Any) -> None:
         super().__init__(built, width, height, temporal=False, spatial_rounds=0, **options)
         self.spp = int(spp)
@@ -118,6 +120,8 @@ class GradientPT(GradientFromPrimal):
         for s in range(self.spp):
             cur, film = self.canonical(frame, stream_frame=frame * self.spp + s)
             self.add_gradients(frame, cur, film, 1.0 / self.spp)
+            if self.on_sample is not None:  # the driver's progress within a frame
+                self.on_sample()
         self.frames_rendered += 1
         return self.finish()
 

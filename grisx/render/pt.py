@@ -117,6 +117,9 @@ def _scale(total: wp.array2d(dtype=wp.vec3d), s: wp.float64, out: wp.array2d(dty
 class PathTracer:
     """Progressive path tracing of a built scene: ``spp`` sample passes per frame."""
 
+    #: called (no arguments) after each sample pass: the driver's progress within a frame; None: nothing
+    on_sample: Any = None
+
     def __init__(
         self,
         built: Any,
@@ -176,6 +179,8 @@ class PathTracer:
                 device=self.built.device,
             )
             self.samples += 1
+            if self.on_sample is not None:
+                self.on_sample()
 
     def render_frame(self, frame: int) -> wp.array:
         """A fresh ``spp``-sample estimate of frame ``frame`` (linear RGB, H×W, on the device)."""

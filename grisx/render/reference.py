@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from grisx.errors import InvalidParameterError
+from grisx.errors import INT32_MAX, InvalidParameterError
 
 __all__ = ["Reference", "reference", "reference_image", "cache_dir", "render_chunk", "CHUNK_SPP"]
 
@@ -203,16 +203,20 @@ def reference(
     key it had before chunking; one of several chunks has ``chunk_spp`` in its key.
     """
     from grisx import __version__
+    from grisx.device import resolve_device
     from grisx.executor import InProcessExecutor, Task
-    from grisx.imageio import read_exr, write_exr
-    from grisx.render.driver import load_scene
+    from grisx.imageio import check_writable_dir, read_exr, write_exr
+    from grisx.render.driver import check_memory, check_res, load_scene
     from grisx.render.pt import variance_of_mean
 
     for name, value in (("spp", spp), ("chunk_spp", chunk_spp)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
             raise InvalidParameterError(f"{name} must be a positive integer, got {value!r}")
+    if int(spp) > INT32_MAX:  # the counter RNG numbers samples in int32
+        raise InvalidParameterError(f"spp must be at most 2^31 - 1, got {spp}")
     sc = load_scene(scene)
-    width, height = res if res is not None else (sc.film.width, sc.film.height)
+    width, height = check_res(res if res is not None else (sc.film.width, sc.film.height))
+    check_memory(width, height, resolve_device("cpu"), "reference")  # the float64 sums are merged here, on the host
     depth = int(sc.defaults.get("max_depth", 16)) if max_depth is None else int(max_depth)
     if depth == 0:
         raise InvalidParameterError("max_depth must be -1 (unbounded) or >= 1, got 0")
@@ -229,6 +233,11 @@ def reference(
     if executor is None:
         executor = InProcessExecutor(device)
     chunk_dir = folder / f"{key}.chunks"
+    try:  # the cache must take the result: find out now, not after the render
+        chunk_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InvalidParameterError(f"cannot create the reference cache '{folder}' (GRISX_CACHE_DIR): {exc.strerror or exc}") from None
+    check_writable_dir(chunk_dir, "the reference cache (GRISX_CACHE_DIR)")
     if force and chunk_dir.is_dir():
         for old in chunk_dir.glob("*.npz"):
             old.unlink()

@@ -563,6 +563,8 @@ class SMSRenderer(PathTracer):
                 wp.launch(self.kernels_["sample_pass"], dim=(self.height, self.width), inputs=[self.spec, p, self.samples],
                           outputs=[self.total, self.total_sq, self.nonfinite], device=self.built.device)
                 self.samples += 1
+                if self.on_sample is not None:
+                    self.on_sample()
 
     def render_frame(self, frame: int) -> wp.array:
         self.reset()

@@ -104,9 +104,13 @@ class Estimate:
         return float(np.sqrt(np.mean(se**2 * self.trials + bias**2)))
 
     def to_dict(self) -> dict[str, Any]:
-        def plain(a: Any) -> Any:
-            a = np.asarray(a)
-            return float(a) if a.ndim == 0 else [float(v) for v in a.ravel()]
+        """A JSON-ready record; ``None`` (JSON ``null``) for a value that is undefined: NaN/Inf, and
+        ``stderr`` and ``z`` of a single trial (the sample variance of one value does not exist)."""
+
+        def plain(a: Any, defined: bool = True) -> Any:
+            a = np.asarray(a, dtype=np.float64)
+            values = [float(v) if defined and np.isfinite(v) else None for v in a.ravel()]
+            return values[0] if a.ndim == 0 else values
 
         z = self.z
         return {
@@ -114,9 +118,9 @@ class Estimate:
             "method": self.method,
             "params": dict(self.params),
             "estimate": plain(self.estimate),
-            "stderr": plain(self.stderr),
+            "stderr": plain(self.stderr, self.trials > 1),
             "exact": plain(self.exact),
-            "z": plain(z),
+            "z": plain(z, self.trials > 1),
             "trials": self.trials,
             "seed": self.seed,
             "seconds": self.seconds,
