@@ -305,7 +305,7 @@ def _camel_to_snake(name: str) -> str:
 _WHY_NOT = {
     **dict.fromkeys(("medium", "phase", "volume", "homogeneous", "heterogeneous", "volpath_media"),
                     "participating media are not rendered by grisx (surfaces only)"),
-    **dict.fromkeys(("stokes", "measured_polarized", "polarizer", "retarder", "pplastic"),
+    **dict.fromkeys(("stokes", "polarizer", "retarder"),
                     "polarization is not rendered by grisx (RGB radiance only)"),
     **dict.fromkeys(("tent", "mitchell", "lanczos", "catmullrom"),
                     "grisx films filter with box or gaussian only (another filter would change the camera kernels)"),
