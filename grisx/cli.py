@@ -150,7 +150,10 @@ def _toy_run(args: argparse.Namespace) -> int:
         if key in params:
             raise InvalidParameterError(f"--param '{key}' given twice")
         params[key] = value
-    est = run_toy(args.name, args.method, trials=args.trials, seed=args.seed, params=params, device=args.device)
+    from grisx.progress import Progress
+
+    with Progress(args.trials, f"{args.name} {args.method}", unit="trials") as bar:
+        est = run_toy(args.name, args.method, trials=args.trials, seed=args.seed, params=params, device=args.device, progress=bar)
     why = biased_by_design(PROBLEMS[est.problem], est.method, est.params)
     if args.json:
         print(json_line({**est.to_dict(), "biased_by_design": why}))

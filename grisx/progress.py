@@ -7,7 +7,8 @@ stream of carriage returns, so a plain line is printed instead, at most every
 
     cornell-box pt: 12/40 spp (30%), 00:21 elapsed, ETA 00:49
 
-Work that ends within :data:`LINE_SECONDS` prints nothing off a terminal.
+Work that ends within :data:`LINE_SECONDS` prints nothing off a terminal, and
+work that ends within :data:`BAR_DELAY_SECONDS` draws no bar on one.
 Renders (frames, and samples per pixel within a frame), references and
 studies all report through :class:`Progress`.
 """
@@ -20,10 +21,12 @@ from typing import Any, TextIO
 
 from tqdm import tqdm
 
-__all__ = ["Progress", "LINE_SECONDS"]
+__all__ = ["Progress", "LINE_SECONDS", "BAR_DELAY_SECONDS"]
 
 #: seconds between two plain progress lines off a terminal
 LINE_SECONDS = 10.0
+#: seconds before the bar appears on a terminal: quick work (and input refused at once) draws none
+BAR_DELAY_SECONDS = 0.5
 
 _BAR = "{desc} [{bar:24}] {n_fmt}/{total_fmt} {unit} {elapsed} eta {remaining}{postfix}"
 _LINE = "{desc}: {n_fmt}/{total_fmt} {unit} ({percentage:.0f}%), {elapsed} elapsed, ETA {remaining}{postfix}"
@@ -40,8 +43,8 @@ def _isatty(stream: Any) -> bool:
 class Progress:
     """Progress of ``total`` units of work (``unit``: "frame", "spp", "run", ...) on ``stream`` (stderr).
 
-    ``enabled=None``: a bar if the stream is a terminal, plain lines every
-    :data:`LINE_SECONDS` otherwise; ``True``: always the bar; ``False``: silent.
+    ``enabled=None``: a bar if the stream is a terminal (after :data:`BAR_DELAY_SECONDS`), plain lines
+    every :data:`LINE_SECONDS` otherwise; ``True``: always the bar, at once; ``False``: silent.
     """
 
     def __init__(self, total: int, desc: str = "", *, unit: str = "it", enabled: bool | None = None,
@@ -54,7 +57,7 @@ class Progress:
         self._bar = None
         if self.mode == "bar":
             self._bar = tqdm(total=self.total, desc=desc, unit=unit, file=self.stream, ascii=" #", leave=True,
-                             bar_format=_BAR, dynamic_ncols=True)
+                             bar_format=_BAR, dynamic_ncols=True, delay=0.0 if enabled else BAR_DELAY_SECONDS)
 
     @property
     def done(self) -> int:

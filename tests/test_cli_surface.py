@@ -205,7 +205,12 @@ def test_progress_counts_frames_for_methods_without_spp(tmp_path, capsys, lines_
 def test_progress_on_a_terminal_is_a_bar(tmp_path, capsys, monkeypatch):
     import sys
 
+    import grisx.progress
+
     monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
+    line = one_error_line(capsys, "render", "cornell-box", "--method", "nope", "--out", str(tmp_path / "p.exr"))
+    assert "\r" not in line  # input refused at once draws no bar
+    monkeypatch.setattr(grisx.progress, "BAR_DELAY_SECONDS", 0.0)
     code, _, err = run_cli(capsys, "render", "cornell-box", "--method", "pt", "--res", RES, "--spp", "3", "--frames", "2", "--out", str(tmp_path / "p.exr"))
     assert code == 0 and "\r" in err and "6/6 spp" in err and "eta" in err and "#" in err
 
@@ -213,6 +218,14 @@ def test_progress_on_a_terminal_is_a_bar(tmp_path, capsys, monkeypatch):
 def test_short_work_off_a_terminal_prints_nothing(tmp_path, capsys):
     code, _, err = run_cli(capsys, "render", "cornell-box", "--method", "pt", "--res", RES, "--spp", "2", "--out", str(tmp_path / "p.exr"))
     assert code == 0 and err == ""
+
+
+def test_toy_runs_report_progress_off_a_terminal(capsys, lines_every_time, monkeypatch):
+    import grisx.theory.toys.base as base
+
+    monkeypatch.setattr(base.ToyProblem, "chunk_trials", 1000)
+    code, _, err = run_cli(capsys, "toy", "run", "ris-1d", "--method", "mc", "--trials", "3000")
+    assert code == 0 and "ris-1d mc: 3000/3000 trials (100%)" in err and "ETA" in err
 
 
 def test_studies_report_progress_off_a_terminal(lines_every_time):

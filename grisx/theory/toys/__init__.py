@@ -8,7 +8,7 @@ methods and parameters; :func:`run_toy` runs one and returns an
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 from grisx.errors import UnknownNameError
@@ -58,7 +58,8 @@ def run_toy(
     device: str = "cpu",
     return_samples: bool = False,
     return_values: bool = False,
+    progress: Callable[[int, int], None] | None = None,
 ) -> Estimate:
     """Run toy ``name`` with ``method``; see :meth:`ToyProblem.run`."""
     return get_problem(name).run(method, trials=trials, seed=seed, params=params, device=device,
-                                 return_samples=return_samples, return_values=return_values)
+                                 return_samples=return_samples, return_values=return_values, progress=progress)

@@ -225,11 +225,13 @@ class ToyProblem:
         device: str = "cpu",
         return_samples: bool = False,
         return_values: bool = False,
+        progress: Callable[[int, int], None] | None = None,
     ) -> Estimate:
         """Run ``trials`` independent trials of ``method`` and compare with the exact value.
 
         ``return_samples``: the selected sample of every trial; ``return_values``: every trial's
         estimate (e.g. to draw the estimator's distribution, as seed 000's Fig. 3 does).
+        ``progress(trials_done, trials)`` is called after each chunk of :attr:`chunk_trials`.
         """
         resolved = self.resolve_params(method, params)
         trials = _check_count("trials", trials)
@@ -281,6 +283,8 @@ class ToyProblem:
             if counter_buf is not None:
                 counter_totals += batch.counters.numpy().astype(np.float64).sum(axis=0)
             done += n
+            if progress is not None:
+                progress(done, trials)
         synchronize(dev)
         seconds = time.perf_counter() - start
         if bad:
