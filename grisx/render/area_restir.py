@@ -170,7 +170,7 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     # ---- temporal reuse ----
     @wp.kernel(module=module)
     def temporal_pass(
-        scene: SceneData, cam: CameraData, cam_prev: CameraData, seed: int, frame: int, sp: ShiftParams, history_cap: float,
+        scene: SceneData, scene_prev: SceneData, cam: CameraData, cam_prev: CameraData, seed: int, frame: int, sp: ShiftParams, history_cap: float,
         g: GBufferData, g_prev: GBufferData,
         canonical: wp.array2d(dtype=PathReservoir), film_can: wp.array2d(dtype=FilmSample),
         history: wp.array2d(dtype=PathReservoir), film_hist: wp.array2d(dtype=FilmSample),
@@ -193,9 +193,10 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         ukey = pixel_key_of(seed, frame, x, y, g.hit.shape[1], _STREAM_TEMPORAL)
         c_i = can.res.confidence
         c_j = confidence_capped(prev.res.confidence, history_cap)
-        # canonical sample: p̂_i(y_c) and p̂_{←p}(y_c) through the inverse translation, on the previous camera
+        # canonical sample: p̂_i(y_c) and p̂_{←p}(y_c) through the inverse translation, on the previous camera and
+        # in the previous frame's scene (``scene`` is this frame's: each domain in its own frame)
         t_c = path_target(can.path)
-        t_cj = target_to(film_shift(scene, cam_prev, nb.x, nb.y, film_translate(fs_c, to_prev, cam), can, sp))
+        t_cj = target_to(film_shift(scene_prev, cam_prev, nb.x, nb.y, film_translate(fs_c, to_prev, cam), can, sp))
         m_c = two_domain_balance(c_i, t_c, c_j, t_cj)  # seed 001, Eq. 15
         # history sample translated into pixel i (fractional motion vector), its path shifted from the new x₁
         fs_t = film_translate(film_hist[nb.y, nb.x], -to_prev, cam)
@@ -364,7 +365,7 @@ class AreaReSTIR(ReSTIRPT):
             with self._phase("temporal"):
                 wp.launch(
                     k["temporal"], dim=dim,
-                    inputs=[b.data, cam, cam_prev, self.seed, int(frame), self.shift_params, self.history_cap, g, g_prev, cur, film_cur, history, film_hist],
+                    inputs=[*b.across_frames(), cam, cam_prev, self.seed, int(frame), self.shift_params, self.history_cap, g, g_prev, cur, film_cur, history, film_hist],
                     outputs=[other, film_a], device=dev,
                 )
             cur, other = other, cur

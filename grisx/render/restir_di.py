@@ -109,7 +109,7 @@ from grisx.render.base.reuse import (
     spatial_neighbor,
     temporal_neighbor,
 )
-from grisx.scene.scene import SceneData, SurfaceInteraction, intersect, occluded, segment_occluded, spawn_origin, surface_material
+from grisx.scene.scene import SceneData, SurfaceInteraction, intersect, motion_touches, occluded, segment_occluded, spawn_origin, surface_material
 from grisx.scene.bsdf import MATERIAL_DIFFUSE
 from grisx.theory.control_variate import (
     Q_INIT,
@@ -288,8 +288,14 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
 
     @wp.func
     def eval_at(scene: SceneData, si: SurfaceInteraction, wo: wp.vec3, lp: LightPoint, visibility: int) -> LightEval:
-        """``lp`` seen from a visible point: unshadowed, or zero where occluded when ``visibility`` is set."""
+        """``lp`` seen from a visible point: unshadowed, or zero where occluded when ``visibility`` is set;
+        zero across frames where its emitter moved (no such point in the other frame)."""
         e = light_eval(scene, si, wo, lp)
+        if lp.kind == LIGHT_TRIANGLE and motion_touches(scene, lp.p, lp.p):
+            e.target = 0.0
+            e.rgb = wp.vec3(0.0, 0.0, 0.0)
+            e.aux = wp.vec3(0.0, 0.0, 0.0)
+            return e
         if e.target > 0.0 and visibility != 0:
             if not light_visible(scene, si, e, lp):
                 e.target = 0.0
@@ -305,6 +311,7 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
     @wp.func
     def pairwise_step(
         scene: SceneData,
+        scene_n: SceneData,
         out: Reservoir,
         si: SurfaceInteraction,
         wo: wp.vec3,
@@ -320,9 +327,10 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
         u: float,
     ) -> PairwiseStep:
         """Merge neighbour n's reservoir into ``out`` with its pairwise MIS weight (identity shift, J = 1),
-        and return its pair's share of the canonical sample's weight (Bitterli 2022, Ch. 9)."""
+        and return its pair's share of the canonical sample's weight (Bitterli 2022, Ch. 9). Each side is
+        evaluated in its own frame's scene: ``scene_n`` is the previous frame's for the history."""
         e_c_of_n = eval_at(scene, si, wo, y_n, unbiased)
-        e_n_of_c = eval_at(scene, si_n, wo_n, y_c, unbiased)
+        e_n_of_c = eval_at(scene_n, si_n, wo_n, y_c, unbiased)
         t_c_of_n = e_c_of_n.target  # p̂_c(y_n)
         t_n_of_c = e_n_of_c.target  # p̂_n(y_c)
         step = PairwiseStep()
@@ -458,6 +466,7 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
     @wp.kernel(module=module)
     def temporal_pass(
         scene: SceneData,
+        scene_prev: SceneData,
         sf: ScreenFrame,
         history_cap: float,
         unbiased: int,
@@ -495,7 +504,8 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
         r_p.confidence = confidence_capped(r_p.confidence, history_cap)
         # ---- pairwise MIS between the fresh (canonical) reservoir and the history ----
         step = pairwise_step(
-            scene, reservoir_empty(), si, wo, r_c, y_c, si_p, wo_p, r_p, y_p, 1, r_c.confidence + r_p.confidence, unbiased, random_uniform(key, 1)
+            scene, scene_prev, reservoir_empty(), si, wo, r_c, y_c, si_p, wo_p, r_p, y_p, 1, r_c.confidence + r_p.confidence, unbiased,
+            random_uniform(key, 1)
         )
         sel = light_point_none()
         if step.res.selected:
@@ -512,7 +522,7 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
                 est_j = est_prev[tn.y, tn.x]
                 alpha = cv_alpha_or_sample(o.alpha, sf.g.albedo[y, x], sf.g_prev.albedo[tn.y, tn.x], aux_c * r_c.ucw, est_j)
                 from_j = cv_from_pixel(  # light samples move by the identity: |J| = 1 (module docstring, "Measure")
-                    r_c, r_p, est_j, aux_c, step.aux_n_of_c, own_aux(scene, si_p, wo_p, r_p, y_p), step.aux_c_of_n, 1.0, 1.0, alpha, o.difference_mis
+                    r_c, r_p, est_j, aux_c, step.aux_n_of_c, own_aux(scene_prev, si_p, wo_p, r_p, y_p), step.aux_c_of_n, 1.0, 1.0, alpha, o.difference_mis
                 )
                 c = cv_composite_add(cv_composite_empty(), est_in[y, x], Q_INIT)
                 est_out[y, x] = cv_composite_value(cv_composite_add(c, from_j, compositing_weight(r_p.confidence)))
@@ -579,7 +589,7 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
             r_n.confidence = confidence_capped(r_n.confidence, history_cap)
             si_n = sf.si[nb.y, nb.x]
             wo_n = sf.wo[nb.y, nb.x]
-            step = pairwise_step(scene, out, si, wo, r_c, y_c, si_n, wo_n, r_n, y_n, k, total, unbiased, random_uniform(key, 4 * slots[y, x, j] + 2))
+            step = pairwise_step(scene, scene, out, si, wo, r_c, y_c, si_n, wo_n, r_n, y_n, k, total, unbiased, random_uniform(key, 4 * slots[y, x, j] + 2))
             out = step.res
             m_c += step.canonical
             if out.selected:
@@ -722,7 +732,7 @@ class ReSTIRDI(ScreenSpaceRenderer):
                     self.k.temporal_pass,
                     dim=dim,
                     inputs=[
-                        data, sf, self.history_cap, self.unbiased, SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH, self.cv_options,
+                        *self.built.across_frames(), sf, self.history_cap, self.unbiased, SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH, self.cv_options,
                         src[0], src[1], src[2], self.final.previous[0], self.final.previous[1], self.final.previous[2],
                     ],
                     outputs=[self.temporal_out[0], self.temporal_out[1], self.temporal_out[2]],

@@ -190,7 +190,7 @@ from grisx.render.base.reuse import (
     spatial_neighbor,
     temporal_neighbor,
 )
-from grisx.scene.scene import SceneData, SurfaceInteraction, intersect, segment_occluded, spawn_origin, surface_material
+from grisx.scene.scene import SceneData, SurfaceInteraction, intersect, motion_touches, segment_occluded, spawn_origin, surface_material
 from grisx.theory.gris import ris_weight
 from grisx.theory.mis import support_count, support_count_term, support_mis
 from grisx.theory.random import random_subkey, random_uniform
@@ -267,6 +267,8 @@ class GISample:
     ray_d: wp.vec3
     key: wp.uint32  # random key of the path at x_s
     multi: int  # 1: the tile followed multi-bounce paths
+    box_lo: wp.vec3  # the box of what L_o depends on (x_s, the path's hits and light samples; unbounded past an
+    box_hi: wp.vec3  # escape): reused across frames only where nothing in it moved (``motion_touches``)
     valid: int
     # ---- exact_bsdf: x_s's BSDF and the two techniques of its path, to re-evaluate L_o toward any x_v ----
     exact: int  # 0: lo reused as if Lambertian; 1: re-evaluated from the records below; 2: its own direction only
@@ -345,6 +347,8 @@ class SampleRadiance:
     bs_wi: wp.vec3
     bs_li: wp.vec3
     recorded: int
+    box_lo: wp.vec3
+    box_hi: wp.vec3
 
 
 
@@ -479,18 +483,27 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         test_visibility: int,
         use_jacobian: int,
         max_jacobian: float,
+        across: int,
     ) -> GIShift:
         """Sample ``s`` of visible point src reused at dst: p̂ there (Alg. 4 l. 11–12; 0 when the shift is
-        rejected) and the |J| its resampling weight takes (Eq. 11; 1 with ``jacobian=false``)."""
+        rejected) and the |J| its resampling weight takes (Eq. 11; 1 with ``jacobian=false``). ``across``:
+        src is last frame's, and the shift is undefined where what L_o depends on moved since."""
         out = GIShift()
         j = reconnection_jacobian(scene, si_src, wo_src, si_dst, wo_dst, s)
         out.jacobian = 1.0
         if use_jacobian != 0:
             out.jacobian = j
         out.target = 0.0
-        if shift_accepted(j, max_jacobian):
+        if shift_accepted(j, max_jacobian) and not reused_part_moved(scene, s, across):
             out.target = target_shifted(scene, si_dst, wo_dst, s, target_mode, test_visibility)
         return out
+
+    @wp.func
+    def reused_part_moved(scene: SceneData, s: GISample, across: int) -> bool:
+        """Whether a shift across frames (``across``) would reuse an L_o that may differ in the other frame."""
+        if across == 0:
+            return False
+        return motion_touches(scene, s.box_lo, s.box_hi)
 
     @wp.func
     def domain_supports(scene: SceneData, si: SurfaceInteraction, wo: wp.vec3, s: GISample, target_mode: int, unbiased: int) -> int:
@@ -514,10 +527,14 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         test_support: int,
         unbiased: int,
         max_jacobian: float,
+        across: int,
     ) -> bool:
         """Whether src's domain counts in Z for the sample ``s`` kept at dst (Alg. 4 l. 17): it can produce
         ``s`` (tested when ``test_support``, else assumed) and, when unbiased, its own shift to dst is
-        accepted — the very test its candidates passed."""
+        accepted — the very test its candidates passed. A domain of last frame (``across``) is tested in
+        last frame's ``scene``, and cannot produce a sample whose L_o may have changed since."""
+        if unbiased != 0 and reused_part_moved(scene, s, across):
+            return False
         if domain_supports(scene, si_src, wo_src, s, target_mode, test_support) == 0:
             return False
         return unbiased == 0 or shift_accepted(reconnection_jacobian(scene, si_src, wo_src, si_dst, wo_dst, s), max_jacobian)
@@ -554,6 +571,8 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         out.nee_li = r.nee_li
         out.bs_wi = r.bs_wi
         out.recorded = r.recorded
+        out.box_lo = r.box_lo
+        out.box_hi = r.box_hi
         return out
 
     @wp.func
@@ -836,6 +855,8 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
             sr = outgoing_radiance(scene, s.ray_o, s.ray_d, emitted[y, x], s.key, depth_from_visible_point(max_depth), rr_depth, s.multi,
                                    mb_fraction, wp.static(record))
             s.lo = sr.lo
+            s.box_lo = sr.box_lo
+            s.box_hi = sr.box_hi
             if wp.static(record != 0):
                 s.exact = 2 - sr.recorded
                 s.nee_wi = sr.nee_wi
@@ -877,6 +898,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
     @wp.kernel(module=module)
     def temporal_pass(
         scene: SceneData,
+        scene_prev: SceneData,
         sf: ScreenFrame,
         use_history: int,
         cap: float,
@@ -908,10 +930,11 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         wo_p = sf.wo_prev[tn.y, tn.x]
         r_p = res_prev[tn.y, tn.x]
         r_p.confidence = confidence_capped(r_p.confidence, cap)
-        moved = int(wp.length_sq(si_p.p - si.p) > 0.0)
+        # the visible point or the scene moved: visibility of x_s from last frame's x_v is in question
+        moved = int(wp.length_sq(si_p.p - si.p) > 0.0 or scene.moved_count > 0)
         # ---- Alg. 3: the history reservoir (reconnected if the visible point moved), then the new sample ----
         out = reservoir_empty()
-        sh = reconnect(scene, si_p, wo_p, si, wo, s_prev[tn.y, tn.x], target_mode, moved, use_jacobian, max_jacobian)
+        sh = reconnect(scene, si_p, wo_p, si, wo, s_prev[tn.y, tn.x], target_mode, moved, use_jacobian, max_jacobian, 1)
         out = reservoir_merge(out, r_p, r_p.confidence, sh.target, sh.jacobian, random_uniform(key, 0))
         kept = int(0)  # which sample is kept (0: none, 1: the history's, 2: the new one), loaded once below
         if out.selected:
@@ -927,7 +950,8 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         # ---- W = w / (Z p̂): Z counts the domains that can produce the kept sample (Alg. 3 l. 6 with Alg. 4's Z) ----
         z = support_count_term(r_new.confidence, out.target)
         if sel.valid != 0:
-            z = support_count(z, r_p.confidence, domain_counts(scene, si_p, wo_p, si, wo, sel, target_mode, unbiased * moved, unbiased, max_jacobian))
+            z = support_count(z, r_p.confidence, domain_counts(scene_prev, si_p, wo_p, si, wo, sel, target_mode, unbiased * moved, unbiased,
+                                                               max_jacobian, 1))
         out = reservoir_finalize_mis(out, support_mis(1.0, out.target, z))
         res_out[y, x] = out
         s_out[y, x] = sel
@@ -1027,9 +1051,10 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
                 count += 1
                 n = neighbor_domain(sf, nb, int(flags != 0), temporal_cap, spatial_cap, res_t, s_t, res_s_prev, s_s_prev)
                 test_visibility = int(1)
-                if d < 0:  # the same surface last frame: visibility is only in question if x_v moved
-                    test_visibility = int(wp.length_sq(n.si.p - si.p) > 0.0)
-                sh = reconnect(scene, n.si, n.wo, si, wo, n.sample, target_mode, test_visibility, use_jacobian, max_jacobian)  # Alg. 4 l. 11–12
+                if d < 0:  # the same surface last frame: visibility is only in question if x_v or the scene moved
+                    test_visibility = int(wp.length_sq(n.si.p - si.p) > 0.0 or scene.moved_count > 0)
+                sh = reconnect(scene, n.si, n.wo, si, wo, n.sample, target_mode, test_visibility, use_jacobian, max_jacobian,  # Alg. 4 l. 11–12
+                               int(flags != 0))
                 out = reservoir_merge(out, n.res, n.res.confidence, sh.target, sh.jacobian, u)
                 if out.selected:
                     sel = code
@@ -1045,6 +1070,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
     @wp.kernel(module=module, cuda_max_registers=PATH_REGISTERS)
     def spatial_mis_pass(
         scene: SceneData,
+        scene_prev: SceneData,
         sf: ScreenFrame,
         temporal_cap: float,
         spatial_cap: float,
@@ -1081,10 +1107,15 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
                 c = domains[y, x, j]
                 n = domain_of(sf, c, temporal_cap, spatial_cap, res_t, s_t, res_s_prev, s_s_prev)
                 test_support = unbiased
-                if domain_flags(c) & DOMAIN_HISTORY:  # visibility from last frame's x_v is only in question if it moved
-                    test_support = unbiased * int(wp.length_sq(n.si.p - si.p) > 0.0)
+                if domain_flags(c) & DOMAIN_HISTORY:  # visibility from last frame's x_v is only in question if it or the scene moved
+                    test_support = unbiased * int(wp.length_sq(n.si.p - si.p) > 0.0 or scene.moved_count > 0)
                 if n.res.confidence > 0.0:
-                    z = support_count(z, n.res.confidence, domain_counts(scene, n.si, n.wo, si, wo, sel, target_mode, test_support, unbiased, max_jacobian))
+                    counts = bool(False)
+                    if domain_flags(c) & DOMAIN_PREVIOUS:  # a domain of last frame, in last frame's scene
+                        counts = domain_counts(scene_prev, n.si, n.wo, si, wo, sel, target_mode, test_support, unbiased, max_jacobian, 1)
+                    else:
+                        counts = domain_counts(scene, n.si, n.wo, si, wo, sel, target_mode, test_support, unbiased, max_jacobian, 0)
+                    z = support_count(z, n.res.confidence, counts)
         out = reservoir_finalize_mis(out, support_mis(1.0, out.target, z))
         res_out[y, x] = out
         s_out[y, x] = sel
@@ -1276,12 +1307,15 @@ class ReSTIRGI(ScreenSpaceRenderer):
                 device=dev,
             )
         t_out = self.temporal_buf.current
+        # this frame's geometry knowing what moved since the last, and the last frame's: shifts from last
+        # frame's domains and their Z tests (each domain in its own frame's scene)
+        scene, scene_prev = self.built.across_frames()
         with self._phase("gi_temporal"):
             wp.launch(
                 self.k.temporal_pass,
                 dim=dim,
                 inputs=[
-                    data, sf, int(history and self.temporal), self.history_cap, self.target, self.jacobian, self.unbiased,
+                    scene, scene_prev, sf, int(history and self.temporal), self.history_cap, self.target, self.jacobian, self.unbiased,
                     self.max_jacobian, self.initial[0], self.initial[1], self.temporal_buf.previous[0], self.temporal_buf.previous[1],
                 ],
                 outputs=[t_out[0], t_out[1]],
@@ -1294,7 +1328,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
                     self.k.spatial_resample_pass,
                     dim=dim,
                     inputs=[
-                        data, sf, history, self.history_cap, self.spatial_cap, self.iterations_low, self.iterations_high,
+                        scene, sf, history, self.history_cap, self.spatial_cap, self.iterations_low, self.iterations_high,
                         self.adaptive, self.radius, self.min_radius, self.low_m, self.target, self.jacobian,
                         self.max_jacobian, t_out[0], t_out[1], self.spatial_buf.previous[0], self.spatial_buf.previous[1],
                     ],
@@ -1305,7 +1339,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
                     self.k.spatial_mis_pass,
                     dim=dim,
                     inputs=[
-                        data, sf, self.history_cap, self.spatial_cap, self.target, self.unbiased, self.max_jacobian,
+                        scene, scene_prev, sf, self.history_cap, self.spatial_cap, self.target, self.unbiased, self.max_jacobian,
                         t_out[0], t_out[1], self.spatial_buf.previous[0], self.spatial_buf.previous[1],
                         self.kept, self.domains.codes, self.domains.count,
                     ],

@@ -67,9 +67,15 @@ hands the next (the neighbours, m_c, p̂_{←j}(y_c), a variant's state) goes th
 buffers; the images are bit-identical to the one-kernel passes. On CUDA these kernels run
 under :data:`~grisx.device.SHIFT_REGISTERS`.
 
-Temporal reuse evaluates the previous frame's domains with the current
-frame's geometry: exact for static scenes (how accumulation converges),
-an approximation when objects move (as in Lin et al. 2022).
+**Moving objects.** Temporal reuse evaluates every domain in its own frame's
+scene (:meth:`~grisx.scene.scene.BuiltScene.across_frames`): this frame's
+path shifted into the previous frame's domain traces the previous frame's
+geometry, and a reconnection reuses its suffix x_k … x_n across frames only
+where nothing moved in that suffix's box (its vertices, so its segments, lie
+in it). Lin et al. 2022 evaluate the previous domains with the current
+geometry and reuse suffixes regardless, which is biased around moving
+objects; here the temporal shift fails there instead, and the image stays
+unbiased (``tests/render/test_reuse_unbiased.py``, fast-objects).
 
 References: D. Lin et al., "Generalized resampled importance sampling:
 foundations of ReSTIR", SIGGRAPH 2022; B. Bitterli, PhD thesis (2022), Ch. 9.
@@ -679,17 +685,18 @@ class ReSTIRPT(ScreenSpaceRenderer):
         if self.temporal and self.frames_rendered > 0:
             with self._phase("temporal"):
                 g, g_prev = self.gbuffer.current, self.gbuffer.previous
+                scene_from_prev, scene_prev = b.across_frames()  # each domain in its own frame's scene
                 wp.launch(
                     k["temporal_canonical"],
                     dim=dim,
-                    inputs=[b.data, self.shift_params, g, g_prev, dom, dom_prev, cur, history],
+                    inputs=[scene_prev, self.shift_params, g, g_prev, dom, dom_prev, cur, history],
                     outputs=[other, self.history_pixel, self.target_cj, self.shifted_canonical],
                     device=dev,
                 )
                 wp.launch(
                     k["temporal_merge"],
                     dim=dim,
-                    inputs=[b.data, self.seed, int(frame), self.shift_params, self.history_cap, self.cv_options, g, g_prev, dom, cur, history,
+                    inputs=[scene_from_prev, self.seed, int(frame), self.shift_params, self.history_cap, self.cv_options, g, g_prev, dom, cur, history,
                             self.history_pixel, self.target_cj, self.shifted_canonical],
                     outputs=[other],
                     device=dev,

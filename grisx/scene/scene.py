@@ -176,6 +176,11 @@ class SceneData:
     scene_radius: float
     object_center: wp.array(dtype=wp.vec3)  # per object: centre of its bounding sphere, this frame (caustics' seed space)
     object_radius: wp.array(dtype=float)  # per object: radius of that sphere
+    # what moved between the frames of a shift across frames (:meth:`BuiltScene.across_frames`): the boxes that
+    # bound each object that moved, at both frames; none (``moved_count`` 0) within a frame
+    moved_lo: wp.array(dtype=wp.vec3)
+    moved_hi: wp.array(dtype=wp.vec3)
+    moved_count: int
 
 
 @wp.struct
@@ -191,6 +196,22 @@ class SurfaceInteraction:
     material: int
     object: int
     front: int  # 1 when the ray arrived on the side ng points to
+
+
+@wp.func
+def motion_touches(scene: SceneData, lo: wp.vec3, hi: wp.vec3) -> bool:
+    """Whether the box [``lo``, ``hi``] meets anything that moved between the frames ``scene`` was taken across.
+
+    A path that reuses a part of itself across frames (a reconnection suffix, a cached radiance, a light
+    point) may do so only where that part is the same in both frames: its vertices, and so its segments,
+    lie in their bounding box, and nothing in that box moved. Within one frame nothing moved (0 boxes).
+    """
+    for i in range(scene.moved_count):
+        a = scene.moved_lo[i]
+        b = scene.moved_hi[i]
+        if lo[0] <= b[0] and hi[0] >= a[0] and lo[1] <= b[1] and hi[1] >= a[1] and lo[2] <= b[2] and hi[2] >= a[2]:
+            return True
+    return False
 
 
 @wp.func
@@ -529,6 +550,14 @@ class Scene:
         return BuiltScene(self, resolve_device(device))
 
 
+def _struct_copy(s: Any, **changes: Any) -> Any:
+    """A copy of Warp struct instance ``s`` (its arrays shared) with ``changes`` applied."""
+    out = type(s)()
+    for name in s._cls.vars:
+        setattr(out, name, changes.get(name, getattr(s, name)))
+    return out
+
+
 class BuiltScene:
     """A scene on a device: its BVH, the :class:`SceneData` struct, lights and per-frame motion."""
 
@@ -629,7 +658,13 @@ class BuiltScene:
         self.object_center = wp.array(centers.astype(f32), dtype=wp.vec3, device=dev)
         d.object_center = self.object_center
         d.object_radius = wp.array(np.maximum(radii, 1.0e-6).astype(f32), dtype=float, device=dev)
+        d.moved_lo = wp.zeros(max(len(objs), 1), dtype=wp.vec3, device=dev)
+        d.moved_hi = wp.zeros(max(len(objs), 1), dtype=wp.vec3, device=dev)
+        d.moved_count = 0
         self.data = d
+        #: the scene across frames (:meth:`across_frames`): this frame's geometry, and the previous frame's
+        self.data_from_prev = d
+        self.data_prev = d
 
         n_obj = len(objs)
         ident = np.tile(np.eye(4, dtype=f32), (n_obj, 1, 1))
@@ -637,6 +672,22 @@ class BuiltScene:
         self.object_transforms_prev = wp.array(ident, dtype=wp.mat44, device=dev)
         self.frame: float | None = None
         self._host_transforms = ident.astype(np.float64)
+        self._host_transforms_prev = ident.astype(np.float64)
+        # corners of each object's box at frame 0 (what a rigid motion moves): the boxes of what moved
+        self._object_corners = np.array(
+            [[[(lo_, hi_)[(c >> a) & 1][a] for a in range(3)] for c in range(8)]
+             for lo_, hi_ in ((o.vertices.min(axis=0), o.vertices.max(axis=0)) for o in objs)], dtype=np.float64)
+        if self.features.animated_objects:
+            # the previous frame's geometry: its own vertices, BVH and light set (emitters may move)
+            self.positions_prev = wp.clone(self.base_positions)
+            self.normals_prev = wp.clone(self.base_normals)
+            self.mesh_prev = wp.Mesh(points=self.positions_prev, indices=self.indices, bvh_constructor="sah")
+            self.object_center_prev = wp.clone(self.object_center)
+            lights_prev = _struct_copy(self.lights, positions=self.positions_prev)
+            moved = {"moved_lo": wp.zeros(len(objs), dtype=wp.vec3, device=dev), "moved_hi": wp.zeros(len(objs), dtype=wp.vec3, device=dev)}
+            self.data_prev = _struct_copy(d, mesh=self.mesh_prev.id, positions=self.positions_prev, normals=self.normals_prev,
+                                          lights=lights_prev, object_center=self.object_center_prev, **moved)
+            self.data_from_prev = _struct_copy(d, **moved)
         self.set_frame(0.0)
 
     # ---- per frame ----------------------------------------------------------------
@@ -648,29 +699,65 @@ class BuiltScene:
         return out
 
     def set_frame(self, frame: float) -> bool:
-        """Move objects to ``frame``; returns whether any geometry moved (the BVH is refit only then)."""
+        """Move objects to ``frame`` (and the previous frame's geometry to ``frame`` − 1); returns whether any
+        geometry moved (the BVHs are refit only then)."""
         self.frame = frame
         if not self.features.animated_objects:
             return False  # static geometry: transforms stay identity, nothing to upload or refit
         new = self.transforms_at(frame)
         prev = self.transforms_at(max(frame - 1.0, 0.0))
         self.object_transforms_prev.assign(prev.astype(np.float32))
+        moved_prev = not np.array_equal(prev, self._host_transforms_prev)
+        if moved_prev:
+            self._host_transforms_prev = prev
+            self._place(prev, self.positions_prev, self.normals_prev, self.object_center_prev, self.mesh_prev, self.object_transforms_prev)
+        self._set_moved(prev, new)
         moved = not np.array_equal(new, self._host_transforms)
         if not moved:
             return False
         self._host_transforms = new
         self.object_transforms.assign(new.astype(np.float32))
-        moved_centers = np.einsum("nij,nj->ni", new[:, :3, :3], self._object_centers) + new[:, :3, 3]
-        self.object_center.assign(moved_centers.astype(np.float32))
+        self._place(new, self.positions, self.normals, self.object_center, self.mesh, self.object_transforms)
+        return True
+
+    def _place(self, transforms: np.ndarray, positions: wp.array, normals: wp.array, centers: wp.array, mesh: wp.Mesh,
+               device_transforms: wp.array) -> None:
+        """Move the frame-0 geometry by ``transforms`` (per object) into one frame's vertices, centres and BVH."""
+        moved_centers = np.einsum("nij,nj->ni", transforms[:, :3, :3], self._object_centers) + transforms[:, :3, 3]
+        centers.assign(moved_centers.astype(np.float32))
         wp.launch(
             _move_vertices,
             dim=self.num_vertices,
-            inputs=[self.base_positions, self.base_normals, self.vertex_object, self.object_transforms],
-            outputs=[self.positions, self.normals],
+            inputs=[self.base_positions, self.base_normals, self.vertex_object, device_transforms],
+            outputs=[positions, normals],
             device=self.device,
         )
-        self.mesh.refit()
-        return True
+        mesh.refit()
+
+    def _set_moved(self, prev: np.ndarray, new: np.ndarray) -> None:
+        """The boxes of the objects that moved from ``prev`` to ``new``, each over both frames (a little wider
+        than the surface offset), for :func:`motion_touches` in the shifts across these frames."""
+        moved = [i for i in range(len(new)) if not np.array_equal(prev[i], new[i])]
+        lo = np.zeros((len(new), 3), np.float32)
+        hi = np.zeros_like(lo)
+        pad = 4.0 * float(self.data.ray_epsilon)
+        for j, i in enumerate(moved):
+            pts = np.concatenate([self._object_corners[i] @ m[:3, :3].T + m[:3, 3] for m in (prev[i], new[i])])
+            lo[j], hi[j] = pts.min(axis=0) - pad, pts.max(axis=0) + pad
+        self.data_prev.moved_lo.assign(lo)  # shared by both
+        self.data_prev.moved_hi.assign(hi)
+        for d in (self.data_prev, self.data_from_prev):
+            d.moved_count = len(moved)
+
+    def across_frames(self) -> tuple[SceneData, SceneData]:
+        """The scene for shifts between the previous frame's domains and this frame's: (this frame's geometry,
+        the previous frame's geometry), each knowing what moved in between (:func:`motion_touches`).
+
+        A sample shifted *into* this frame is evaluated in the first; this frame's samples shifted into the
+        previous frame's domains (the MIS weights of temporal reuse) in the second: every domain in its own
+        frame's scene. Without moving objects both are :attr:`data`.
+        """
+        return self.data_from_prev, self.data_prev
 
     def camera_at(self, frame: float) -> Camera:
         """The camera at ``frame``: on the camera path when ``animate_camera`` is set, else the static one.

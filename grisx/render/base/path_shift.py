@@ -113,7 +113,17 @@ from grisx.scene.bsdf import make_bsdf
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.material import Material
 from grisx.scene.lights import emitter_radiance, environment_eval, environment_pdf, light_pdf_emitter, luminance, point_light_intensity, sample_light
-from grisx.scene.scene import SceneData, SurfaceInteraction, intersect, light_occluded, occluded, segment_occluded, spawn_origin, surface_material
+from grisx.scene.scene import (
+    SceneData,
+    SurfaceInteraction,
+    intersect,
+    light_occluded,
+    motion_touches,
+    occluded,
+    segment_occluded,
+    spawn_origin,
+    surface_material,
+)
 from grisx.theory.control_variate import decoupled_contribution
 from grisx.theory.mis import target_from, technique_mis
 from grisx.theory.gris import ris_weight
@@ -215,6 +225,8 @@ class PathSample:
     end_light_pdf: float  # k = n − 1: light-sampling density of the last segment (for m_t at x_k)
     end_delta: int  # k = n − 1: the last segment ends on a delta light (m_t = 1)
     f: wp.vec3  # m_t · f(x̄) in this domain (RGB); the target is its luminance
+    sfx_lo: wp.vec3  # the box of what ``suffix`` reuses (x_k … x_n; unbounded past an escape): a shift
+    sfx_hi: wp.vec3  # across frames fails where something in it moved (:func:`~grisx.scene.scene.motion_touches`)
 
 
 @wp.struct
@@ -293,7 +305,27 @@ def path_sample_empty() -> PathSample:
     x.f = wp.vec3(0.0)
     x.rc_index = 0
     x.pdf_replay = 0.0
+    x.sfx_lo = wp.vec3(_FAR)  # empty: nothing reused
+    x.sfx_hi = wp.vec3(-_FAR)
     return x
+
+
+@wp.func
+def suffix_with(x: PathSample, p: wp.vec3) -> PathSample:
+    """``x`` with point ``p`` of its suffix in the box of what it reuses."""
+    out = x
+    out.sfx_lo = wp.min(x.sfx_lo, p)
+    out.sfx_hi = wp.max(x.sfx_hi, p)
+    return out
+
+
+@wp.func
+def suffix_unbounded(x: PathSample) -> PathSample:
+    """``x`` whose suffix escapes to the environment: a ray to infinity, bounded by no box."""
+    out = x
+    out.sfx_lo = wp.vec3(-_FAR)
+    out.sfx_hi = wp.vec3(_FAR)
+    return out
 
 
 @wp.func
@@ -424,6 +456,8 @@ def _endpoint_light(x: PathSample, index: int, kind: int, p: wp.vec3, n: wp.vec3
     out.rc_dist = dist
     out.suffix = suffix
     out.pdf_replay = pdf_replay
+    if kind == VERTEX_AREA_LIGHT:
+        out = suffix_with(out, p)  # an emitter on a moving object moves; a direction or a point light does not
     return out
 
 
@@ -475,6 +509,8 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                 # ---- reconnection x'_{k−1} → x_k (seed 004, Eq. 11) ----
                 if bsdf.is_delta(m) != 0:
                     return res
+                if motion_touches(scene, x.sfx_lo, x.sfx_hi):
+                    return res  # across frames: the reused x_k … x_n may not be the same path in the other frame
                 d = x.rc_p
                 dist = float(_FAR)
                 if x.rc_kind != VERTEX_ENV:
@@ -660,6 +696,11 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                             cand_x.length = i
                             cand_x.end_nee = 1
                             cand_x.f = wp.cw_mul(fthru, wp.cw_mul(fo, ls.radiance)) * mis  # m_t · f
+                            if cur.rc_index != 0:
+                                if ls.is_env != 0:
+                                    cand_x = suffix_unbounded(cand_x)
+                                else:
+                                    cand_x = suffix_with(cand_x, ls.p)  # the shadow segment ends on the light
                             if cur.rc_index == i:
                                 cand_x.rc_wi = ls.wi
                                 cand_x.suffix = ls.radiance  # m_t is re-evaluated at x_k by the shift
@@ -725,6 +766,11 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                 cand_x.length = i
                 cand_x.end_nee = 0
                 cand_x.f = wp.cw_mul(fthru, le) * mis  # m_t · f
+                if cur.rc_index != 0:
+                    if si.valid == 0:
+                        cand_x = suffix_unbounded(cand_x)
+                    else:
+                        cand_x = suffix_with(cand_x, si.p)
                 if cur.rc_index == i:
                     cand_x.suffix = le  # m_t is re-evaluated at x_k by the shift
                     cand_x.end_light_pdf = lpdf
@@ -760,7 +806,11 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                 cur.rc_cos = wp.dot(si.ng, v.p - si.p) / dist  # the geometric segment, as the shift measures it
                 cur.rc_dist = dist
                 cur.pdf_replay = pdf_before
+                cur.sfx_lo = si.p
+                cur.sfx_hi = si.p
                 suffix_thru = wp.vec3(1.0, 1.0, 1.0)
+            elif cur.rc_index != 0:
+                cur = suffix_with(cur, si.p)
             v = vertex_from_hit(si, -d)
             i += 1
         out = PathReservoir()

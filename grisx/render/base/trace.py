@@ -30,6 +30,7 @@ __all__ = ["PathRadiance", "make_trace_path", "STRATEGIES"]
 
 #: sampling strategies: both techniques with MIS, or one alone
 STRATEGIES = {"mis": 0, "nee": 1, "bsdf": 2}
+_FAR = wp.constant(1.0e30)
 
 
 
@@ -54,6 +55,10 @@ class PathRadiance:
     bs_li: wp.vec3  # everything the path gathers after it, divided by that sample's pdf (not by f)
     bs_li_prefix: wp.vec3  # the part of bs_li within the first prefix_depth segments
     recorded: int  # 1: the records above describe the path
+    # the box of every point the path's value depends on after o: its hits and its light samples (unbounded
+    # once a ray leaves for the environment). ReSTIR GI reuses L_o across frames only where nothing in it moved
+    box_lo: wp.vec3
+    box_hi: wp.vec3
     # caustic_chain > 0 (grisx.render.sms): the first non-delta vertex x₁, where SMS adds its caustic NEE
     x1_valid: int
     x1: SurfaceInteraction
@@ -99,6 +104,8 @@ def _make_trace_path(kinds: frozenset[int], caustic_chain: int) -> Any:
         out.recorded = 0
         out.x1_valid = 0
         out.x1_depth = -1
+        out.box_lo = wp.vec3(_FAR)
+        out.box_hi = wp.vec3(-_FAR)
         # SMS ownership (caustic_chain > 0): 0 before x₁, 1 while the chain after x₁ may still be SMS's, 2 never
         chain_state = int(0)
         chain_len = int(0)
@@ -145,7 +152,12 @@ def _make_trace_path(kinds: frozenset[int], caustic_chain: int) -> Any:
                 if record != 0:
                     out.bs_li += wp.cw_mul(gamma, le) * w
             if si.valid == 0:
+                if depth > 0:
+                    out.box_lo = wp.vec3(-_FAR)  # a ray to infinity
+                    out.box_hi = wp.vec3(_FAR)
                 break
+            out.box_lo = wp.min(out.box_lo, si.p)
+            out.box_hi = wp.max(out.box_hi, si.p)
             if depth + 1 == prefix_depth:
                 out.prefix = L  # a path of max_depth = prefix_depth would stop here
                 out.bs_li_prefix = out.bs_li
@@ -184,6 +196,12 @@ def _make_trace_path(kinds: frozenset[int], caustic_chain: int) -> Any:
                 ls = sample_light(
                     scene.lights, si.p, random_uniform(key, c + 0), wp.vec2(random_uniform(key, c + 1), random_uniform(key, c + 2))
                 )
+                if ls.is_env != 0:
+                    out.box_lo = wp.vec3(-_FAR)
+                    out.box_hi = wp.vec3(_FAR)
+                elif ls.pdf > 0.0:
+                    out.box_lo = wp.min(out.box_lo, ls.p)
+                    out.box_hi = wp.max(out.box_hi, ls.p)
                 if ls.pdf > 0.0 and wp.length_sq(ls.radiance) > 0.0:
                     wi = to_local(frame, ls.wi)
                     f = bsdf.eval(m, wo, wi)
