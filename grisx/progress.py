@@ -15,6 +15,8 @@ studies all report through :class:`Progress`.
 
 from __future__ import annotations
 
+import io
+import os
 import sys
 import time
 from typing import Any, TextIO
@@ -40,6 +42,13 @@ def _isatty(stream: Any) -> bool:
         return False
 
 
+def _columns(stream: Any) -> int:
+    try:
+        return os.get_terminal_size(stream.fileno()).columns
+    except (AttributeError, OSError, ValueError, io.UnsupportedOperation):
+        return 0
+
+
 class Progress:
     """Progress of ``total`` units of work (``unit``: "frame", "spp", "run", ...) on ``stream`` (stderr).
 
@@ -56,8 +65,11 @@ class Progress:
         self._n, self._note, self._lines, self._shown = 0, "", 0, -1
         self._bar = None
         if self.mode == "bar":
+            # a terminal of unknown size (0x0, e.g. a pty without a window: tqdm would hide the bar): 100x20
+            sized = _columns(self.stream) > 0
             self._bar = tqdm(total=self.total, desc=desc, unit=unit, file=self.stream, ascii=" #", leave=True,
-                             bar_format=_BAR, dynamic_ncols=True, delay=0.0 if enabled else BAR_DELAY_SECONDS)
+                             bar_format=_BAR, dynamic_ncols=sized, ncols=None if sized else 100, nrows=None if sized else 20,
+                             delay=0.0 if enabled else BAR_DELAY_SECONDS)
 
     @property
     def done(self) -> int:
