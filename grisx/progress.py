@@ -62,7 +62,7 @@ class Progress:
         self.total, self.desc, self.unit = max(int(total), 1), desc, unit
         self.mode = "off" if enabled is False else "bar" if enabled or _isatty(self.stream) else "lines"
         self.start = self._last_line = time.perf_counter()
-        self._n, self._note, self._lines, self._shown = 0, "", 0, -1
+        self._n, self._note, self._lines, self._shown = 0, "", 0, 0
         self._bar = None
         if self.mode == "bar":
             # a terminal of unknown size (0x0, e.g. a pty without a window: tqdm would hide the bar): 100x20
@@ -87,13 +87,24 @@ class Progress:
             if note:
                 self._bar.set_postfix_str(self._note, refresh=False)
             self._bar.update(self._n - self._bar.n)
-        elif self.mode == "lines":
+        elif self.mode == "lines" and self._n != self._shown:
             now = time.perf_counter()
             if now - self._last_line >= LINE_SECONDS:
                 self._line(now)
 
+    def restart(self) -> None:
+        """Start the clock again (nothing done yet): what came before, e.g. compiling kernels, is no part of the ETA."""
+        if self._n:
+            return
+        self.start = self._last_line = time.perf_counter()
+        if self._bar is not None:
+            self._bar.reset(self.total)
+
     def __call__(self, done: int, total: int, unit: str | None = None) -> None:
-        """``done`` of ``total`` units (a callback for :func:`grisx.render.driver.render` and references)."""
+        """``done`` of ``total`` units (a callback for :func:`grisx.render.driver.render` and references);
+        0 done before anything was done restarts the clock."""
+        if int(done) == 0:
+            self.restart()
         if unit is not None and unit != self.unit:
             self.unit = unit
             if self._bar is not None:

@@ -188,13 +188,19 @@ def lines_every_time(monkeypatch):
     monkeypatch.setattr(grisx.progress, "LINE_SECONDS", 0.0)
 
 
-def test_progress_off_a_terminal_is_a_plain_line_with_an_eta_for_spp(tmp_path, capsys, lines_every_time):
+def test_progress_off_a_terminal_is_a_plain_line_with_an_eta_for_spp(tmp_path, capsys, lines_every_time, monkeypatch):
+    import time
+
+    import grisx.render.driver as driver
+
+    load = driver.load_kernels
+    monkeypatch.setattr(driver, "load_kernels", lambda *a: (load(*a), time.sleep(1.1)))  # compiling is not rendering
     code, _, err = run_cli(capsys, "render", "cornell-box", "--method", "pt", "--res", RES, "--spp", "4", "--out", str(tmp_path / "p.exr"))
     assert code == 0
     lines = err.strip().splitlines()
     assert "\r" not in err and len(lines) >= 4, err
     assert all("cornell-box pt:" in ln and "ETA" in ln and " spp " in ln for ln in lines)
-    assert "4/4 spp" in lines[-1]
+    assert "4/4 spp" in lines[-1] and "00:00 elapsed" in lines[-1]  # the clock starts after the kernels are loaded
 
 
 def test_progress_counts_frames_for_methods_without_spp(tmp_path, capsys, lines_every_time):

@@ -184,7 +184,8 @@ def render(
     scene's default camera), ``"path"`` (its camera path, frame by frame) or
     ``"auto"``: the path when several frames are rendered without
     ``accumulate`` (averaging frames only converges under a static camera).
-    ``progress(frames_done, frames)`` is called after each frame and, for the
+    ``progress(frames_done, frames)`` is called before the first frame (0 done)
+    and after each frame and, for the
     methods that take ``spp``, ``on_sample(samples_done, spp)`` after each
     sample pass within a frame. Non-finite samples that a renderer dropped are
     reported as a :class:`~grisx.errors.GrisxWarning`.
@@ -259,6 +260,8 @@ def _run(spec: RenderMethod, method: str, sc: Any, built: Any, dev: Any, timer: 
     image = None
     frame_seconds: list[float] = []
     synchronize(dev)
+    if progress is not None:
+        progress(0, frames)  # the kernels are loaded: the work (and its clock) starts now
     start = time.perf_counter()
     for f in range(frames):
         synchronize(dev)
