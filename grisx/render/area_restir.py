@@ -63,7 +63,7 @@ from typing import Any
 
 import warp as wp
 
-from grisx.device import specialized_module
+from grisx.device import SHIFT_REGISTERS, specialized_module
 from grisx.errors import InvalidParameterError
 from grisx.params import Param
 from grisx.render.base.area import FILM_STREAM, FilmSample, area_domain, film_sample, film_translate
@@ -84,6 +84,7 @@ from grisx.render.base.reuse import (
     SIMILARITY_NORMAL_COS,
     domain_code,
     domain_pixel,
+    NeighborPixel,
     pixels_similar,
     spatial_neighbor,
     temporal_neighbor,
@@ -95,18 +96,22 @@ from grisx.scene.gbuffer import GBufferData
 from grisx.scene.scene import SceneData
 from grisx.theory.gris import resampling_weight
 from grisx.theory.mis import pairwise_mis_canonical_term, pairwise_mis_neighbor, two_domain_balance
-from grisx.theory.random import random_subkey, random_uniform
+from grisx.theory.random import random_uniform
 from grisx.theory.reservoir import confidence_capped, reservoir_empty, reservoir_merge, reservoir_update
 
 wp.set_module_options({"enable_backward": False})
 
 __all__ = ["AreaReSTIR", "create_area_restir", "make_area_restir_kernels", "area_params"]
 
-# random streams of a pixel (pixel_key_of), as ReSTIR PT's
-_STREAM_RESAMPLE = wp.constant(1)
+# random streams of a pixel (pixel_key_of), as ReSTIR PT's (whose candidate walk serves as the initial pass)
 _STREAM_TEMPORAL = wp.constant(2)
 _STREAM_SPATIAL = wp.constant(3)  # + round
-_STREAM_PATHS = wp.constant(64)  # + candidate
+
+
+@wp.func
+def temporal_offset(g: GBufferData, x: int, y: int, nb: NeighborPixel) -> wp.vec2:
+    """u' = u + i + δ − p: the film offset from pixel (x, y) into its previous pixel ``nb`` (δ its fractional motion)."""
+    return wp.vec2(float(x - nb.x), float(y - nb.y)) + g.motion[y, x]
 
 
 @wp.func
@@ -123,7 +128,6 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     """The passes of Area ReSTIR compiled for the material kinds ``kinds`` (cached)."""
     shifts = make_path_shift(kinds)
     shift = shifts.shift
-    sample_paths = shifts.stream_candidates
     module = specialized_module(__name__, kinds)
 
     @wp.func
@@ -146,60 +150,57 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         domains[y, x] = ad.dom
         direct[y, x] = ad.emission
 
-    # ---- initial candidates ----
-    @wp.kernel(module=module)
-    def initial_pass(
-        scene: SceneData, seed: int, frame: int, candidates: int, max_bounces: int, sp: ShiftParams,
-        domains: wp.array2d(dtype=Domain), out: wp.array2d(dtype=PathReservoir),
-    ):
-        y, x = wp.tid()
-        width = domains.shape[1]
-        ukey = pixel_key_of(seed, frame, x, y, width, _STREAM_RESAMPLE)
-        dom = domains[y, x]
-        pr = PathReservoir()
-        pr.res = reservoir_empty()
-        pr.path = path_sample_empty()
-        pr.estimate = wp.vec3(0.0)
-        inv_n = 1.0 / float(candidates)
-        for cand in range(candidates):
-            key = pixel_key_of(seed, frame, x, y, width, _STREAM_PATHS + cand)
-            pr = sample_paths(scene, dom, key, max_bounces, inv_n, sp, pr, random_subkey(ukey, cand))
-        pr.res.confidence = 1.0  # also where the ray missed: those u are part of the pixel's domain
-        out[y, x] = pr  # finalized by ReSTIR PT's settle pass (the walk and the shift are two kernels)
-
-    # ---- temporal reuse ----
-    @wp.kernel(module=module)
-    def temporal_pass(
-        scene: SceneData, scene_prev: SceneData, cam: CameraData, cam_prev: CameraData, seed: int, frame: int, sp: ShiftParams, history_cap: float,
+    # ---- temporal reuse, in two stages (one film shift each): the canonical sample into the history's pixel, then the merge ----
+    @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
+    def temporal_canonical_pass(
+        scene_prev: SceneData, cam: CameraData, cam_prev: CameraData, sp: ShiftParams,
         g: GBufferData, g_prev: GBufferData,
-        canonical: wp.array2d(dtype=PathReservoir), film_can: wp.array2d(dtype=FilmSample),
-        history: wp.array2d(dtype=PathReservoir), film_hist: wp.array2d(dtype=FilmSample),
+        canonical: wp.array2d(dtype=PathReservoir), film_can: wp.array2d(dtype=FilmSample), history: wp.array2d(dtype=PathReservoir),
         out: wp.array2d(dtype=PathReservoir), film_out: wp.array2d(dtype=FilmSample),
+        history_pixel: wp.array2d(dtype=wp.int32), target_cj: wp.array2d(dtype=float),
     ):
         y, x = wp.tid()
         can = canonical[y, x]
         fs_c = film_can[y, x]
-        out[y, x] = can
+        out[y, x] = can  # the merge stage overwrites it where there is a history
         film_out[y, x] = fs_c
+        history_pixel[y, x] = -1
         # the previous pixel p and the fractional motion δ come from the G-buffer alone (independent of the samples)
         nb = temporal_neighbor(g, g_prev, x, y, SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH)
         if nb.valid == 0:
             return
-        prev = history[nb.y, nb.x]
-        if prev.res.confidence <= 0.0:
+        if history[nb.y, nb.x].res.confidence <= 0.0:
             return
-        delta = g.motion[y, x]
-        to_prev = wp.vec2(float(x - nb.x), float(y - nb.y)) + delta  # u' = u + i + δ − p
+        # canonical sample: p̂_{←p}(y_c) through the inverse translation, on the previous camera and in the
+        # previous frame's scene (each domain in its own frame)
+        t_cj = target_to(film_shift(scene_prev, cam_prev, nb.x, nb.y, film_translate(fs_c, temporal_offset(g, x, y, nb), cam), can, sp))
+        target_cj[y, x] = t_cj
+        history_pixel[y, x] = domain_code(nb.x, nb.y, g.hit.shape[1], 0)
+
+    @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
+    def temporal_merge_pass(
+        scene: SceneData, cam: CameraData, seed: int, frame: int, sp: ShiftParams, history_cap: float,
+        g: GBufferData,
+        canonical: wp.array2d(dtype=PathReservoir), film_can: wp.array2d(dtype=FilmSample),
+        history: wp.array2d(dtype=PathReservoir), film_hist: wp.array2d(dtype=FilmSample),
+        history_pixel: wp.array2d(dtype=wp.int32), target_cj: wp.array2d(dtype=float),
+        out: wp.array2d(dtype=PathReservoir), film_out: wp.array2d(dtype=FilmSample),
+    ):
+        y, x = wp.tid()
+        code = history_pixel[y, x]
+        if code < 0:
+            return  # no history: the canonical stage passed the canonical sample through
+        nb = domain_pixel(code, g.hit.shape[1])
+        can = canonical[y, x]
+        fs_c = film_can[y, x]
+        prev = history[nb.y, nb.x]
         ukey = pixel_key_of(seed, frame, x, y, g.hit.shape[1], _STREAM_TEMPORAL)
         c_i = can.res.confidence
         c_j = confidence_capped(prev.res.confidence, history_cap)
-        # canonical sample: p̂_i(y_c) and p̂_{←p}(y_c) through the inverse translation, on the previous camera and
-        # in the previous frame's scene (``scene`` is this frame's: each domain in its own frame)
         t_c = path_target(can.path)
-        t_cj = target_to(film_shift(scene_prev, cam_prev, nb.x, nb.y, film_translate(fs_c, to_prev, cam), can, sp))
-        m_c = two_domain_balance(c_i, t_c, c_j, t_cj)  # seed 001, Eq. 15
+        m_c = two_domain_balance(c_i, t_c, c_j, target_cj[y, x])  # seed 001, Eq. 15
         # history sample translated into pixel i (fractional motion vector), its path shifted from the new x₁
-        fs_t = film_translate(film_hist[nb.y, nb.x], -to_prev, cam)
+        fs_t = film_translate(film_hist[nb.y, nb.x], -temporal_offset(g, x, y, nb), cam)
         s_t = film_shift(scene, cam, x, y, fs_t, prev, sp)
         t_ti = path_target(s_t.path)
         t_tj = target_back(prev.path, s_t)
@@ -299,8 +300,8 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         out[y, x] = path_reservoir(r, sel)
         film_out[y, x] = sel_fs
 
-    pt = make_restir_pt_kernels(kinds)  # ReSTIR PT's settle and shade passes serve as they are
-    return {"primary": primary_pass, "initial": initial_pass, "settle": pt["settle"], "temporal": temporal_pass,
+    pt = make_restir_pt_kernels(kinds)  # ReSTIR PT's candidate walk, settle and shade passes serve as they are
+    return {"primary": primary_pass, "initial": pt["initial"], "settle": pt["settle"], "temporal_canonical": temporal_canonical_pass, "temporal_merge": temporal_merge_pass,
             "spatial_canonical": spatial_canonical_pass, "spatial_merge": spatial_merge_pass, "shade": pt["shade"]}
 
 
@@ -340,7 +341,8 @@ class AreaReSTIR(ReSTIRPT):
             wp.launch(k["primary"], dim=dim, inputs=[b.data, cam, self.seed, sf], outputs=[film, self.domains[0], self.direct], device=dev)
         cur = self.buffers[1]
         with self._phase("initial"):
-            wp.launch(k["initial"], dim=dim, inputs=[b.data, self.seed, sf, self.candidates, self.max_bounces, self.shift_params, self.domains[0]], outputs=[cur], device=dev)
+            wp.launch(k["initial"], dim=dim, inputs=[b.data, self.seed, sf, self.candidates, self.max_bounces, self.shift_params, 1.0, self.domains[0]],
+                      outputs=[cur], device=dev)
             wp.launch(k["settle"], dim=dim, inputs=[b.data, self.shift_params, self.domains[0]], outputs=[cur], device=dev)
         return cur, film
 
@@ -363,9 +365,16 @@ class AreaReSTIR(ReSTIRPT):
         g, g_prev = self.gbuffer.current, self.gbuffer.previous
         if self.temporal and self.frames_rendered > 0:
             with self._phase("temporal"):
+                scene_from_prev, scene_prev = b.across_frames()  # each domain in its own frame's scene
                 wp.launch(
-                    k["temporal"], dim=dim,
-                    inputs=[*b.across_frames(), cam, cam_prev, self.seed, int(frame), self.shift_params, self.history_cap, g, g_prev, cur, film_cur, history, film_hist],
+                    k["temporal_canonical"], dim=dim,
+                    inputs=[scene_prev, cam, cam_prev, self.shift_params, g, g_prev, cur, film_cur, history],
+                    outputs=[other, film_a, self.history_pixel, self.target_cj], device=dev,
+                )
+                wp.launch(
+                    k["temporal_merge"], dim=dim,
+                    inputs=[scene_from_prev, cam, self.seed, int(frame), self.shift_params, self.history_cap, g, cur, film_cur, history, film_hist,
+                            self.history_pixel, self.target_cj],
                     outputs=[other, film_a], device=dev,
                 )
             cur, other = other, cur

@@ -298,9 +298,12 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
         candidates: int,
         max_bounces: int,
         sp: ShiftParams,
+        missed_confidence: float,
         domains: wp.array2d(dtype=Domain),
         out: wp.array2d(dtype=PathReservoir),
     ):
+        """N paths per pixel streamed into its reservoir; confidence 1, or ``missed_confidence`` where the
+        primary ray missed (Area ReSTIR: 1, those film samples are part of the pixel's domain)."""
         y, x = wp.tid()
         width = domains.shape[1]
         ukey = pixel_key_of(seed, frame, x, y, width, _STREAM_RESAMPLE)
@@ -315,6 +318,8 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
                 key = pixel_key_of(seed, frame, x, y, width, _STREAM_PATHS + cand)  # the path's seed: shifts replay it
                 pr = sample_paths(scene, dom, key, max_bounces, inv_n, sp, pr, random_subkey(ukey, cand))
             pr.res.confidence = 1.0  # one frame's canonical sample: the unit of the history cap
+        else:
+            pr.res.confidence = missed_confidence
         out[y, x] = pr  # finalized by settle_pass: the path walk and the shift are two kernels, not one
 
     @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
@@ -677,7 +682,7 @@ class ReSTIRPT(ScreenSpaceRenderer):
             wp.launch(
                 k["initial"],
                 dim=dim,
-                inputs=[b.data, self.seed, int(frame), self.candidates, self.max_bounces, self.shift_params, dom],
+                inputs=[b.data, self.seed, int(frame), self.candidates, self.max_bounces, self.shift_params, 0.0, dom],
                 outputs=[cur],
                 device=dev,
             )
