@@ -43,6 +43,22 @@ Lobes (equations in ``grisx.scene.microfacet``):
   {F, 1 − F} · |∂ω_m/∂ω_i| with the Jacobians 1/(4 |wi·m|) and
   η² |wi·m| / (wo·m + η wi·m)² (Walter et al. 2007, Eqs. 14 and 17).
 
+* **Plastic** (``plastic``; Mitsuba 3's ``SmoothPlastic``): a smooth coating of
+  relative index η over a diffuse base ρ. The coating reflects F_i = F(cos θ_o)
+  as a delta lobe (weight specular_reflectance · F_i / P_s); what enters
+  scatters between base and coating, summed to
+  f cos θ_i = ρ/(1 − Fdr) · (1 − F_i)(1 − F(cos θ_i)) cos θ_i / (π η²)
+  (``nonlinear``: ρ/(1 − ρ Fdr)). The specular lobe is chosen with
+  P_s = F_i w / (F_i w + (1 − F_i)(1 − w)), w = ``specular_weight``;
+  pdf = (1 − P_s) cos θ_i / π (eval and pdf see the diffuse lobe only).
+* **Rough plastic** (``roughplastic``): the coating is a microfacet interface,
+  f cos θ_i = spec · F(wo·h) D G2 / (4 cos θ_o) + ρ/(1 − R_int) · T(cos θ_o) T(cos θ_i)
+  cos θ_i / (π η²), with T the rough interface's tabulated transmittance and
+  R_int its internal reflectance (``grisx.scene.microfacet.rough_interface_table``);
+  the glossy lobe is chosen with P_s as above with F_i → 1 − T(cos θ_o), sampled
+  as the rough conductor's, the diffuse lobe by cosine; pdf is the mixture and
+  weight = eval/pdf (Mitsuba 3's ``RoughPlastic``).
+
 **Two-sided.** Reflection-only kinds are one-sided, as Mitsuba's: seen from
 the back (cos θ_o ≤ 0) they are black and sample nothing. With
 ``two_sided = 1`` (Mitsuba's ``twosided`` wrapper) the frame is mirrored —
@@ -65,11 +81,12 @@ without glass compiles no dielectric code.
 over both directions) of the single-scattering model: ρ for diffuse,
 specular_reflectance · F̄ for conductors (F̄ = 2∫F(μ)μ dμ, the average Fresnel
 term), F̄ specular_reflectance + (1 − F̄) specular_transmittance for
-dielectrics (from outside); ``bsdf_roughness(m)`` is 0 for smooth kinds, α for
-GGX and 1 for diffuse.
+dielectrics (from outside), F̄ specular_reflectance + (1 − F̄) ρ for plastics;
+``bsdf_roughness(m)`` is 0 for smooth kinds (``plastic`` included: a path
+through its delta lobe cannot be reconnected), α for rough kinds and 1 for diffuse.
 
 References: W. Jakob et al., Mitsuba 3 ``src/bsdfs/{diffuse,conductor,
-roughconductor,dielectric,roughdielectric,twosided}.cpp``; B. Walter et al.,
+roughconductor,dielectric,roughdielectric,twosided,plastic,roughplastic}.cpp``; B. Walter et al.,
 "Microfacet models for refraction through rough surfaces", EGSR 2007;
 E. Heitz, "Sampling the GGX distribution of visible normals", JCGT 7(4) 2018;
 E. Veach, PhD thesis (1997), §5.2; P. Shirley, K. Chiu, "A low distortion map
@@ -91,7 +108,9 @@ from grisx.scene.material import (
     MATERIAL_DIFFUSE,
     MATERIAL_KIND_NAMES,
     MATERIAL_KINDS,
+    MATERIAL_PLASTIC,
     MATERIAL_ROUGH_CONDUCTOR,
+    MATERIAL_ROUGH_PLASTIC,
     MATERIAL_ROUGH_DIELECTRIC,
     MATERIAL_THIN_DIELECTRIC,
     Material,
@@ -102,6 +121,7 @@ from grisx.scene.microfacet import (
     MICROFACET_BECKMANN,
     ggx_d,
     ggx_g1,
+    rough_table_lookup,
     microfacet_d,
     microfacet_g1,
     microfacet_g2,
@@ -141,6 +161,12 @@ __all__ = [
     "rough_dielectric_eval",
     "rough_dielectric_pdf",
     "thin_dielectric_sample",
+    "plastic_sample",
+    "plastic_eval",
+    "plastic_pdf",
+    "rough_plastic_sample",
+    "rough_plastic_eval",
+    "rough_plastic_pdf",
 ]
 
 _INV_PI = wp.constant(1.0 / math.pi)
@@ -280,14 +306,28 @@ def conductor_sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2) -> Bsd
 
 
 @wp.func
+def _glossy_dg(m: Material, wo: wp.vec3, wi: wp.vec3, h: wp.vec3) -> float:
+    # D G2 / (4 cos θ_o): a microfacet reflection lobe without its Fresnel factor (Walter et al. 2007, Eq. 20)
+    return microfacet_d(h, m.alpha, m.distribution) * microfacet_g2(wo, wi, h, m.alpha, m.distribution) / (4.0 * wo[2])
+
+
+@wp.func
+def _glossy_pdf(m: Material, wo: wp.vec3, wi: wp.vec3) -> float:
+    # density of reflect(wo, sample_microfacet(wo)) for wo, wi above the surface
+    h = wp.normalize(wo + wi)
+    if m.distribution == MICROFACET_BECKMANN:
+        return microfacet_pdf(wo, h, m.alpha, m.distribution) / (4.0 * wp.dot(wi, h))
+    return ggx_d(h, m.alpha) * ggx_g1(wo, h, m.alpha) / (4.0 * wo[2])
+
+
+@wp.func
 def rough_conductor_eval(m: Material, wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
     """F D G2 / (4 cos θ_o) (= f cos θ_i, Walter et al. 2007, Eq. 20)."""
     if wo[2] <= 0.0 or wi[2] <= 0.0:
         return wp.vec3(0.0, 0.0, 0.0)
     h = wp.normalize(wo + wi)
-    dg = microfacet_d(h, m.alpha, m.distribution) * microfacet_g2(wo, wi, h, m.alpha, m.distribution) / (4.0 * wo[2])
     f = fresnel_conductor(wp.dot(wo, h), m.eta, m.k)
-    return wp.cw_mul(m.reflectance, f) * dg
+    return wp.cw_mul(m.reflectance, f) * _glossy_dg(m, wo, wi, h)
 
 
 @wp.func
@@ -295,10 +335,7 @@ def rough_conductor_pdf(m: Material, wo: wp.vec3, wi: wp.vec3) -> float:
     """GGX: D_wo(h) / (4 wi·h) = D(h) G1(wo, h) / (4 cos θ_o); Beckmann: D(h) cos θ_h / (4 wi·h)."""
     if wo[2] <= 0.0 or wi[2] <= 0.0:
         return 0.0
-    h = wp.normalize(wo + wi)
-    if m.distribution == MICROFACET_BECKMANN:
-        return microfacet_pdf(wo, h, m.alpha, m.distribution) / (4.0 * wp.dot(wi, h))
-    return ggx_d(h, m.alpha) * ggx_g1(wo, h, m.alpha) / (4.0 * wo[2])
+    return _glossy_pdf(m, wo, wi)
 
 
 @wp.func
@@ -478,6 +515,116 @@ def rough_dielectric_sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2)
     return s
 
 
+# ---- plastics (plastic.cpp, roughplastic.cpp) ----
+
+
+@wp.func
+def _plastic_base(m: Material) -> wp.vec3:
+    """ρ/(1 − Fdr) (or ρ/(1 − ρ Fdr) if nonlinear) / η²: the diffuse base seen through its coating, every
+    internal bounce summed, without the two crossings' transmittances."""
+    inv_eta2 = 1.0 / (m.eta[0] * m.eta[0])
+    if m.nonlinear != 0:
+        one = wp.vec3(1.0, 1.0, 1.0)
+        return wp.cw_div(m.reflectance, one - m.reflectance * m.internal_reflectance) * inv_eta2
+    return m.reflectance * (inv_eta2 / (1.0 - m.internal_reflectance))
+
+
+@wp.func
+def _plastic_specular_prob(m: Material, reflected: float) -> float:
+    """Probability of the coating's lobe when it reflects the fraction ``reflected`` (Mitsuba's prob_specular)."""
+    ps = reflected * m.specular_weight
+    pd = (1.0 - reflected) * (1.0 - m.specular_weight)
+    if ps + pd <= 0.0:
+        return 0.0
+    return ps / (ps + pd)
+
+
+@wp.func
+def _weighted_sample(wi: wp.vec3, pdf: float, value: wp.vec3) -> BsdfSample:
+    """``wi`` sampled with density ``pdf``, weight value/pdf (nothing where pdf is 0)."""
+    s = _no_sample()
+    if pdf > 0.0:
+        s.wi = wi
+        s.pdf = pdf
+        s.weight = value / pdf
+        s.valid = 1
+    return s
+
+
+@wp.func
+def plastic_eval(m: Material, wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
+    """The diffuse lobe ρ'(1 − F(cos θ_o))(1 − F(cos θ_i)) cos θ_i / π (the coating's mirror is a delta)."""
+    if wo[2] <= 0.0 or wi[2] <= 0.0:
+        return wp.vec3(0.0, 0.0, 0.0)
+    f_o = fresnel_dielectric(wo[2], m.eta[0]).f
+    f_i = fresnel_dielectric(wi[2], m.eta[0]).f
+    return _plastic_base(m) * ((1.0 - f_o) * (1.0 - f_i) * wi[2] * _INV_PI)
+
+
+@wp.func
+def plastic_pdf(m: Material, wo: wp.vec3, wi: wp.vec3) -> float:
+    """(1 − P_s) cos θ_i / π."""
+    if wo[2] <= 0.0 or wi[2] <= 0.0:
+        return 0.0
+    ps = _plastic_specular_prob(m, fresnel_dielectric(wo[2], m.eta[0]).f)
+    return (1.0 - ps) * cosine_hemisphere_pdf(wi)
+
+
+@wp.func
+def plastic_sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2) -> BsdfSample:
+    """The coating's mirror with probability P_s (delta, weight spec · F / P_s), else a cosine-weighted
+    direction (weight eval/pdf)."""
+    s = _no_sample()
+    if wo[2] <= 0.0:
+        return s
+    f_o = fresnel_dielectric(wo[2], m.eta[0]).f
+    ps = _plastic_specular_prob(m, f_o)
+    if u_lobe < ps:
+        s.wi = wp.vec3(-wo[0], -wo[1], wo[2])
+        s.pdf = ps
+        s.weight = m.specular_reflectance * (f_o / ps)
+        s.delta = 1
+        s.valid = 1
+        return s
+    wi = sample_cosine_hemisphere(u)
+    return _weighted_sample(wi, (1.0 - ps) * cosine_hemisphere_pdf(wi), plastic_eval(m, wo, wi))
+
+
+@wp.func
+def rough_plastic_eval(m: Material, wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
+    """spec · F(wo·h) D G2 / (4 cos θ_o) + ρ' T(cos θ_o) T(cos θ_i) cos θ_i / π."""
+    if wo[2] <= 0.0 or wi[2] <= 0.0:
+        return wp.vec3(0.0, 0.0, 0.0)
+    h = wp.normalize(wo + wi)
+    glossy = m.specular_reflectance * (fresnel_dielectric(wp.dot(wo, h), m.eta[0]).f * _glossy_dg(m, wo, wi, h))
+    t_o = rough_table_lookup(m.external_transmittance, wo[2])
+    t_i = rough_table_lookup(m.external_transmittance, wi[2])
+    return glossy + _plastic_base(m) * (t_o * t_i * wi[2] * _INV_PI)
+
+
+@wp.func
+def rough_plastic_pdf(m: Material, wo: wp.vec3, wi: wp.vec3) -> float:
+    """P_s · (the rough conductor's pdf) + (1 − P_s) cos θ_i / π, P_s of the reflected fraction 1 − T(cos θ_o)."""
+    if wo[2] <= 0.0 or wi[2] <= 0.0:
+        return 0.0
+    ps = _plastic_specular_prob(m, 1.0 - rough_table_lookup(m.external_transmittance, wo[2]))
+    return ps * _glossy_pdf(m, wo, wi) + (1.0 - ps) * cosine_hemisphere_pdf(wi)
+
+
+@wp.func
+def rough_plastic_sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2) -> BsdfSample:
+    """A microfacet reflection with probability P_s, else a cosine-weighted direction; weight = eval/pdf of the mixture."""
+    if wo[2] <= 0.0:
+        return _no_sample()
+    ps = _plastic_specular_prob(m, 1.0 - rough_table_lookup(m.external_transmittance, wo[2]))
+    wi = wp.vec3(0.0, 0.0, 1.0)
+    if u_lobe < ps:
+        wi = reflect(wo, sample_microfacet(wo, m.alpha, m.distribution, u))
+    else:
+        wi = sample_cosine_hemisphere(u)
+    return _weighted_sample(wi, rough_plastic_pdf(m, wo, wi), rough_plastic_eval(m, wo, wi))
+
+
 # ---- albedo (average reflectance) ----
 
 
@@ -539,7 +686,10 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
     has_dielectric = MATERIAL_DIELECTRIC in key
     has_rough_dielectric = MATERIAL_ROUGH_DIELECTRIC in key
     has_thin_dielectric = MATERIAL_THIN_DIELECTRIC in key
-    has_reflective = has_diffuse or has_conductor or has_rough_conductor
+    has_plastic = MATERIAL_PLASTIC in key
+    has_rough_plastic = MATERIAL_ROUGH_PLASTIC in key
+    has_reflective = has_diffuse or has_conductor or has_rough_conductor or has_plastic or has_rough_plastic
+    has_evaluable = has_diffuse or has_rough_conductor or has_plastic or has_rough_plastic
 
     @wp.func
     def sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2) -> BsdfSample:
@@ -568,6 +718,12 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
             if wp.static(has_rough_conductor):
                 if m.kind == MATERIAL_ROUGH_CONDUCTOR:
                     s = rough_conductor_sample(m, w, u_lobe, u)
+            if wp.static(has_plastic):
+                if m.kind == MATERIAL_PLASTIC:
+                    s = plastic_sample(m, w, u_lobe, u)
+            if wp.static(has_rough_plastic):
+                if m.kind == MATERIAL_ROUGH_PLASTIC:
+                    s = rough_plastic_sample(m, w, u_lobe, u)
             if flip:
                 s.wi = wp.vec3(s.wi[0], s.wi[1], -s.wi[2])
         return s
@@ -578,7 +734,7 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
             if m.kind == MATERIAL_ROUGH_DIELECTRIC:
                 return rough_dielectric_eval(m, wo, wi)
         r = wp.vec3(0.0, 0.0, 0.0)
-        if wp.static(has_diffuse or has_rough_conductor):
+        if wp.static(has_evaluable):
             a = wo
             b = wi
             if m.two_sided != 0 and wo[2] < 0.0:
@@ -590,6 +746,12 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
             if wp.static(has_rough_conductor):
                 if m.kind == MATERIAL_ROUGH_CONDUCTOR:
                     r = rough_conductor_eval(m, a, b)
+            if wp.static(has_plastic):
+                if m.kind == MATERIAL_PLASTIC:
+                    r = plastic_eval(m, a, b)
+            if wp.static(has_rough_plastic):
+                if m.kind == MATERIAL_ROUGH_PLASTIC:
+                    r = rough_plastic_eval(m, a, b)
         return r  # delta kinds: 0
 
     @wp.func
@@ -598,7 +760,7 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
             if m.kind == MATERIAL_ROUGH_DIELECTRIC:
                 return rough_dielectric_pdf(m, wo, wi)
         p = float(0.0)
-        if wp.static(has_diffuse or has_rough_conductor):
+        if wp.static(has_evaluable):
             a = wo
             b = wi
             if m.two_sided != 0 and wo[2] < 0.0:
@@ -610,6 +772,12 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
             if wp.static(has_rough_conductor):
                 if m.kind == MATERIAL_ROUGH_CONDUCTOR:
                     p = rough_conductor_pdf(m, a, b)
+            if wp.static(has_plastic):
+                if m.kind == MATERIAL_PLASTIC:
+                    p = plastic_pdf(m, a, b)
+            if wp.static(has_rough_plastic):
+                if m.kind == MATERIAL_ROUGH_PLASTIC:
+                    p = rough_plastic_pdf(m, a, b)
         return p  # delta kinds: 0
 
     @wp.func
@@ -624,6 +792,10 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
             if m.kind == MATERIAL_DIELECTRIC or m.kind == MATERIAL_ROUGH_DIELECTRIC:
                 f = average_fresnel_dielectric(m.eta[0])
                 return m.reflectance * f + m.transmittance * (1.0 - f)
+        if wp.static(has_plastic or has_rough_plastic):
+            if m.kind == MATERIAL_PLASTIC or m.kind == MATERIAL_ROUGH_PLASTIC:
+                f = average_fresnel_dielectric(m.eta[0])  # the coating's F̄ over the base's ρ (it guides, it is not estimated)
+                return m.specular_reflectance * f + m.reflectance * (1.0 - f)
         if wp.static(has_thin_dielectric):
             if m.kind == MATERIAL_THIN_DIELECTRIC:
                 f = average_fresnel_dielectric(m.eta[0])
@@ -635,9 +807,9 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
     def roughness(m: Material) -> float:
         if m.kind == MATERIAL_DIFFUSE:
             return 1.0
-        if m.kind == MATERIAL_ROUGH_CONDUCTOR or m.kind == MATERIAL_ROUGH_DIELECTRIC:
+        if m.kind == MATERIAL_ROUGH_CONDUCTOR or m.kind == MATERIAL_ROUGH_DIELECTRIC or m.kind == MATERIAL_ROUGH_PLASTIC:
             return m.alpha
-        return 0.0
+        return 0.0  # smooth kinds, and plastic: its coating's delta lobe makes a path through it unreconnectable
 
     @wp.func
     def is_delta(m: Material) -> int:

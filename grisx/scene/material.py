@@ -12,6 +12,8 @@ record                 Mitsuba plugin              lobes (see ``grisx.scene.bsdf
 ``RoughConductor``     ``roughconductor`` (GGX)    microfacet reflection
 ``Dielectric``         ``dielectric``              delta reflection + refraction
 ``RoughDielectric``    ``roughdielectric`` (GGX)   microfacet reflection + refraction
+``Plastic``            ``plastic``                 delta coating reflection + diffuse base
+``RoughPlastic``       ``roughplastic``            microfacet coating reflection + diffuse base
 =====================  ==========================  =========================================
 
 Every record carries ``two_sided`` (set by the loader for Mitsuba's
@@ -41,9 +43,25 @@ channels, ``reflectance`` of conductors and dielectrics holds
 The records add ``bump_amplitude`` / ``bump_frequency`` (copied to the struct)
 so a scene can attach normal perturbation to a material.
 
+Plastics (a dielectric coating of relative index η over a diffuse base, with
+the light trapped under the coating summed in closed form) fill ``reflectance``
+with ``diffuse_reflectance`` (so a texture resolves there as for ``diffuse``),
+``eta`` with int_ior/ext_ior, and four fields of their own, precomputed at
+packing as Mitsuba 3 precomputes them in ``parameters_changed``:
+``specular_reflectance`` (the coating's tint), ``specular_weight`` (Mitsuba's
+``specular_sampling_weight`` = s̄/(d̄ + s̄) of the two reflectances' means),
+``internal_reflectance`` (the fraction of diffuse light the coating reflects
+back down: Fdr(1/η) of d'Eon and Irving's fit for ``plastic``, the rough
+interface's hemispherical average for ``roughplastic``), ``nonlinear``, and
+for ``roughplastic`` the table ``external_transmittance`` of the rough
+interface's transmittance at 64 cosines (:func:`grisx.scene.microfacet.rough_interface_table`).
+
 References: W. Jakob et al., Mitsuba 3 plugin documentation (``diffuse``,
 ``conductor``, ``roughconductor``, ``dielectric``, ``roughdielectric``,
-``twosided``); W. Jakob, Tungsten renderer ``ComplexIorData.hpp``.
+``twosided``, ``plastic``, ``roughplastic``); W. Jakob, Tungsten renderer ``ComplexIorData.hpp``;
+E. d'Eon, G. Irving, "A quantized-diffusion model for rendering translucent materials",
+SIGGRAPH 2011 (the Fdr fit); J. Egan, T. Hilgeman, "Optical properties of inhomogeneous
+materials", 1979 (Fdr for η < 1).
 """
 
 from __future__ import annotations
@@ -56,6 +74,7 @@ import numpy as np
 import warp as wp
 
 from grisx.errors import InvalidParameterError, InvalidValueError, UnknownNameError
+from grisx.scene.microfacet import ROUGH_TABLE_SIZE, rough_interface_table
 
 wp.set_module_options({"enable_backward": False})
 
@@ -66,6 +85,8 @@ __all__ = [
     "MATERIAL_DIELECTRIC",
     "MATERIAL_ROUGH_DIELECTRIC",
     "MATERIAL_THIN_DIELECTRIC",
+    "MATERIAL_PLASTIC",
+    "MATERIAL_ROUGH_PLASTIC",
     "MATERIAL_KINDS",
     "MATERIAL_KIND_NAMES",
     "TextureRef",
@@ -75,9 +96,12 @@ __all__ = [
     "Dielectric",
     "RoughDielectric",
     "ThinDielectric",
+    "Plastic",
+    "RoughPlastic",
     "MaterialDesc",
     "CONDUCTOR_PRESETS",
     "conductor_material",
+    "fresnel_diffuse_reflectance",
     "Material",
     "material_kind",
     "material_kinds",
@@ -90,6 +114,8 @@ MATERIAL_ROUGH_CONDUCTOR = wp.constant(2)
 MATERIAL_DIELECTRIC = wp.constant(3)
 MATERIAL_ROUGH_DIELECTRIC = wp.constant(4)
 MATERIAL_THIN_DIELECTRIC = wp.constant(5)
+MATERIAL_PLASTIC = wp.constant(6)
+MATERIAL_ROUGH_PLASTIC = wp.constant(7)
 
 #: every kind, in id order
 MATERIAL_KINDS: tuple[int, ...] = (
@@ -99,6 +125,8 @@ MATERIAL_KINDS: tuple[int, ...] = (
     MATERIAL_DIELECTRIC,
     MATERIAL_ROUGH_DIELECTRIC,
     MATERIAL_THIN_DIELECTRIC,
+    MATERIAL_PLASTIC,
+    MATERIAL_ROUGH_PLASTIC,
 )
 #: Mitsuba plugin name of each kind
 #: microfacet distributions of the rough records → grisx.scene.microfacet's MICROFACET_* ids
@@ -111,6 +139,8 @@ MATERIAL_KIND_NAMES: dict[int, str] = {
     MATERIAL_DIELECTRIC: "dielectric",
     MATERIAL_ROUGH_DIELECTRIC: "roughdielectric",
     MATERIAL_THIN_DIELECTRIC: "thindielectric",
+    MATERIAL_PLASTIC: "plastic",
+    MATERIAL_ROUGH_PLASTIC: "roughplastic",
 }
 
 RGB = tuple[float, float, float]
@@ -224,7 +254,43 @@ class ThinDielectric:
     bump_frequency: float = 0.0
 
 
-MaterialDesc = Diffuse | Conductor | RoughConductor | Dielectric | RoughDielectric | ThinDielectric
+@dataclasses.dataclass(frozen=True)
+class Plastic:
+    """Mitsuba ``plastic``: a smooth dielectric coating (delta reflection) over a diffuse base.
+
+    Light refracted into the coating scatters off the base of ``diffuse_reflectance`` ρ and
+    bounces between base and coating; summed, the diffuse lobe is
+    ρ/(1 − Fdr) · (1 − F(cos θ_o))(1 − F(cos θ_i)) cos θ_i / (π η²) with Fdr the coating's
+    internal diffuse reflectance (``nonlinear``: ρ/(1 − ρ Fdr), the darker, more saturated
+    colour of real varnished surfaces). Polypropylene (1.49) in air by default, as Mitsuba.
+    ``diffuse_mean``: the mean of a texture given as ``diffuse_reflectance`` (Mitsuba's
+    ``texture.mean()``, which sets the lobe sampling weights; 0.5 if not given)."""
+
+    diffuse_reflectance: RGB | float | TextureRef = (0.5, 0.5, 0.5)
+    specular_reflectance: RGB | float = (1.0, 1.0, 1.0)
+    int_ior: float = 1.49
+    ext_ior: float = 1.000277
+    nonlinear: bool = False
+    diffuse_mean: float | None = None
+    two_sided: bool = False
+    bump_amplitude: float = 0.0
+    bump_frequency: float = 0.0
+
+
+@dataclasses.dataclass(frozen=True)
+class RoughPlastic(Plastic):
+    """Mitsuba ``roughplastic``: a rough dielectric coating (microfacet reflection, ggx or beckmann) over a diffuse base.
+
+    As :class:`Plastic` (its fields, then ``alpha`` and ``distribution``), with the smooth
+    interface's Fresnel transmittances replaced by the rough interface's (tabulated at 64
+    cosines) and Fdr by the rough interface's internal hemispherical reflectance, both
+    integrated as Mitsuba 3's ``roughplastic`` does."""
+
+    alpha: float = 0.1
+    distribution: str = "ggx"
+
+
+MaterialDesc = Diffuse | Conductor | RoughConductor | Dielectric | RoughDielectric | ThinDielectric | Plastic | RoughPlastic
 
 _KIND_OF: dict[type, int] = {
     Diffuse: MATERIAL_DIFFUSE,
@@ -233,6 +299,8 @@ _KIND_OF: dict[type, int] = {
     Dielectric: MATERIAL_DIELECTRIC,
     RoughDielectric: MATERIAL_ROUGH_DIELECTRIC,
     ThinDielectric: MATERIAL_THIN_DIELECTRIC,
+    Plastic: MATERIAL_PLASTIC,
+    RoughPlastic: MATERIAL_ROUGH_PLASTIC,
 }
 
 
@@ -249,7 +317,10 @@ class Material:
     ``transmittance``: ``specular_transmittance`` of dielectrics. ``two_sided``:
     1 if the frame is mirrored on the back side. ``bump_amplitude``,
     ``bump_frequency``: procedural normal perturbation (0 = none), applied by
-    the scene to the shading normal before any BSDF call.
+    the scene to the shading normal before any BSDF call. Plastics only:
+    ``specular_reflectance``, ``specular_weight``, ``internal_reflectance``,
+    ``nonlinear`` and (rough) ``external_transmittance``, a table of
+    ``ROUGH_TABLE_SIZE`` values (an empty array for every other kind).
     """
 
     kind: int
@@ -263,6 +334,11 @@ class Material:
     two_sided: int
     bump_amplitude: float
     bump_frequency: float
+    specular_reflectance: wp.vec3
+    specular_weight: float
+    internal_reflectance: float
+    nonlinear: int
+    external_transmittance: wp.array(dtype=float)
 
 
 def material_kind(desc: MaterialDesc) -> int:
@@ -296,7 +372,61 @@ def _positive(value: float, what: str) -> float:
     return v
 
 
-def _pack_one(desc: MaterialDesc, index: int) -> Material:
+def fresnel_diffuse_reflectance(eta: float) -> float:
+    """Fdr: the fraction of diffuse (cosine-distributed) light an interface of relative index ``eta``
+    reflects — Egan and Hilgeman's fit for η < 1, d'Eon and Irving's for η ≥ 1, as Mitsuba 3's
+    ``fresnel_diffuse_reflectance``."""
+    if eta < 1.0:
+        return 0.0636 / eta + eta * (eta * -1.4399 + 0.7099) + 0.6681
+    x = 1.0 / eta
+    return 0.919317 + x * (-3.4793 + x * (6.75335 + x * (-7.80989 + x * (4.98554 + x * -1.36881))))
+
+
+def _relative_ior(desc: MaterialDesc, where: str) -> float:
+    """int_ior / ext_ior, both validated."""
+    int_ior = _positive(desc.int_ior, f"{where}: int_ior")
+    ext_ior = _positive(desc.ext_ior, f"{where}: ext_ior")
+    if int_ior == ext_ior:
+        raise InvalidParameterError(f"{where}: int_ior and ext_ior must differ (got {int_ior} for both)")
+    return int_ior / ext_ior
+
+
+def _texture_id(value: TextureRef, where: str, name: str) -> int:
+    if int(value.texture_id) < 0:
+        raise InvalidParameterError(f"{where}: {name} texture id must be >= 0, got {value.texture_id}")
+    return int(value.texture_id)
+
+
+def _pack_plastic(desc: Plastic, m: Material, where: str, device: str | wp.context.Device | None) -> None:
+    # plastic.cpp / roughplastic.cpp, parameters_changed(): 1/η², Fdr, the lobe sampling weight
+    if isinstance(desc.diffuse_reflectance, TextureRef):
+        m.texture = _texture_id(desc.diffuse_reflectance, where, "diffuse_reflectance")
+        m.reflectance = wp.vec3(1.0, 1.0, 1.0)  # replaced by the texture's value at the hit
+        d_mean = 0.5 if desc.diffuse_mean is None else float(desc.diffuse_mean)
+        if not math.isfinite(d_mean) or d_mean < 0.0:
+            raise InvalidParameterError(f"{where}: diffuse_mean must be finite and >= 0, got {desc.diffuse_mean!r}")
+    else:
+        rho = _rgb(desc.diffuse_reflectance, f"{where}: diffuse_reflectance")
+        m.reflectance = wp.vec3(*rho)
+        d_mean = sum(rho) / 3.0
+    spec = _rgb(desc.specular_reflectance, f"{where}: specular_reflectance")
+    m.specular_reflectance = wp.vec3(*spec)
+    s_mean = sum(spec) / 3.0
+    if d_mean + s_mean <= 0.0:
+        raise InvalidParameterError(f"{where}: diffuse_reflectance and specular_reflectance are both black")
+    m.specular_weight = s_mean / (d_mean + s_mean)
+    m.nonlinear = 1 if desc.nonlinear else 0
+    eta = _relative_ior(desc, where)
+    m.eta = wp.vec3(eta, eta, eta)
+    if not isinstance(desc, RoughPlastic):
+        m.internal_reflectance = fresnel_diffuse_reflectance(1.0 / eta)
+        return
+    table, internal = rough_interface_table(eta, max(m.alpha, 1.0e-4), m.distribution)
+    m.internal_reflectance = internal
+    m.external_transmittance = wp.array(table.astype(np.float32), dtype=float, device=device)
+
+
+def _pack_one(desc: MaterialDesc, index: int, device: str | wp.context.Device | None = None) -> Material:
     kind = material_kind(desc)
     where = f"material {index} ({MATERIAL_KIND_NAMES[kind]})"
     m = Material()
@@ -308,19 +438,29 @@ def _pack_one(desc: MaterialDesc, index: int) -> Material:
     m.k = wp.vec3(0.0, 0.0, 0.0)
     m.transmittance = wp.vec3(0.0, 0.0, 0.0)
     m.two_sided = 1 if desc.two_sided else 0
+    m.specular_reflectance = wp.vec3(0.0, 0.0, 0.0)
+    m.specular_weight = 0.0
+    m.internal_reflectance = 0.0
+    m.nonlinear = 0
     for name in ("bump_amplitude", "bump_frequency"):
         v = float(getattr(desc, name))
         if not math.isfinite(v) or v < 0.0:
             raise InvalidParameterError(f"{where}: {name} must be finite and >= 0, got {v!r}")
         setattr(m, name, v)
+    if isinstance(desc, (RoughConductor, RoughDielectric, RoughPlastic)):
+        m.alpha = _positive(desc.alpha, f"{where}: alpha")
+        if desc.distribution not in MICROFACET_DISTRIBUTIONS:
+            raise InvalidParameterError(f"{where}: distribution must be one of {', '.join(MICROFACET_DISTRIBUTIONS)}, got {desc.distribution!r}")
+        m.distribution = MICROFACET_DISTRIBUTIONS[desc.distribution]
     if isinstance(desc, Diffuse):
         if isinstance(desc.reflectance, TextureRef):
-            if int(desc.reflectance.texture_id) < 0:
-                raise InvalidParameterError(f"{where}: texture id must be >= 0, got {desc.reflectance.texture_id}")
-            m.texture = int(desc.reflectance.texture_id)
+            m.texture = _texture_id(desc.reflectance, where, "reflectance")
             m.reflectance = wp.vec3(1.0, 1.0, 1.0)  # replaced by the texture's value at the hit
         else:
             m.reflectance = wp.vec3(*_rgb(desc.reflectance, f"{where}: reflectance"))
+        return m
+    if isinstance(desc, Plastic):  # and RoughPlastic
+        _pack_plastic(desc, m, where, device)
         return m
     m.reflectance = wp.vec3(*_rgb(desc.specular_reflectance, f"{where}: specular_reflectance"))
     if isinstance(desc, (Conductor, RoughConductor)):
@@ -329,18 +469,9 @@ def _pack_one(desc: MaterialDesc, index: int) -> Material:
         if any(e == 0.0 and kk == 0.0 for e, kk in zip(m.eta, m.k)):
             raise InvalidParameterError(f"{where}: eta and k must not both be 0 in a channel")
     else:
-        int_ior = _positive(desc.int_ior, f"{where}: int_ior")
-        ext_ior = _positive(desc.ext_ior, f"{where}: ext_ior")
-        if int_ior == ext_ior:
-            raise InvalidParameterError(f"{where}: int_ior and ext_ior must differ (got {int_ior} for both)")
-        eta = int_ior / ext_ior
+        eta = _relative_ior(desc, where)
         m.eta = wp.vec3(eta, eta, eta)
         m.transmittance = wp.vec3(*_rgb(desc.specular_transmittance, f"{where}: specular_transmittance"))
-    if isinstance(desc, (RoughConductor, RoughDielectric)):
-        m.alpha = _positive(desc.alpha, f"{where}: alpha")
-        if desc.distribution not in MICROFACET_DISTRIBUTIONS:
-            raise InvalidParameterError(f"{where}: distribution must be one of {', '.join(MICROFACET_DISTRIBUTIONS)}, got {desc.distribution!r}")
-        m.distribution = MICROFACET_DISTRIBUTIONS[desc.distribution]
     return m
 
 
@@ -348,5 +479,8 @@ def pack_materials(descs: Sequence[MaterialDesc], device: str | wp.context.Devic
     """``wp.array(dtype=Material)`` of ``descs`` in order (material id = list index), validated."""
     if len(descs) == 0:
         raise InvalidParameterError("pack_materials needs at least one material")
-    packed = [_pack_one(d, i) for i, d in enumerate(descs)]
-    return wp.array(packed, dtype=Material, device=device)
+    packed = [_pack_one(d, i, device) for i, d in enumerate(descs)]
+    out = wp.array(packed, dtype=Material, device=device)
+    # the struct holds only a pointer to each roughplastic's table: the array keeps the tables alive
+    out.material_tables = [m.external_transmittance for m in packed if m.kind == MATERIAL_ROUGH_PLASTIC]
+    return out

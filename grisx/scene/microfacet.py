@@ -54,6 +54,21 @@ under total internal reflection (``fresnel_dielectric`` returns F with the
 signed cos θ_t and η_it, η_ti = 1/η_it as a ``FresnelDielectric`` record,
 Mitsuba 3's ``fresnel``).
 
+**A rough interface's albedos** (for ``roughplastic``, as Mitsuba 3's
+``eval_transmittance`` / ``eval_reflectance``): light arriving from wi is
+transmitted through a rough dielectric interface with probability
+
+    T(wi) = ∫ D_wi(m) (1 − F(wi·m)) G1(wt, m) dm,     wt = refract(wi, m),
+
+and reflected with R(wi) = ∫ D_wi(m) F(wi·m) G1(wr, m) dm (single scattering).
+``rough_interface_table`` integrates both over the square of sample numbers
+that ``sample_microfacet`` maps to m, with Gauss–Legendre nodes (32² for η > 1,
+128² otherwise, as Mitsuba), weighting non-visible samples by
+``microfacet_visible_weight``; it tabulates T at Mitsuba's 64 cosines
+(``rough_table_lookup`` interpolates them linearly, as its ``lerp_gather``)
+and returns the internal reflectance 2·mean(R(μ; 1/η) μ) over the same
+cosines — Mitsuba's Riemann sum, kept so as to render what it renders.
+
 References: B. Walter, S. Marschner, H. Li, K. Torrance, "Microfacet models
 for refraction through rough surfaces", EGSR 2007; E. Heitz, "Understanding
 the masking-shadowing function in microfacet-based BRDFs", JCGT 3(2), 2014;
@@ -61,13 +76,15 @@ E. Heitz, "Sampling the GGX distribution of visible normals", JCGT 7(4), 2018;
 E. Heitz, E. d'Eon, "Importance sampling microfacet-based BSDFs using the
 distribution of visible normals", EGSR 2014;
 K. D. Möller, "Optics", 1988; W. Jakob et al., Mitsuba 3
-``include/mitsuba/render/{microfacet,fresnel}.h``.
+``include/mitsuba/render/{microfacet,fresnel}.h``, ``src/bsdfs/roughplastic.cpp``.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 
+import numpy as np
 import warp as wp
 
 wp.set_module_options({"enable_backward": False})
@@ -94,6 +111,9 @@ __all__ = [
     "fresnel_dielectric",
     "reflect",
     "refract",
+    "ROUGH_TABLE_SIZE",
+    "rough_interface_table",
+    "rough_table_lookup",
 ]
 
 #: smallest roughness used in kernels (Mitsuba clamps α to 1e-4 as well)
@@ -326,3 +346,82 @@ def reflect(v: wp.vec3, m: wp.vec3) -> wp.vec3:
 def refract(v: wp.vec3, m: wp.vec3, cos_t: float, eta_ti: float) -> wp.vec3:
     """Refract ``v`` through ``m`` given ``cos_t`` and ``eta_ti`` from ``fresnel_dielectric`` (Mitsuba's ``refract``)."""
     return m * (wp.dot(v, m) * eta_ti + cos_t) - v * eta_ti
+
+
+# ---- a rough interface's transmittance and reflectance (roughplastic) ----
+
+#: cosines at which the rough interface's transmittance is tabulated (Mitsuba's MI_ROUGH_TRANSMITTANCE_RES)
+ROUGH_TABLE_SIZE = wp.constant(64)
+
+
+@wp.kernel
+def _rough_interface_kernel(
+    mu: wp.array(dtype=float),
+    eta: float,
+    alpha: float,
+    distribution: int,
+    transmit: int,
+    nodes: wp.array(dtype=float),
+    weights: wp.array(dtype=float),
+    out: wp.array(dtype=float),
+):
+    i = wp.tid()
+    c = mu[i]
+    wi = wp.vec3(wp.sqrt(wp.max(0.0, 1.0 - c * c)), 0.0, c)
+    n = nodes.shape[0]
+    acc = float(0.0)
+    for a in range(n):
+        for b in range(n):
+            m = sample_microfacet(wi, alpha, distribution, wp.vec2(0.5 * nodes[a] + 0.5, 0.5 * nodes[b] + 0.5))
+            w = microfacet_visible_weight(wi, m, alpha, distribution) * weights[a] * weights[b]
+            fr = fresnel_dielectric(wp.dot(wi, m), eta)
+            if transmit != 0:
+                wt = refract(wi, m, fr.cos_t, fr.eta_ti)
+                if wt[2] * wi[2] < 0.0:
+                    acc += w * microfacet_g1(wt, m, alpha, distribution) * (1.0 - fr.f)
+            else:
+                wr = reflect(wi, m)
+                if wr[2] > 0.0 and wi[2] > 0.0:
+                    acc += w * microfacet_g1(wr, m, alpha, distribution) * fr.f
+    out[i] = acc * 0.25  # the square [0, 1]² is a quarter of Gauss–Legendre's [−1, 1]²
+
+
+def _rough_interface(mu: np.ndarray, eta: float, alpha: float, distribution: int, transmit: bool) -> np.ndarray:
+    nodes, weights = np.polynomial.legendre.leggauss(32 if eta > 1.0 else 128)
+    out = wp.zeros(len(mu), dtype=float, device="cpu")
+    wp.launch(
+        _rough_interface_kernel,
+        len(mu),
+        inputs=[
+            wp.array(mu.astype(np.float32), dtype=float, device="cpu"),
+            float(eta),
+            float(alpha),
+            int(distribution),
+            int(transmit),
+            wp.array(nodes.astype(np.float32), dtype=float, device="cpu"),
+            wp.array(weights.astype(np.float32), dtype=float, device="cpu"),
+        ],
+        outputs=[out],
+        device="cpu",
+    )
+    return out.numpy().astype(np.float64)
+
+
+@functools.lru_cache(maxsize=64)
+def rough_interface_table(eta: float, alpha: float, distribution: int) -> tuple[np.ndarray, float]:
+    """(T at ``ROUGH_TABLE_SIZE`` cosines linspace(0, 1) (the first raised to 1e-6), internal reflectance
+    2·mean(R(μ; 1/η) μ)) of a rough interface of relative index ``eta`` — Mitsuba 3's ``roughplastic``
+    ``parameters_changed`` (computed on the CPU, cached per argument triple)."""
+    mu = np.maximum(1.0e-6, np.linspace(0.0, 1.0, ROUGH_TABLE_SIZE))
+    table = _rough_interface(mu, eta, alpha, distribution, True)
+    internal = 2.0 * float(np.mean(_rough_interface(mu, 1.0 / eta, alpha, distribution, False) * mu))
+    return table, internal
+
+
+@wp.func
+def rough_table_lookup(table: wp.array(dtype=float), cos_theta: float) -> float:
+    """The table of ``rough_interface_table`` interpolated linearly at ``cos_theta`` ∈ [0, 1] (Mitsuba's ``lerp_gather``)."""
+    x = wp.clamp(cos_theta, 0.0, 1.0) * float(ROUGH_TABLE_SIZE - 1)
+    index = wp.min(int(x), ROUGH_TABLE_SIZE - 2)
+    v0 = table[index]
+    return v0 + (table[index + 1] - v0) * (x - float(index))
