@@ -111,7 +111,8 @@ Transforms ``<transform name="to_world">``
     ``wrap_mode`` repeat (Mitsuba's defaults; the only modes grisx samples).
     ``checkerboard``: ``color0`` [0.4], ``color1`` [0.2] (constant colours).
     Both take ``to_uv`` (a ``<transform>``; its x/y rows and translation make
-    Mitsuba's 2D affine map). Textures are supported as diffuse ``reflectance`` only.
+    Mitsuba's 2D affine map). Textures are supported as diffuse ``reflectance`` and
+    a plastic's ``diffuse_reflectance`` only.
 
 File names are looked up in the ``<path>`` folders, then the XML file's directory (the current directory
 for XML given as a string). Elements not listed (``medium``,
@@ -149,8 +150,10 @@ from grisx.scene.material import (
     Dielectric,
     MICROFACET_DISTRIBUTIONS,
     Diffuse,
+    Plastic,
     RoughConductor,
     RoughDielectric,
+    RoughPlastic,
     ThinDielectric,
     TextureRef,
     conductor_material,
@@ -689,7 +692,7 @@ class _Props:
             self.used.add(name)
             if not texture:
                 raise self.ctx.error(node, f"parameter '{name}': textures are supported only as diffuse "
-                                           f"'reflectance'; give a constant <rgb>", name)
+                                           f"'reflectance' and a plastic's 'diffuse_reflectance'; give a constant <rgb>", name)
             return self.loader.texture_ref(node)
         node = self._get(name, ("rgb", "srgb", "spectrum", "float"))
         if node.tag == "spectrum":
@@ -786,6 +789,7 @@ class _Loader:
         self.records: dict[int, Any] = {}  # id(node) -> material record
         self.material_ids: dict[int, int] = {}  # id(node) -> scene material id
         self.texture_ids: dict[int, int] = {}  # id(node) -> scene texture id
+        self.texture_means: dict[int, float] = {}  # scene texture id -> mean value
         self.default_materials: dict[str, int] = {}  # "default" / "default_emitter" -> scene material id
         self.shape_count = 0
         self.area_emitters_used: set[int] = set()  # id(node) of area emitters attached to a shape
@@ -875,6 +879,9 @@ class _Loader:
         p.finish()
         tid = self.scene.add_texture(tex, name=name)
         self.texture_ids[id(node)] = tid
+        # Mitsuba's texture.mean() (a plastic's lobe sampling weights)
+        self.texture_means[tid] = float(np.mean(np.asarray(tex.color0) + np.asarray(tex.color1)) / 2.0) if t == "checkerboard" \
+            else float(np.mean(tex if isinstance(tex, np.ndarray) else tex.image))
         return tid
 
     def texture_ref(self, node: _Node) -> TextureRef:
@@ -892,7 +899,8 @@ class _Loader:
         node = self._deref(node, "bsdf")
         if id(node) in self.records:
             return self.records[id(node)]
-        t = self._require_type(node, ("diffuse", "conductor", "roughconductor", "dielectric", "roughdielectric", "thindielectric", "twosided"))
+        t = self._require_type(node, ("diffuse", "conductor", "roughconductor", "dielectric", "roughdielectric", "thindielectric",
+                                      "plastic", "roughplastic", "twosided"))
         p = _Props(self, node)
         if t == "twosided":
             inner = p.take_objects(("bsdf",))
@@ -920,6 +928,21 @@ class _Loader:
                     raise self.ctx.error(p.values["material"], f"parameter 'material': {exc}", "material") from None
             kw["specular_reflectance"] = p.color("specular_reflectance", 1.0)
             rec = self._smooth_or_rough(p, t == "roughconductor", kw, Conductor, RoughConductor)
+        elif t in ("plastic", "roughplastic"):
+            diffuse = p.color("diffuse_reflectance", 0.5, texture=True)
+            kw = {
+                "diffuse_reflectance": diffuse,
+                "diffuse_mean": self.texture_means[diffuse.texture_id] if isinstance(diffuse, TextureRef) else None,
+                "specular_reflectance": p.color("specular_reflectance", 1.0),
+                "int_ior": p.ior("int_ior", "polypropylene"),
+                "ext_ior": p.ior("ext_ior", "air"),
+                "nonlinear": p.bool("nonlinear", False),
+            }
+            if t == "roughplastic" and (p.has("alpha_u") or p.has("alpha_v")):
+                raise self.ctx.error(p.values.get("alpha_u", p.values.get("alpha_v")),
+                                     "roughplastic does not support anisotropic roughness (alpha_u/alpha_v), as in Mitsuba 3; "
+                                     "give one 'alpha'", "alpha_u" if p.has("alpha_u") else "alpha_v")
+            rec = self._smooth_or_rough(p, t == "roughplastic", kw, Plastic, RoughPlastic)
         else:  # dielectric, roughdielectric, thindielectric
             kw = {
                 "int_ior": p.ior("int_ior", "bk7"),
