@@ -73,6 +73,8 @@ CASES: dict[str, Case] = {
     "roughdielectric": Case(32, 16),
     "roughdielectric_beckmann": Case(32, 16),
     "thindielectric": Case(32, 16),
+    "plastic": Case(32, 16),
+    "roughplastic": Case(32, 16),
     "texture_srgb": Case(32, 16),
     "texture_raw": Case(32, 16),
     "texture_exr": Case(32, 16),

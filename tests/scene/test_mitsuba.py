@@ -16,6 +16,8 @@ from grisx.scene.material import (
     Conductor,
     Dielectric,
     Diffuse,
+    Plastic,
+    RoughPlastic,
     RoughConductor,
     RoughDielectric,
     TextureRef,
@@ -280,6 +282,26 @@ def test_bsdfs():
     assert bsdf('<bsdf type="roughconductor"/>').distribution == "beckmann"
     assert bsdf('<bsdf type="roughdielectric"><float name="alpha" value="0.2"/></bsdf>') == RoughDielectric(alpha=0.2, distribution="beckmann")
     assert ts == RoughConductor(two_sided=True)
+
+
+def test_plastics():
+    # Mitsuba's defaults: polypropylene in air, diffuse 0.5, specular 1, linear, Beckmann α 0.1
+    assert bsdf('<bsdf type="plastic"/>') == Plastic(int_ior=1.49, ext_ior=1.000277)
+    assert bsdf('<bsdf type="roughplastic"/>') == RoughPlastic(alpha=0.1, distribution="beckmann")
+    p = bsdf('<bsdf type="plastic"><rgb name="diffuse_reflectance" value="0.1 0.2 0.3"/><string name="int_ior" value="bk7"/>'
+             '<string name="ext_ior" value="water"/><boolean name="nonlinear" value="true"/>'
+             '<rgb name="specular_reflectance" value="0.9"/></bsdf>')
+    assert p == Plastic(diffuse_reflectance=(0.1, 0.2, 0.3), specular_reflectance=(0.9,) * 3, int_ior=1.5046, ext_ior=1.333, nonlinear=True)
+    rp = bsdf('<bsdf type="twosided"><bsdf type="roughplastic"><string name="distribution" value="ggx"/><float name="alpha" value="0.25"/>'
+              '<boolean name="sample_visible" value="false"/><texture type="checkerboard" name="diffuse_reflectance"/></bsdf></bsdf>')
+    assert rp.alpha == 0.25 and rp.distribution == "ggx" and rp.two_sided and rp.diffuse_reflectance.texture_id == 0
+    assert rp.diffuse_mean == pytest.approx(0.3)  # the checkerboard's mean, as Mitsuba's texture.mean() sets the lobe weights
+    with pytest.raises(SceneFileError, match=r"<float name=\"alpha_u\"> roughplastic does not support anisotropic roughness"):
+        bsdf('<bsdf type="roughplastic"><float name="alpha_u" value="0.1"/><float name="alpha_v" value="0.3"/></bsdf>')
+    with pytest.raises(SceneFileError, match="specular_reflectance': textures are supported only as"):
+        bsdf('<bsdf type="plastic"><texture type="checkerboard" name="specular_reflectance"/></bsdf>')
+    with pytest.raises(SceneFileError, match="int_ior and ext_ior must differ"):
+        bsdf('<bsdf type="plastic"><float name="int_ior" value="1.2"/><float name="ext_ior" value="1.2"/></bsdf>')
 
 
 def test_twosided_and_shared_references():
