@@ -128,6 +128,7 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     """The passes of Area ReSTIR compiled for the material kinds ``kinds`` (cached)."""
     shifts = make_path_shift(kinds)
     shift = shifts.shift
+    suffix_moved = shifts.suffix_moved
     module = specialized_module(__name__, kinds)
 
     @wp.func
@@ -136,6 +137,13 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         if fs.valid == 0:
             return _shift_none()
         return shift(scene, area_domain(scene, cam, x, y, fs).dom, pr.path, sp)
+
+    @wp.func
+    def film_shift_across(scene: SceneData, cam: CameraData, x: int, y: int, fs: FilmSample, pr: PathReservoir, sp: ShiftParams) -> PathShiftResult:
+        """:func:`film_shift` between frames: undefined where the reused suffix met something that moved."""
+        if suffix_moved(scene, pr.path):
+            return _shift_none()
+        return film_shift(scene, cam, x, y, fs, pr, sp)
 
     # ---- primary vertices ----
     @wp.kernel(module=module)
@@ -173,7 +181,7 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             return
         # canonical sample: p̂_{←p}(y_c) through the inverse translation, on the previous camera and in the
         # previous frame's scene (each domain in its own frame)
-        t_cj = target_to(film_shift(scene_prev, cam_prev, nb.x, nb.y, film_translate(fs_c, temporal_offset(g, x, y, nb), cam), can, sp))
+        t_cj = target_to(film_shift_across(scene_prev, cam_prev, nb.x, nb.y, film_translate(fs_c, temporal_offset(g, x, y, nb), cam), can, sp))
         target_cj[y, x] = t_cj
         history_pixel[y, x] = domain_code(nb.x, nb.y, g.hit.shape[1], 0)
 
@@ -201,7 +209,7 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         m_c = two_domain_balance(c_i, t_c, c_j, target_cj[y, x])  # seed 001, Eq. 15
         # history sample translated into pixel i (fractional motion vector), its path shifted from the new x₁
         fs_t = film_translate(film_hist[nb.y, nb.x], -temporal_offset(g, x, y, nb), cam)
-        s_t = film_shift(scene, cam, x, y, fs_t, prev, sp)
+        s_t = film_shift_across(scene, cam, x, y, fs_t, prev, sp)
         t_ti = path_target(s_t.path)
         t_tj = target_back(prev.path, s_t)
         m_t = two_domain_balance(c_j, t_tj, c_i, t_ti)

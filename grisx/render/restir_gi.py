@@ -354,10 +354,10 @@ class SampleRadiance:
 
 
 @kernel_cache
-def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
+def make_restir_gi_kernels(kinds: frozenset[int], moving: bool = False) -> Any:
     """ReSTIR GI's functions and kernels compiled for the material kinds ``kinds`` (cached)."""
     bsdf = make_bsdf(kinds)
-    trace_path = make_trace_path(kinds)
+    trace_path = make_trace_path(kinds, bounds=moving)  # with moving objects, the box of what L_o depends on
     has_rough_dielectric = MATERIAL_ROUGH_DIELECTRIC in kinds
 
     @wp.func
@@ -714,7 +714,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         tile = (y // _TILE_H) * ((width + _TILE_W - 1) // _TILE_W) + x // _TILE_W
         return int(random_uniform(random_subkey(frame_key(sf, 1), tile), 0) < mb_fraction)
 
-    module = specialized_module(__name__, kinds)
+    module = specialized_module(__name__ + (".moving" if moving else ""), kinds)
 
     # ---- the initial pass (Alg. 2) in three stages, one path tracer each: validation, direct light, the sample ----
     @wp.kernel(module=module, cuda_max_registers=PATH_REGISTERS)
@@ -1214,7 +1214,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
         self.max_jacobian = float(max_jacobian)
         self.jitter = bool(jitter)
         self.timer = timer
-        self.k = make_restir_gi_kernels(frozenset(built.features.material_kinds))
+        self.k = make_restir_gi_kernels(frozenset(built.features.material_kinds), built.features.animated_objects)
         dev = self.device = built.device
         shape = (self.height, self.width)
         self.di = None

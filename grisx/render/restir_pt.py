@@ -71,8 +71,9 @@ under :data:`~grisx.device.SHIFT_REGISTERS`.
 scene (:meth:`~grisx.scene.scene.BuiltScene.across_frames`): this frame's
 path shifted into the previous frame's domain traces the previous frame's
 geometry, and a reconnection reuses its suffix x_k … x_n across frames only
-where nothing moved in that suffix's box (its vertices, so its segments, lie
-in it). Lin et al. 2022 evaluate the previous domains with the current
+where none of its segments meets the box of something that moved (the
+temporal stages replay the suffix to test it: ``shift_across``, nothing
+stored per path). Lin et al. 2022 evaluate the previous domains with the current
 geometry and reuse suffixes regardless, which is biased around moving
 objects; here the temporal shift fails there instead, and the image stays
 unbiased (``tests/render/test_reuse_unbiased.py``, fast-objects).
@@ -266,6 +267,7 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
     """The passes of ReSTIR PT for the material kinds ``kinds``, with a variant's ``hooks`` compiled in (uncached)."""
     shifts = make_path_shift(kinds)
     shift = shifts.shift
+    shift_across = shifts.shift_across  # between frames: fails where the reused suffix met something that moved
     sample_paths = shifts.stream_candidates
     settle = shifts.settle
     est = hooks  # the variant's code is compiled in only where it is not None (wp.static)
@@ -358,7 +360,7 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
         if dom_j.valid == 0 or history[nb.y, nb.x].res.confidence <= 0.0:
             return
         # canonical path y_c: p̂_{←j}(y_c) through T_{i→j} (seed 001, Eq. 16)
-        s_cj = shift(scene, dom_j, can.path, sp)
+        s_cj = shift_across(scene, dom_j, can.path, sp)
         target_cj[y, x] = target_to(s_cj)
         if wp.static(est is not None):
             shifted[y, x] = s_cj  # a variant's estimate needs the whole shift
@@ -398,7 +400,7 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
         t_cj = target_cj[y, x]
         m_c = two_domain_balance(c_i, t_c, c_j, t_cj)  # seed 001, Eq. 15
         # history path y_t shifted into this pixel: p̂_i(T(y_t)) and p̂_{←j}(T(y_t)) = p̂_j(y_t) / |J|
-        s_t = shift(scene, dom_i, prev.path, sp)
+        s_t = shift_across(scene, dom_i, prev.path, sp)
         t_ti = path_target(s_t.path)  # 0 where the shift failed
         t_tj = target_back(prev.path, s_t)
         m_t = two_domain_balance(c_j, t_tj, c_i, t_ti)

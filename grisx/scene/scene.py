@@ -215,6 +215,30 @@ def motion_touches(scene: SceneData, lo: wp.vec3, hi: wp.vec3) -> bool:
 
 
 @wp.func
+def motion_on_segment(scene: SceneData, a: wp.vec3, d: wp.vec3, t_max: float) -> bool:
+    """Whether the segment a + t·d, t ∈ [0, ``t_max``] (``d`` unit; 1e30: a ray to infinity) meets a box of what
+    moved between the frames ``scene`` was taken across (:func:`motion_touches`): the slab test per box."""
+    for i in range(scene.moved_count):
+        lo = scene.moved_lo[i]
+        hi = scene.moved_hi[i]
+        t0 = float(0.0)
+        t1 = t_max
+        for c in range(3):
+            if wp.abs(d[c]) < 1.0e-12:
+                if a[c] < lo[c] or a[c] > hi[c]:
+                    t0 = 1.0  # parallel to this slab and outside it: no overlap (t0 > t1 below)
+                    t1 = 0.0
+            else:
+                ta = (lo[c] - a[c]) / d[c]
+                tb = (hi[c] - a[c]) / d[c]
+                t0 = wp.max(t0, wp.min(ta, tb))
+                t1 = wp.min(t1, wp.max(ta, tb))
+        if t0 <= t1:
+            return True
+    return False
+
+
+@wp.func
 def spawn_origin(scene: SceneData, p: wp.vec3, ng: wp.vec3, d: wp.vec3) -> wp.vec3:
     """Offset ``p`` off the surface to the side ``d`` leaves on (avoids self-intersection)."""
     if wp.dot(d, ng) >= 0.0:

@@ -21,8 +21,8 @@ at 1024, so that case keeps 8×8 blocks.)
 
 Around moving objects every domain is evaluated in its own frame's scene
 (:meth:`~grisx.scene.scene.BuiltScene.across_frames`) and a shift across frames fails where the part
-of the path it reuses (a reconnection suffix, ReSTIR GI's L_o, a light point) lies in a box that
-something moved through. The papers' approximation — the previous frame's domains evaluated with the
+of the path it reuses meets the box of something that moved: a reconnection suffix (replayed, segment
+by segment), ReSTIR GI's L_o (the box of its path), ReSTIR DI's light point. The papers' approximation — the previous frame's domains evaluated with the
 current geometry, suffixes reused regardless — is the known-biased sibling there: block |z| 5.9–16.2
 at 256 runs (threshold 4.84) before this was fixed; caught beyond 6σ by the same check.
 Known-biased siblings fail the same check at the same runs beyond 6σ in each hard case: α from

@@ -118,7 +118,7 @@ from grisx.scene.scene import (
     SurfaceInteraction,
     intersect,
     light_occluded,
-    motion_touches,
+    motion_on_segment,
     occluded,
     segment_occluded,
     spawn_origin,
@@ -225,8 +225,6 @@ class PathSample:
     end_light_pdf: float  # k = n − 1: light-sampling density of the last segment (for m_t at x_k)
     end_delta: int  # k = n − 1: the last segment ends on a delta light (m_t = 1)
     f: wp.vec3  # m_t · f(x̄) in this domain (RGB); the target is its luminance
-    sfx_lo: wp.vec3  # the box of what ``suffix`` reuses (x_k … x_n; unbounded past an escape): a shift
-    sfx_hi: wp.vec3  # across frames fails where something in it moved (:func:`~grisx.scene.scene.motion_touches`)
 
 
 @wp.struct
@@ -305,27 +303,7 @@ def path_sample_empty() -> PathSample:
     x.f = wp.vec3(0.0)
     x.rc_index = 0
     x.pdf_replay = 0.0
-    x.sfx_lo = wp.vec3(_FAR)  # empty: nothing reused
-    x.sfx_hi = wp.vec3(-_FAR)
     return x
-
-
-@wp.func
-def suffix_with(x: PathSample, p: wp.vec3) -> PathSample:
-    """``x`` with point ``p`` of its suffix in the box of what it reuses."""
-    out = x
-    out.sfx_lo = wp.min(x.sfx_lo, p)
-    out.sfx_hi = wp.max(x.sfx_hi, p)
-    return out
-
-
-@wp.func
-def suffix_unbounded(x: PathSample) -> PathSample:
-    """``x`` whose suffix escapes to the environment: a ray to infinity, bounded by no box."""
-    out = x
-    out.sfx_lo = wp.vec3(-_FAR)
-    out.sfx_hi = wp.vec3(_FAR)
-    return out
 
 
 @wp.func
@@ -432,6 +410,8 @@ class PathShiftFuncs:
     ``stream_candidates(scene, dom, key, max_bounces, weight_scale, sp, pr, ukey) -> PathReservoir``
     traces one path and streams its candidates (with their reconnection data) into a path
     reservoir, and ``settle(scene, dom, pr, sp) -> PathReservoir`` finalizes it.
+    ``shift_across`` is ``shift`` between the frames of :meth:`~grisx.scene.scene.BuiltScene.across_frames`,
+    failing where ``suffix_moved(scene, x) -> bool`` finds the reused suffix in a box of what moved.
     """
 
     kinds: frozenset[int]
@@ -439,6 +419,8 @@ class PathShiftFuncs:
     roughness: Any
     stream_candidates: Any
     settle: Any
+    suffix_moved: Any
+    shift_across: Any
 
 
 @wp.func
@@ -456,8 +438,6 @@ def _endpoint_light(x: PathSample, index: int, kind: int, p: wp.vec3, n: wp.vec3
     out.rc_dist = dist
     out.suffix = suffix
     out.pdf_replay = pdf_replay
-    if kind == VERTEX_AREA_LIGHT:
-        out = suffix_with(out, p)  # an emitter on a moving object moves; a direction or a point light does not
     return out
 
 
@@ -509,8 +489,6 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                 # ---- reconnection x'_{k−1} → x_k (seed 004, Eq. 11) ----
                 if bsdf.is_delta(m) != 0:
                     return res
-                if motion_touches(scene, x.sfx_lo, x.sfx_hi):
-                    return res  # across frames: the reused x_k … x_n may not be the same path in the other frame
                 d = x.rc_p
                 dist = float(_FAR)
                 if x.rc_kind != VERTEX_ENV:
@@ -638,6 +616,61 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
         out.valid = True
         return out
 
+    # ---- shifts across frames: the reused suffix must be the same path in both ----
+    @wp.func
+    def suffix_moved(scene: SceneData, x: PathSample) -> bool:
+        """Across frames (``scene.moved_count`` > 0): whether x's suffix x_k … x_n, which a reconnection reuses
+        as it is, runs through a box of what moved in between (:func:`~grisx.scene.scene.motion_on_segment`).
+
+        The suffix is replayed — its directions are x's random numbers, drawn as the walk drew them — and
+        each segment tested, shadow rays and escapes included. Everything outside the boxes is the same in
+        both frames, so up to the first segment that meets one, the replay is the same in either frame's
+        scene: both ends of a temporal shift reach the same verdict (T and T⁻¹ fail together). A path that
+        reconnects nowhere (replayed whole) reuses nothing.
+        """
+        if scene.moved_count == 0 or x.length < 1 or x.rc_index == 0:
+            return False
+        k = x.rc_index
+        n = x.length + 1
+        if x.rc_kind == VERTEX_AREA_LIGHT:
+            return motion_on_segment(scene, x.rc_p, x.rc_ng, 0.0)  # x_k = x_n on an emitter, which may move
+        if x.rc_kind != VERTEX_SURFACE:
+            return False  # a direction to the environment or a point light: nothing after x_k is reused
+        key = x.key
+        v = Domain()
+        v.p = x.rc_p
+        v.ng = x.rc_ng
+        d = x.rc_wi  # x_k → x_{k+1} as sampled (the light's direction where x_k's NEE ends the path)
+        i = k
+        while i < n:
+            if i == n - 1 and x.end_nee != 0:
+                c = path_dim(i, DIM_NEE)
+                ls = sample_light(scene.lights, v.p, random_uniform(key, c), wp.vec2(random_uniform(key, c + 1), random_uniform(key, c + 2)))
+                return motion_on_segment(scene, v.p, ls.wi, ls.dist)
+            if i > k:
+                m = vertex_material(scene, v.material, v.uv)
+                frame = frame_from_normal(v.ns)
+                c = path_dim(i, DIM_BSDF)
+                bs = bsdf.sample(m, to_local(frame, v.wo), random_uniform(key, c), wp.vec2(random_uniform(key, c + 1), random_uniform(key, c + 2)))
+                if bs.valid == 0:
+                    return True  # not x's suffix in this scene
+                d = wp.normalize(to_world(frame, bs.wi))
+            si = intersect(scene, spawn_origin(scene, v.p, v.ng, d), d, 1.0e30)
+            if si.valid == 0:
+                return motion_on_segment(scene, v.p, d, 1.0e30)  # an escape (x_n on the environment)
+            if motion_on_segment(scene, v.p, d, si.t):
+                return True
+            v = vertex_from_hit(si, -d)
+            i += 1
+        return False
+
+    @wp.func
+    def shift_across(scene: SceneData, dst: Domain, x: PathSample, sp: ShiftParams) -> PathShiftResult:
+        """:func:`shift` between frames: undefined where the suffix it would reuse may differ between them."""
+        if suffix_moved(scene, x):
+            return _shift_failed(x)
+        return shift(scene, dst, x, sp)
+
     # ---- sampling paths into a path reservoir (what every path-reuse renderer starts from) ----
     @wp.func
     def stream_path_candidates(
@@ -696,11 +729,6 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                             cand_x.length = i
                             cand_x.end_nee = 1
                             cand_x.f = wp.cw_mul(fthru, wp.cw_mul(fo, ls.radiance)) * mis  # m_t · f
-                            if cur.rc_index != 0:
-                                if ls.is_env != 0:
-                                    cand_x = suffix_unbounded(cand_x)
-                                else:
-                                    cand_x = suffix_with(cand_x, ls.p)  # the shadow segment ends on the light
                             if cur.rc_index == i:
                                 cand_x.rc_wi = ls.wi
                                 cand_x.suffix = ls.radiance  # m_t is re-evaluated at x_k by the shift
@@ -766,11 +794,6 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                 cand_x.length = i
                 cand_x.end_nee = 0
                 cand_x.f = wp.cw_mul(fthru, le) * mis  # m_t · f
-                if cur.rc_index != 0:
-                    if si.valid == 0:
-                        cand_x = suffix_unbounded(cand_x)
-                    else:
-                        cand_x = suffix_with(cand_x, si.p)
                 if cur.rc_index == i:
                     cand_x.suffix = le  # m_t is re-evaluated at x_k by the shift
                     cand_x.end_light_pdf = lpdf
@@ -806,11 +829,7 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                 cur.rc_cos = wp.dot(si.ng, v.p - si.p) / dist  # the geometric segment, as the shift measures it
                 cur.rc_dist = dist
                 cur.pdf_replay = pdf_before
-                cur.sfx_lo = si.p
-                cur.sfx_hi = si.p
                 suffix_thru = wp.vec3(1.0, 1.0, 1.0)
-            elif cur.rc_index != 0:
-                cur = suffix_with(cur, si.p)
             v = vertex_from_hit(si, -d)
             i += 1
         out = PathReservoir()
@@ -843,7 +862,8 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
         out.estimate = pr.estimate
         return out
 
-    funcs = PathShiftFuncs(kinds=key, shift=shift, roughness=roughness, stream_candidates=stream_path_candidates, settle=settle)
+    funcs = PathShiftFuncs(kinds=key, shift=shift, roughness=roughness, stream_candidates=stream_path_candidates, settle=settle,
+                           suffix_moved=suffix_moved, shift_across=shift_across)
     return funcs
 
 

@@ -105,14 +105,14 @@ class ScreenSpaceRenderer:
         return int(self.nonfinite.numpy()[0])
 
 
-def kernel_cache(make: Callable[[frozenset[int]], Any]) -> Callable[[Iterable[int]], Any]:
-    """``make(kinds)`` memoized per set of material kinds (each specialization compiles once)."""
-    cache: dict[frozenset[int], Any] = {}
+def kernel_cache(make: Callable[..., Any]) -> Callable[..., Any]:
+    """``make(kinds, *options)`` memoized per set of material kinds and options (each specialization compiles once)."""
+    cache: dict[tuple, Any] = {}
 
-    def cached(kinds: Iterable[int]) -> Any:
-        key = frozenset(int(k) for k in kinds)
+    def cached(kinds: Iterable[int], *options: Any) -> Any:
+        key = (frozenset(int(k) for k in kinds), *options)
         if key not in cache:
-            cache[key] = make(key)
+            cache[key] = make(*key)
         return cache[key]
 
     cached.__doc__ = make.__doc__

@@ -55,8 +55,9 @@ class PathRadiance:
     bs_li: wp.vec3  # everything the path gathers after it, divided by that sample's pdf (not by f)
     bs_li_prefix: wp.vec3  # the part of bs_li within the first prefix_depth segments
     recorded: int  # 1: the records above describe the path
-    # the box of every point the path's value depends on after o: its hits and its light samples (unbounded
-    # once a ray leaves for the environment). ReSTIR GI reuses L_o across frames only where nothing in it moved
+    # with ``bounds``: the box of every point the path's value depends on after o, its hits and its light samples
+    # (unbounded once a ray leaves for the environment); else empty. ReSTIR GI reuses L_o across frames only where
+    # nothing in it moved
     box_lo: wp.vec3
     box_hi: wp.vec3
     # caustic_chain > 0 (grisx.render.sms): the first non-delta vertex x₁, where SMS adds its caustic NEE
@@ -67,7 +68,7 @@ class PathRadiance:
     x1_depth: int  # segments before the one that reached x₁ (the loop's depth there)
 
 
-def make_trace_path(kinds: frozenset[int], caustic_chain: int = 0) -> Any:
+def make_trace_path(kinds: frozenset[int], caustic_chain: int = 0, bounds: bool = False) -> Any:
     """``trace_path(scene, o, d, key, max_depth, rr_depth, strategy, prefix_depth, record) -> PathRadiance``
     for the material kinds ``kinds`` (cached): the radiance arriving at o from direction d, emission at
     the first hit included. Renderers that need the path tracer's estimate at a point (ReSTIR GI's
@@ -81,12 +82,14 @@ def make_trace_path(kinds: frozenset[int], caustic_chain: int = 0) -> Any:
     ``caustic_chain`` = K > 0 (specular manifold sampling, :mod:`grisx.render.sms`): the paths that SMS
     owns (:func:`grisx.scene.caustics.caustic_owned`: x₁ the first non-delta vertex, then 1 … K delta
     vertices left by their canonical lobes, the first on a caster whose seed square holds the direction
-    from x₁, then an emitter triangle) add no emission here, and x₁ is recorded for SMS's own estimate."""
-    return _make_trace_path(frozenset(int(k) for k in kinds), int(caustic_chain))
+    from x₁, then an emitter triangle) add no emission here, and x₁ is recorded for SMS's own estimate.
+
+    ``bounds``: fill :class:`PathRadiance`'s box (compiled in only where asked: scenes with moving objects)."""
+    return _make_trace_path(frozenset(int(k) for k in kinds), int(caustic_chain), bool(bounds))
 
 
 @functools.cache
-def _make_trace_path(kinds: frozenset[int], caustic_chain: int) -> Any:
+def _make_trace_path(kinds: frozenset[int], caustic_chain: int, bounds: bool) -> Any:
     bsdf = make_bsdf(kinds)
     chain_max = caustic_chain
 
@@ -152,12 +155,14 @@ def _make_trace_path(kinds: frozenset[int], caustic_chain: int) -> Any:
                 if record != 0:
                     out.bs_li += wp.cw_mul(gamma, le) * w
             if si.valid == 0:
-                if depth > 0:
-                    out.box_lo = wp.vec3(-_FAR)  # a ray to infinity
-                    out.box_hi = wp.vec3(_FAR)
+                if wp.static(bounds):
+                    if depth > 0:
+                        out.box_lo = wp.vec3(-_FAR)  # a ray to infinity
+                        out.box_hi = wp.vec3(_FAR)
                 break
-            out.box_lo = wp.min(out.box_lo, si.p)
-            out.box_hi = wp.max(out.box_hi, si.p)
+            if wp.static(bounds):
+                out.box_lo = wp.min(out.box_lo, si.p)
+                out.box_hi = wp.max(out.box_hi, si.p)
             if depth + 1 == prefix_depth:
                 out.prefix = L  # a path of max_depth = prefix_depth would stop here
                 out.bs_li_prefix = out.bs_li
@@ -196,12 +201,13 @@ def _make_trace_path(kinds: frozenset[int], caustic_chain: int) -> Any:
                 ls = sample_light(
                     scene.lights, si.p, random_uniform(key, c + 0), wp.vec2(random_uniform(key, c + 1), random_uniform(key, c + 2))
                 )
-                if ls.is_env != 0:
-                    out.box_lo = wp.vec3(-_FAR)
-                    out.box_hi = wp.vec3(_FAR)
-                elif ls.pdf > 0.0:
-                    out.box_lo = wp.min(out.box_lo, ls.p)
-                    out.box_hi = wp.max(out.box_hi, ls.p)
+                if wp.static(bounds):
+                    if ls.is_env != 0:
+                        out.box_lo = wp.vec3(-_FAR)
+                        out.box_hi = wp.vec3(_FAR)
+                    elif ls.pdf > 0.0:
+                        out.box_lo = wp.min(out.box_lo, ls.p)
+                        out.box_hi = wp.max(out.box_hi, ls.p)
                 if ls.pdf > 0.0 and wp.length_sq(ls.radiance) > 0.0:
                     wi = to_local(frame, ls.wi)
                     f = bsdf.eval(m, wo, wi)
