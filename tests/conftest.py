@@ -1,13 +1,33 @@
-"""Shared fixtures: every test that takes ``device`` runs on cpu, and on cuda when Warp finds one."""
+"""Shared fixtures: every test that takes ``device`` runs on cpu, and on cuda when Warp finds one; the
+session's shared folder for work done once across xdist workers (:mod:`session_cache`)."""
 
 import os
+import shutil
+import tempfile
 
 import pytest
+import session_cache
 from hypothesis import settings
 
 from grisx.device import cuda_available, init
 
 init()
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    # one folder per session for the work its xdist workers share (session_cache): made by the process that
+    # starts the workers, before it starts them, so they inherit its name; removed by that process at the end
+    if not hasattr(config, "workerinput") and session_cache.ENV not in os.environ:
+        config._grisx_shared = tempfile.mkdtemp(prefix="grisx-tests-")
+        os.environ[session_cache.ENV] = config._grisx_shared
+    session_cache.compile_once()
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    folder = getattr(config, "_grisx_shared", None)
+    if folder is not None:
+        shutil.rmtree(folder, ignore_errors=True)
+        os.environ.pop(session_cache.ENV, None)
 
 # Property tests draw their examples from a fixed seed, like every other test here: a failure is
 # reproducible and CI cannot pass or fail by luck. GRISX_HYPOTHESIS=explore searches afresh each run.

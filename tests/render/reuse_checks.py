@@ -25,8 +25,10 @@ from grisx.scene.camera import CameraPath
 from grisx.scene.gbuffer import GBuffer
 from grisx.scene.scene import RigidMotion
 from grisx.testing import DEFAULT_K, ReuseTestResult, reuse_unbiasedness_test
+from session_cache import shared
 
 RES = (16, 16)
+REFERENCE_SEED = 987654
 _REFERENCES: dict[Any, tuple[np.ndarray, np.ndarray]] = {}
 
 
@@ -104,14 +106,20 @@ def screen_motion(scene: Any, camera: str, frames: int, res: tuple[int, int] = R
 
 def reference(scene_name: Any, depth: int, camera: str, frame: int, spp: int = 4096, res: tuple[int, int] = RES) -> tuple[np.ndarray, np.ndarray]:
     """The path tracer's image (jittered, as the renderers) and its per-pixel variance of the mean."""
-    key = (scene_name if isinstance(scene_name, str) else id(scene_name), depth, camera, frame, spp, tuple(res))
-    if key not in _REFERENCES:
+
+    def render() -> tuple[np.ndarray, np.ndarray]:
         built = _load(scene_name).build("cpu")
         built.animate_camera = camera == "moving"
         built.set_frame(float(frame))
-        pt = PathTracer(built, *res, spp=spp, max_depth=depth, seed=987654)
+        pt = PathTracer(built, *res, spp=spp, max_depth=depth, seed=REFERENCE_SEED)
         pt.add_samples(frame, spp)
-        _REFERENCES[key] = pt.mean().astype(np.float64), pt.variance_of_mean().astype(np.float64)
+        return pt.mean().astype(np.float64), pt.variance_of_mean().astype(np.float64)
+
+    if isinstance(scene_name, str):  # named: rendered once per test session, whichever xdist worker asks first
+        return shared(("reuse_checks.reference", scene_name, depth, camera, frame, spp, tuple(res), REFERENCE_SEED), render)
+    key = (id(scene_name), depth, camera, frame, spp, tuple(res))
+    if key not in _REFERENCES:
+        _REFERENCES[key] = render()
     return _REFERENCES[key]
 
 
