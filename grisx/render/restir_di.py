@@ -380,20 +380,22 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
         m = surface_material(scene, si)
         frame_x = frame_from_normal(si.ns)
         wo_l = to_local(frame_x, wo)
-        if bsdf.is_delta(m) != 0:
-            # ---- delta BSDF: no light sample can reach it; one BSDF ray, as the path tracer does ----
+        if bsdf.has_delta_lobe(m) != 0:
+            # ---- delta lobes: no light sample can reach them (nor a candidate's density weigh them); one BSDF
+            # ray, as the path tracer does, counted where it took a delta lobe (all of a mirror; a plastic's coat) ----
             bs = bsdf.sample(m, wo_l, random_uniform(key, 0), wp.vec2(random_uniform(key, 1), random_uniform(key, 2)))
-            if bs.valid != 0:
+            if bs.valid != 0 and bs.delta != 0:
                 d = wp.normalize(to_world(frame_x, bs.wi))
                 hit = intersect(scene, spawn_origin(scene, si.p, si.ng, d), d, 1.0e30)
                 le = environment_eval(ls, d)
                 if hit.valid != 0:
                     le = emitter_radiance(ls, hit.tri, hit.ng, -d)
                 b += wp.cw_mul(bs.weight, le)
-            base[y, x] = b
-            res_out[y, x] = r
-            lp_out[y, x] = sel
-            return
+            if bsdf.is_delta(m) != 0:
+                base[y, x] = b
+                res_out[y, x] = r
+                lp_out[y, x] = sel
+                return
         base[y, x] = b
         # ---- initial candidates: light samples and BSDF samples, balance heuristic over the two ----
         c_light = float(n_light)

@@ -143,8 +143,9 @@ With one or two lights NEE's direct light is nearly noise-free already and
 ReSTIR DI's extra passes cost more time than its reuse saves; with hundreds
 NEE picks a light that matters rarely and ReSTIR DI wins by an order of
 magnitude. Visible points
-with delta or rough-dielectric BSDFs (mirrors, glass: transmission leaves the
-sampled hemisphere) are path traced instead, with no reservoir.
+with a delta lobe or a rough-dielectric BSDF (mirrors, glass, a smooth plastic's
+coat: no source pdf over the hemisphere reaches a delta lobe, and transmission
+leaves the sampled hemisphere) are path traced instead, with no reservoir.
 
 **Pixels.** Each frame's visible point is at a random position in its pixel
 (``jitter=true``, the default), so the image estimates the same box-filtered
@@ -362,9 +363,10 @@ def make_restir_gi_kernels(kinds: frozenset[int], moving: bool = False) -> Any:
 
     @wp.func
     def path_traced_here(scene: SceneData, si: SurfaceInteraction) -> bool:
-        """Visible points ReSTIR GI leaves to the path tracer: delta BSDFs, and rough dielectrics."""
+        """Visible points ReSTIR GI leaves to the path tracer: delta lobes (mirrors, glass, a plastic's coat: no
+        source pdf over the hemisphere reaches them), and rough dielectrics."""
         m = surface_material(scene, si)
-        if bsdf.is_delta(m) != 0:
+        if bsdf.has_delta_lobe(m) != 0:
             return True
         if wp.static(has_rough_dielectric):
             if m.kind == MATERIAL_ROUGH_DIELECTRIC:

@@ -656,7 +656,7 @@ def average_fresnel_dielectric(eta: float) -> float:
 @dataclasses.dataclass(frozen=True)
 class BsdfFuncs:
     """Warp funcs of one specialized dispatch: ``sample(m, wo, u_lobe, u)``, ``eval(m, wo, wi)``,
-    ``pdf(m, wo, wi)``, ``albedo(m)``, ``roughness(m)``, ``is_delta(m)``; ``kinds`` compiled in.
+    ``pdf(m, wo, wi)``, ``albedo(m)``, ``roughness(m)``, ``is_delta(m)``, ``has_delta_lobe(m)``; ``kinds`` compiled in.
     A material of a kind not compiled in is black: invalid samples, zero eval/pdf/albedo."""
 
     kinds: frozenset[int]
@@ -666,6 +666,7 @@ class BsdfFuncs:
     albedo: wp.Function
     roughness: wp.Function
     is_delta: wp.Function
+    has_delta_lobe: wp.Function
 
 
 _DISPATCH_CACHE: dict[frozenset[int], BsdfFuncs] = {}
@@ -817,7 +818,16 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
             return 1
         return 0
 
-    funcs = BsdfFuncs(kinds=key, sample=sample, eval=eval, pdf=pdf, albedo=albedo, roughness=roughness, is_delta=is_delta)
+    @wp.func
+    def has_delta_lobe(m: Material) -> int:
+        """1 where some lobe is a delta (all-delta kinds, and a smooth plastic's coat beside its diffuse base):
+        eval and pdf miss that lobe, so only BSDF sampling reaches what it reflects."""
+        if is_delta(m) != 0 or m.kind == MATERIAL_PLASTIC:
+            return 1
+        return 0
+
+    funcs = BsdfFuncs(kinds=key, sample=sample, eval=eval, pdf=pdf, albedo=albedo, roughness=roughness, is_delta=is_delta,
+                      has_delta_lobe=has_delta_lobe)
     _DISPATCH_CACHE[key] = funcs
     return funcs
 

@@ -193,7 +193,7 @@ def _make_trace_path(kinds: frozenset[int], caustic_chain: int, bounds: bool) ->
                             chain_state = 2
             # record: a view-independent first vertex (cosine-weighted continuation), where the BSDF allows
             view_free = int(0)
-            if record != 0 and depth == 0 and bsdf.is_delta(m) == 0 and m.kind != MATERIAL_ROUGH_DIELECTRIC and wo[2] != 0.0:
+            if record != 0 and depth == 0 and bsdf.has_delta_lobe(m) == 0 and m.kind != MATERIAL_ROUGH_DIELECTRIC and wo[2] != 0.0:
                 view_free = 1
                 out.recorded = 1
             # ---- next-event estimation ----
