@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from session_cache import shared
 from test_path_shift import lit_wall  # the scene whose Jacobians are far from 1
 
 from grisx.errors import InvalidParameterError
@@ -38,7 +39,6 @@ RES = (12, 10)
 GRADIENT_METHODS = ("gpt", "gradient-after-restir", "restir-gpt")
 ALL_METHODS = ("area-restir", *GRADIENT_METHODS)
 _SCENES: dict[str, Any] = {}
-_REFERENCES: dict[Any, tuple[np.ndarray, np.ndarray]] = {}
 _RUNS: dict[Any, list[dict[str, np.ndarray]]] = {}
 
 
@@ -49,15 +49,16 @@ def _scene(name: str) -> Any:
 
 
 def _reference(scene: str, depth: int, camera: str, frame: int, spp: int = 4096) -> tuple[np.ndarray, np.ndarray]:
-    key = (scene, depth, camera, frame, spp)
-    if key not in _REFERENCES:
+
+    def render() -> tuple[np.ndarray, np.ndarray]:
         built = _scene(scene).build("cpu")
         built.animate_camera = camera == "moving"
         built.set_frame(float(frame))
         pt = PathTracer(built, *RES, spp=spp, max_depth=depth, seed=987654)
         pt.add_samples(frame, spp)
-        _REFERENCES[key] = pt.mean().astype(np.float64), pt.variance_of_mean().astype(np.float64)
-    return _REFERENCES[key]
+        return pt.mean().astype(np.float64), pt.variance_of_mean().astype(np.float64)
+
+    return shared(("test_gradient_domain.reference", scene, depth, camera, frame, spp, RES, 987654), render)
 
 
 def _runs(method: str, params: dict[str, Any], scene: str, camera: str, frames: int, runs: int) -> list[dict[str, np.ndarray]]:

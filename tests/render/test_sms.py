@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from reuse_checks import check
+from session_cache import shared
 
 from grisx.render.driver import METHODS, RenderContext, load_scene, method_params, render
 from grisx.render.pt import PathTracer
@@ -34,7 +35,6 @@ from grisx.scene.transform import compose, rotate, scale, translate
 from grisx.testing import BIASED_K, DEFAULT_K, image_agreement_test
 
 RES = (16, 12)
-_REF: dict = {}
 
 
 def _unit(v):
@@ -141,12 +141,13 @@ def test_walk_jacobian_agrees_with_finite_differences():
 
 
 def _pt_reference(scene, spp=16384):
-    if scene not in _REF:
+    def render():
         built = load_scene(scene).build("cpu")
         pt = PathTracer(built, *RES, spp=spp, max_depth=int(built.defaults["max_depth"]), seed=987654)
         pt.add_samples(0, spp)
-        _REF[scene] = pt.mean(), pt.variance_of_mean()
-    return _REF[scene]
+        return pt.mean(), pt.variance_of_mean()
+
+    return shared(("test_sms.pt", scene, spp, RES, 987654), render)
 
 
 def _sms_image(method, params, scene="caustic-slab", spp=256, seed=11):
@@ -199,16 +200,17 @@ def _sms_reference(camera: str, frame: int, spp: int = 16384):
     """``sms``'s image (checked against pt above) at 16×16: caustic paths give pt a heavy tail whose variance a
     finite pt reference underestimates in a block now and then; plain SMS's geometric trial counts are lighter
     (the priors' 1/(1 − α) weights are not)."""
-    key = ("sms", camera, frame)
-    if key not in _REF:
+
+    def render():
         built = load_scene("caustic-slab").build("cpu")
         built.animate_camera = camera == "moving"
         built.set_frame(float(frame))
         resolved = {**method_params("sms", {"max_depth": 8}), "spp": spp}
         r = METHODS["sms"].create(RenderContext(built, 16, 16, resolved, 4242, None, "sms"))
         r.render_frame(frame)
-        _REF[key] = r.mean(), r.variance_of_mean()
-    return _REF[key]
+        return r.mean(), r.variance_of_mean()
+
+    return shared(("test_sms.sms", camera, frame, spp, 4242), render)
 
 
 @pytest.mark.parametrize(
@@ -306,12 +308,13 @@ def _env_slab():
 @pytest.mark.parametrize("method", ["sms", "sms-partitioned"])
 def test_environment_caustics_agree_with_the_path_tracer(method):
     scene = _env_slab()
-    if "env" not in _REF:
-        built = scene.build("cpu")
-        pt = PathTracer(built, *RES, spp=1, max_depth=8, seed=987654)
+
+    def reference():
+        pt = PathTracer(scene.build("cpu"), *RES, spp=1, max_depth=8, seed=987654)
         pt.add_samples(0, 16384)
-        _REF["env"] = pt.mean(), pt.variance_of_mean()
-    ref, ref_var = _REF["env"]
+        return pt.mean(), pt.variance_of_mean()
+
+    ref, ref_var = shared(("test_sms.env", RES, 8, 16384, 987654), reference)
     built = scene.build("cpu")
     resolved = {**method_params(method, {"max_depth": 8}), "spp": 512}
     renderer = METHODS[method].create(RenderContext(built, *RES, resolved, 11, None, method))
