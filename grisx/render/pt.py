@@ -38,7 +38,7 @@ import warp as wp
 
 from grisx.render.base.screen import kernel_cache
 from grisx.device import PATH_REGISTERS, specialized_module
-from grisx.render.base.trace import STRATEGIES, make_trace_path
+from grisx.render.base.trace import STRATEGIES, make_trace_path, no_first_hit
 from grisx.params import Param
 from grisx.render.base.registry import RenderMethod, register, renderer_params
 from grisx.scene.camera import CameraData, CameraRay, camera_ray, sample_camera
@@ -76,7 +76,7 @@ def make_path_tracer_kernel(kinds: frozenset[int]) -> Any:
         y, x = wp.tid()
         key = sample_key(seed, frame, y * cam.width + x, sample)
         ray = pixel_ray(cam, key, x, y, jitter)
-        L = trace_path(scene, ray.o, ray.d, random_subkey(key, 1), max_depth, rr_depth, strategy, -1, 0).total
+        L = trace_path(scene, ray.o, ray.d, random_subkey(key, 1), max_depth, rr_depth, strategy, -1, 0, no_first_hit()).total
         add_sample(total, total_sq, nonfinite, y, x, L)
 
     return sample_pass

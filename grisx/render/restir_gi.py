@@ -39,7 +39,8 @@ path tracer or one shift each: ``validate_pass`` (every ``validation_interval`` 
 in scenes that move), ``direct_pass`` (sky, emission and direct light at x_v; whole
 paths on mirrors and glass), ``initial_pass`` (the direction and the sample point x_s),
 ``sample_radiance_pass`` (L_o at x_s: the path tracer alone in its kernel, with
-``exact_bsdf``'s records compiled in only when asked for), ``initial_target_pass``,
+``exact_bsdf``'s records compiled in only when asked for, started from the hit the initial
+pass found; the direct pass starts from the G-buffer's: no ray is traced twice), ``initial_target_pass``,
 ``temporal_pass``, ``spatial_resample_pass`` (draws the domains — history and
 neighbours — into a :class:`~grisx.render.base.reuse.DomainList` and streams their
 shifted candidates through one call site of the shift) and ``spatial_mis_pass`` (Z over
@@ -543,11 +544,11 @@ def make_restir_gi_kernels(kinds: frozenset[int], moving: bool = False) -> Any:
 
     @wp.func
     def outgoing_radiance(
-        scene: SceneData, o: wp.vec3, d: wp.vec3, le: wp.vec3, key: wp.uint32, max_depth: int, rr_depth: int, multi: int, mb_fraction: float,
-        exact_bsdf: int,
+        scene: SceneData, o: wp.vec3, d: wp.vec3, hit: SurfaceInteraction, key: wp.uint32, max_depth: int, rr_depth: int, multi: int,
+        mb_fraction: float, exact_bsdf: int,
     ) -> SampleRadiance:
-        """L_r at the first hit of the ray (o, d): the path tracer's estimate minus the hit's emission ``le``,
-        with the path's records at that hit (for ``exact_bsdf``).
+        """L_r at ``hit``, the first hit of the ray (o, d) (traced by the caller): the path tracer's estimate minus
+        the hit's emission, with the path's records at that hit (for ``exact_bsdf``).
 
         ``max_depth`` counts segments from x_v (−1: unbounded). Tiles without
         multi-bounce paths keep one bounce (direct light at x_s, L_1); the others
@@ -560,7 +561,8 @@ def make_restir_gi_kernels(kinds: frozenset[int], moving: bool = False) -> Any:
                 depth = 2  # L_1: one bounce at x_s
             else:
                 prefix_depth = 2  # L_1 and L_full from one path
-        r = trace_path(scene, o, d, key, depth, rr_depth, _STRATEGY_MIS, prefix_depth, exact_bsdf)
+        r = trace_path(scene, o, d, key, depth, rr_depth, _STRATEGY_MIS, prefix_depth, exact_bsdf, hit)
+        le = emitter_radiance(scene.lights, hit.tri, hit.ng, -d)
         out = SampleRadiance()
         out.lo = r.total - le
         out.bs_li = r.bs_li
@@ -587,8 +589,7 @@ def make_restir_gi_kernels(kinds: frozenset[int], moving: bool = False) -> Any:
         hit = intersect(scene, s.ray_o, s.ray_d, 1.0e30)
         if hit.valid == 0 or wp.length(hit.p - s.xs) > 1.0e-3 * wp.length(s.xs - s.xv):  # relative: units do not matter
             return False
-        le = emitter_radiance(scene.lights, hit.tri, hit.ng, -s.ray_d)
-        lo = outgoing_radiance(scene, s.ray_o, s.ray_d, le, s.key, max_depth, rr_depth, s.multi, mb_fraction, int(s.exact != 0)).lo
+        lo = outgoing_radiance(scene, s.ray_o, s.ray_d, hit, s.key, max_depth, rr_depth, s.multi, mb_fraction, int(s.exact != 0)).lo
         a = luminance(lo)
         b = luminance(s.lo)
         return wp.abs(a - b) <= tolerance * wp.max(a, b)  # relative: a scene 10⁻⁶ as bright validates alike
@@ -767,7 +768,7 @@ def make_restir_gi_kernels(kinds: frozenset[int], moving: bool = False) -> Any:
             cam_depth = max_depth
             if not traced_here and (max_depth < 0 or max_depth > 2):
                 cam_depth = 2
-            cam_path = trace_path(scene, ray_o, ray_d, random_subkey(key, 1), cam_depth, rr_depth, _STRATEGY_MIS, 2, 0)
+            cam_path = trace_path(scene, ray_o, ray_d, random_subkey(key, 1), cam_depth, rr_depth, _STRATEGY_MIS, 2, 0, si)  # from the G-buffer's hit
             base[y, x] = cam_path.total
             if traced_here and direct_mode != 0:
                 base[y, x] = cam_path.total - cam_path.prefix  # ReSTIR DI has the first two segments
@@ -785,7 +786,7 @@ def make_restir_gi_kernels(kinds: frozenset[int], moving: bool = False) -> Any:
         res_out: wp.array2d(dtype=Reservoir),
         s_out: wp.array2d(dtype=GISample),
         source_pdf: wp.array2d(dtype=float),
-        emitted: wp.array2d(dtype=wp.vec3),
+        sample_hit: wp.array2d(dtype=SurfaceInteraction),
     ):
         """Alg. 2: a direction from the source pdf p_q and the ray to the sample point x_s."""
         y, x = wp.tid()
@@ -834,7 +835,7 @@ def make_restir_gi_kernels(kinds: frozenset[int], moving: bool = False) -> Any:
         s.valid = 1
         s_out[y, x] = s
         source_pdf[y, x] = ss.pdf
-        emitted[y, x] = emitter_radiance(scene.lights, hit.tri, hit.ng, -wi)
+        sample_hit[y, x] = hit  # the path tracer at x_s starts from it: x_v → x_s is traced once
 
     def make_sample_radiance_pass(record: int) -> Any:
         """The path tracer's kernel with ``exact_bsdf``'s records compiled in or out (a runtime flag would
@@ -846,7 +847,7 @@ def make_restir_gi_kernels(kinds: frozenset[int], moving: bool = False) -> Any:
             max_depth: int,
             rr_depth: int,
             mb_fraction: float,
-            emitted: wp.array2d(dtype=wp.vec3),
+            sample_hit: wp.array2d(dtype=SurfaceInteraction),
             samples: wp.array2d(dtype=GISample),
         ):
             """L_o at the sample point by path tracing (NEE + MIS), tile-level multi-bounce roulette."""
@@ -854,7 +855,7 @@ def make_restir_gi_kernels(kinds: frozenset[int], moving: bool = False) -> Any:
             s = samples[y, x]
             if s.valid == 0:
                 return
-            sr = outgoing_radiance(scene, s.ray_o, s.ray_d, emitted[y, x], s.key, depth_from_visible_point(max_depth), rr_depth, s.multi,
+            sr = outgoing_radiance(scene, s.ray_o, s.ray_d, sample_hit[y, x], s.key, depth_from_visible_point(max_depth), rr_depth, s.multi,
                                    mb_fraction, wp.static(record))
             s.lo = sr.lo
             s.box_lo = sr.box_lo
@@ -1236,9 +1237,9 @@ class ReSTIRGI(ScreenSpaceRenderer):
         # the spatial pass's two stages share the domains drawn and the kept sample's domain
         self.domains = DomainList(self.height, self.width, max(self.iterations_low, self.iterations_high) + 1, dev)
         self.kept = wp.zeros(shape, dtype=wp.int32, device=dev)
-        # the initial stages hand over p_q of the direction and the emission at x_s (subtracted from L_o)
+        # the initial stages hand over p_q of the direction and the hit at x_s (the path tracer starts there)
         self.source_pdf = wp.zeros(shape, dtype=float, device=dev)
-        self.emitted = wp.zeros(shape, dtype=wp.vec3, device=dev)
+        self.sample_hit = wp.zeros(shape, dtype=SurfaceInteraction, device=dev)  # x_s, from the initial pass to the path tracer
         self.base = wp.zeros(shape, dtype=wp.vec3, device=dev)
         self.image = wp.zeros(shape, dtype=wp.vec3, device=dev)
         self.nonfinite = wp.zeros(1, dtype=wp.int32, device=dev)
@@ -1291,13 +1292,13 @@ class ReSTIRGI(ScreenSpaceRenderer):
                 self.k.initial_pass,
                 dim=dim,
                 inputs=[data, sf, self.source, self.max_depth, self.mb_fraction, self.exact_bsdf],
-                outputs=[self.initial[0], self.initial[1], self.source_pdf, self.emitted],
+                outputs=[self.initial[0], self.initial[1], self.source_pdf, self.sample_hit],
                 device=dev,
             )
             wp.launch(
                 self.k.sample_radiance_exact_pass if self.exact_bsdf else self.k.sample_radiance_pass,
                 dim=dim,
-                inputs=[data, self.max_depth, self.rr_depth, self.mb_fraction, self.emitted],
+                inputs=[data, self.max_depth, self.rr_depth, self.mb_fraction, self.sample_hit],
                 outputs=[self.initial[1]],
                 device=dev,
             )

@@ -70,7 +70,7 @@ from grisx.device import specialized_module
 from grisx.errors import InvalidParameterError
 from grisx.params import Param
 from grisx.render.base.registry import RenderMethod, register, renderer_params
-from grisx.render.base.trace import PathRadiance, make_trace_path
+from grisx.render.base.trace import PathRadiance, make_trace_path, no_first_hit
 from grisx.render.pt import PathTracer, _scale, add_sample, pixel_ray, sample_key
 from grisx.scene.bsdf import make_bsdf
 from grisx.render.base.reuse import spatial_neighbor
@@ -257,7 +257,7 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
         """The path tracer's sample of pixel (x, y), without the paths SMS owns (x₁ recorded)."""
         key = sample_key(p.seed, p.frame, y * p.cam.width + x, sample)
         ray = pixel_ray(p.cam, key, x, y, p.jitter)
-        return trace_path(spec.scene, ray.o, ray.d, random_subkey(key, 1), p.max_depth, p.rr_depth, 0, -1, 0)
+        return trace_path(spec.scene, ray.o, ray.d, random_subkey(key, 1), p.max_depth, p.rr_depth, 0, -1, 0, no_first_hit())
 
     @wp.func
     def view_sample(spec: CausticSpec, view: int, u: wp.vec2) -> CausticSample:

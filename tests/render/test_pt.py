@@ -16,7 +16,7 @@ from grisx.scene.builtin import BUILTIN_SCENES, build_builtin
 from grisx.scene.camera import Camera, CameraData, camera_ray, lookat
 from grisx.scene.lights import ConstantEnvironment
 from grisx.scene.material import Diffuse
-from grisx.render.base.trace import STRATEGIES, make_trace_path
+from grisx.render.base.trace import STRATEGIES, make_trace_path, no_first_hit
 from grisx.render.pt import PathTracer
 from grisx.scene.scene import Scene, SceneData
 from grisx.scene.shapes import cube, rectangle
@@ -158,11 +158,11 @@ def test_trace_path_prefix_is_the_same_path_truncated(prefix_depth):
         i = wp.tid()
         ray = camera_ray(cam, float(i % 16) + 0.5, float(i // 16) + 0.5, wp.vec2(0.5, 0.5))
         key = random_subkey(random_key(3, 0), i)
-        both = trace_path(scene, ray.o, ray.d, key, -1, 5, mis, prefix_depth, 0)
+        both = trace_path(scene, ray.o, ray.d, key, -1, 5, mis, prefix_depth, 0, no_first_hit())
         out[i, 0] = both.total
         out[i, 1] = both.prefix
-        out[i, 2] = trace_path(scene, ray.o, ray.d, key, prefix_depth, 5, mis, -1, 0).total
-        out[i, 3] = trace_path(scene, ray.o, ray.d, key, -1, 5, mis, -1, 0).total
+        out[i, 2] = trace_path(scene, ray.o, ray.d, key, prefix_depth, 5, mis, -1, 0, no_first_hit()).total
+        out[i, 3] = trace_path(scene, ray.o, ray.d, key, -1, 5, mis, -1, 0, no_first_hit()).total
 
     out = wp.zeros((256, 4), dtype=wp.vec3, device="cpu")
     wp.launch(paths, dim=256, inputs=[built.data, cam, prefix_depth], outputs=[out], device="cpu")

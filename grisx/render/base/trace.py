@@ -26,7 +26,7 @@ from grisx.theory.random import random_uniform
 
 wp.set_module_options({"enable_backward": False})
 
-__all__ = ["PathRadiance", "make_trace_path", "STRATEGIES"]
+__all__ = ["PathRadiance", "make_trace_path", "no_first_hit", "STRATEGIES"]
 
 #: sampling strategies: both techniques with MIS, or one alone
 STRATEGIES = {"mis": 0, "nee": 1, "bsdf": 2}
@@ -68,8 +68,17 @@ class PathRadiance:
     x1_depth: int  # segments before the one that reached x₁ (the loop's depth there)
 
 
+@wp.func
+def no_first_hit() -> SurfaceInteraction:
+    """``trace_path``'s ``first`` when the caller has not traced the ray: ``t`` = 0, so the function traces it."""
+    si = SurfaceInteraction()
+    si.valid = 0
+    si.t = 0.0
+    return si
+
+
 def make_trace_path(kinds: frozenset[int], caustic_chain: int = 0, bounds: bool = False) -> Any:
-    """``trace_path(scene, o, d, key, max_depth, rr_depth, strategy, prefix_depth, record) -> PathRadiance``
+    """``trace_path(scene, o, d, key, max_depth, rr_depth, strategy, prefix_depth, record, first) -> PathRadiance``
     for the material kinds ``kinds`` (cached): the radiance arriving at o from direction d, emission at
     the first hit included. Renderers that need the path tracer's estimate at a point (ReSTIR GI's
     outgoing radiance at a sample point) call this very function.
@@ -77,7 +86,9 @@ def make_trace_path(kinds: frozenset[int], caustic_chain: int = 0, bounds: bool 
     ``prefix`` is the estimate truncated to ``prefix_depth`` segments (Mitsuba's max_depth), from the
     same path: a renderer that needs both (direct light and the rest; one bounce and all of them)
     traces once. ``prefix_depth`` < 0: ``prefix`` = ``total``. ``record`` = 1 fills the first hit's
-    technique records of :class:`PathRadiance` (the path itself is the same).
+    technique records of :class:`PathRadiance` (the path itself is the same). ``first``: the ray's first hit
+    where the caller already traced it (a G-buffer's visible point, or a miss with ``t`` > 0), else
+    :func:`no_first_hit` (``t`` = 0): the function traces it.
 
     ``caustic_chain`` = K > 0 (specular manifold sampling, :mod:`grisx.render.sms`): the paths that SMS
     owns (:func:`grisx.scene.caustics.caustic_owned`: x₁ the first non-delta vertex, then 1 … K delta
@@ -95,7 +106,8 @@ def _make_trace_path(kinds: frozenset[int], caustic_chain: int, bounds: bool) ->
 
     @wp.func
     def trace_path(
-        scene: SceneData, o: wp.vec3, d: wp.vec3, key: wp.uint32, max_depth: int, rr_depth: int, strategy: int, prefix_depth: int, record: int
+        scene: SceneData, o: wp.vec3, d: wp.vec3, key: wp.uint32, max_depth: int, rr_depth: int, strategy: int, prefix_depth: int, record: int,
+        first: SurfaceInteraction,
     ) -> PathRadiance:
         out = PathRadiance()
         zero = wp.vec3(0.0, 0.0, 0.0)
@@ -127,7 +139,9 @@ def _make_trace_path(kinds: frozenset[int], caustic_chain: int, bounds: bool) ->
         prev_p = o
         depth = int(0)
         while max_depth < 0 or depth < max_depth:
-            si = intersect(scene, o, d, 1.0e30)
+            si = first  # the ray's first hit, where the caller has it (a G-buffer's): not traced again
+            if depth > 0 or first.t <= 0.0:
+                si = intersect(scene, o, d, 1.0e30)
             c = 8 * depth
             # ---- emission reached by the previous BSDF sample (or the camera ray) ----
             le = wp.vec3(0.0, 0.0, 0.0)
