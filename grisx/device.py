@@ -134,8 +134,9 @@ def specialized_module(owner: str, kinds: Iterable[int]) -> wp.context.Module:
 PATH_REGISTERS = 80
 #: the same for the kernels that run ReSTIR PT's hybrid shift or its candidate walk, whose live state
 #: (path samples) spills heavily below 128: at 128 ReSTIR PT's frame on door-ajar 44.0 -> 34.6 ms
-#: (H100, 1080p), at 80 40.7. Area ReSTIR's passes keep none (door-ajar 48.9 -> 39.4 ms at 128, but
-#: glossy-room 115 -> 135).
+#: (H100, 1080p), at 80 40.7. Area ReSTIR runs ReSTIR PT's walk and its own stages under it too, chosen
+#: per stage (its spatial stages on an H200: door-ajar 11.4 -> 8.2 ms, glossy-room the same); capping
+#: all its passes at once had lost on glossy-room (115 -> 135 ms).
 SHIFT_REGISTERS = 128
 
 

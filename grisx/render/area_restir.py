@@ -227,7 +227,7 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         film_out[y, x] = sel_fs
 
     # ---- spatial reuse, in two stages (one film shift each): the canonical sample's pairwise weight, then the merge ----
-    @wp.kernel(module=module)
+    @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
     def spatial_canonical_pass(
         scene: SceneData, cam: CameraData, seed: int, frame: int, round_index: int, neighbors: int, radius: float, sp: ShiftParams,
         g: GBufferData,
@@ -268,7 +268,7 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         m_canonical[y, x] = m_c
         count[y, x] = k
 
-    @wp.kernel(module=module)
+    @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
     def spatial_merge_pass(
         scene: SceneData, cam: CameraData, seed: int, frame: int, round_index: int, sp: ShiftParams,
         inp: wp.array2d(dtype=PathReservoir), film_in: wp.array2d(dtype=FilmSample),
