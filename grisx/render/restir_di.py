@@ -55,8 +55,11 @@ source pdfs of the initial candidates are converted to the same measure (BSDF
 pdf × |cos θ_y| / d² on triangles), so the RIS weights are ratios in one
 measure. The radiance of a stored sample is re-evaluated from its source
 (triangle emission, point intensity, environment lookup), so a neighbour sees
-the emitter from its own side; lights are assumed not to move (a stored point
-on a moving light would be stale).
+the emitter from its own side. Across frames (temporal reuse) the history's
+target is evaluated in the previous frame's scene
+(:meth:`~grisx.scene.scene.BuiltScene.across_frames`), and a point on an
+emitter that moved between the frames has no counterpart in the other frame:
+its shift fails both ways.
 
 **What the image shows.** Emission seen at the visible point plus direct
 light — what :mod:`grisx.render.pt` shows with ``max_depth=2``. The visible

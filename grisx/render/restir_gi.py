@@ -121,6 +121,14 @@ skipped: there the replay is bit-exact and cannot fail (a moving camera does
 not change the radiance leaving x_s), and on the H200 at 1080p the replay made
 every sixth frame 3–4× as slow as the others.
 
+**Moving objects.** Validation is the paper's heuristic; what keeps temporal reuse
+unbiased is that every domain is evaluated in its own frame's scene
+(:meth:`~grisx.scene.scene.BuiltScene.across_frames`: last frame's visible points test
+visibility in last frame's geometry, in Z too) and that a sample's L_o is reused across
+frames only where nothing moved in the box of the path that estimated it (``box_lo``,
+``box_hi``, compiled in only for scenes with moving objects): else the shift from last
+frame is undefined and Z does not count that domain.
+
 **Direct light.** ``direct=nee``: the path tracer's two first segments at the
 visible point's camera ray (emission + NEE and BSDF sampling with MIS); ``direct=restir-di``:
 :class:`~grisx.render.restir_di.ReSTIRDI` on the same G-buffer, as the paper does.
