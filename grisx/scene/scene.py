@@ -202,9 +202,10 @@ class SurfaceInteraction:
 def motion_touches(scene: SceneData, lo: wp.vec3, hi: wp.vec3) -> bool:
     """Whether the box [``lo``, ``hi``] meets anything that moved between the frames ``scene`` was taken across.
 
-    A path that reuses a part of itself across frames (a reconnection suffix, a cached radiance, a light
-    point) may do so only where that part is the same in both frames: its vertices, and so its segments,
-    lie in their bounding box, and nothing in that box moved. Within one frame nothing moved (0 boxes).
+    A sample that reuses a part of itself across frames may do so only where that part is the same in
+    both frames: ReSTIR GI's L_o (the box of the path that estimated it: its segments lie in it) and
+    ReSTIR DI's light point are tested so; a reconnection suffix, segment by segment
+    (:func:`motion_on_segment`). Within one frame nothing moved (0 boxes).
     """
     for i in range(scene.moved_count):
         a = scene.moved_lo[i]
