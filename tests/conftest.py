@@ -7,11 +7,15 @@ import tempfile
 
 import pytest
 import session_cache
+import warp as wp
 from hypothesis import settings
 
 from grisx.device import cuda_available, init
 
 init()
+# No test differentiates a kernel: the kernels that tests define compile their forward code only (grisx's own modules
+# already do). test_path_shift's round-trip harness, which inlines a whole path shift, compiled 46 s with its adjoint.
+wp.config.enable_backward = False
 
 
 def pytest_configure(config: pytest.Config) -> None:
