@@ -41,8 +41,9 @@ here every sample is a full ReSTIR PT path (the primal pass that seed 000 runs i
 the scene's pixel filter (box, or Mitsuba's gaussian) enters as a film weight with uniform film
 samples over its support (:mod:`~grisx.render.base.area`) rather than by filter importance
 sampling; previous domains are traced with the
-previous camera through the current geometry (exact for static scenes, as ReSTIR PT's temporal
-pass). Neighbours are chosen from the G-buffer alone, never from the reservoirs' samples, so the
+previous camera through the previous frame's geometry, and a suffix is reused across frames
+only where nothing moved along it (as ReSTIR PT's temporal stages: ``across_frames``,
+``suffix_moved``). Neighbours are chosen from the G-buffer alone, never from the reservoirs' samples, so the
 choice is independent of what is reused.
 
 All estimator math is :mod:`grisx.theory`'s (``reservoir_update``/``merge``/``finalize``,

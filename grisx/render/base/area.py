@@ -33,8 +33,8 @@ and shifts multiply into f (0 where the ray leaves the film). Moving u to pixel 
 translation with |J| = 1; ω_j(u) is pixel j's own weight, so the integrand of every domain is
 its pixel's filtered one and the reuse stays unbiased, borders included.
 
-Assumption: a static scene between the frames of a temporal shift (previous domains are traced
-with the previous camera through the current geometry, as ReSTIR PT's temporal pass does).
+Across frames, previous domains are traced with the previous camera through the previous frame's
+geometry (:meth:`~grisx.scene.scene.BuiltScene.across_frames`), as ReSTIR PT's temporal stages do.
 
 References: S. Zhang et al., "Area ReSTIR: Resampling for Real-Time Defocus and Antialiasing",
 ACM TOG 43(4), 2024; M. Kettunen et al., "Gradient-domain path tracing", 2015; seed 000, Sec. 3.1.
