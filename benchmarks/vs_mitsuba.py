@@ -2,7 +2,8 @@
 """grisx's path tracer against Mitsuba 3's on the same scene files, in one process.
 
 For every scene file in ``benchmarks/scenes/`` (a Cornell box at max_depth 5,
-two small lights without a BSDF, a room lit only indirectly) both renderers
+two small lights without a BSDF, a room lit only indirectly, a glass and a gold
+sphere under a small light: analytic spheres and long specular paths) both renderers
 load the *same XML* at ``--res`` and render with the file's ``max_depth``:
 
 * **frame time** at 1 and 16 spp: median of ``--frames`` frames after a
@@ -43,7 +44,7 @@ from grisx.render.driver import load_scene
 from grisx.render.pt import PathTracer
 
 HERE = Path(__file__).resolve().parent
-SCENES = ("cornell_box", "two_lights", "indirect_room")
+SCENES = ("cornell_box", "two_lights", "indirect_room", "spheres")
 
 
 def grisx_times(pt: PathTracer, device, spp: int, frames: int) -> tuple[float, np.ndarray]:

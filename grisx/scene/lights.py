@@ -650,6 +650,7 @@ def build_light_set(
     point_lights: Any = (),
     environment: ConstantEnvironment | EnvMap | None = None,
     scene_radius: float = 1.0,
+    num_primitives: int | None = None,
 ) -> LightSet:
     """Pack a scene's lights into a :class:`LightSet`.
 
@@ -660,7 +661,9 @@ def build_light_set(
     ``emitter_radiance`` their RGB radiance ((k, 3), or one triple for all).
     ``point_lights`` is a sequence of :class:`PointLight`; ``environment`` a
     :class:`ConstantEnvironment`, an :class:`EnvMap` or None; ``scene_radius``
-    the radius of the scene's bounding sphere (the environment's power).
+    the radius of the scene's bounding sphere (the environment's power);
+    ``num_primitives`` the number of primitive ids the scene hands out (its triangles, then its analytic
+    shapes, which never emit: :mod:`grisx.scene.analytic`), by default the triangles.
     """
     pos = _as_vec3_array(positions, device, "positions")
     idx = _as_index_array(indices, device)
@@ -694,7 +697,7 @@ def build_light_set(
     else:
         rad = np.zeros((0, 3))
         emitter_power = np.zeros(0)
-    tri_emitter = np.full(max(num_tris, 1), -1, dtype=np.int32)
+    tri_emitter = np.full(max(num_tris if num_primitives is None else num_primitives, 1), -1, dtype=np.int32)
     tri_emitter[tris] = np.arange(tris.size, dtype=np.int32)
 
     # ---- point lights ----

@@ -997,13 +997,14 @@ class _Loader:
                 if p.bool("face_normals", False):
                     mesh = dataclasses.replace(mesh, normals=None)
             elif t == "disk":
-                mesh = shapes.disk(flip_normals=flip)
+                mesh = None  # analytic, or tessellated below if it emits
             elif t == "sphere":
                 center = p.point("center", (0.0, 0.0, 0.0))
                 radius = p.float("radius", 1.0)
                 # sphere.cpp: to_world · translate(center) · scale(radius); a negative radius turns it inside out
                 to_world = to_world @ xf.translate(center) @ xf.scale(radius)
-                mesh = shapes.sphere(flip_normals=flip)
+                to_world = self._sphere_similarity(node, to_world)
+                mesh = None
             elif t == "cylinder":
                 p0 = np.asarray(p.point("p0", (0.0, 0.0, 0.0)))
                 p1 = np.asarray(p.point("p1", (0.0, 0.0, 1.0)))
@@ -1014,7 +1015,7 @@ class _Loader:
                                                f"p1 {p1.tolist()}, radius {radius}")
                 # cylinder.cpp: to_world · translate(p0) · to_frame(Frame3f(d / |d|)) · scale(radius, radius, |d|)
                 to_world = to_world @ xf.translate(p0) @ xf.to_frame((p1 - p0) / length) @ xf.scale((radius, radius, length))
-                mesh = shapes.cylinder(flip_normals=flip)
+                mesh = None
             elif t == "serialized":
                 filename = p.string("filename")
                 index = p.int("shape_index", 0)
@@ -1059,10 +1060,33 @@ class _Loader:
         self.shape_count += 1
         name = node.attrs.get("id") or f"{t}{self.shape_count}"
         try:
-            self.scene.add_mesh(mesh.vertices, mesh.faces, material=mid, normals=mesh.normals, uvs=mesh.uvs,
-                                emission=emission, to_world=to_world, name=name)
+            if t in ("sphere", "disk", "cylinder") and emission is None:
+                # intersected exactly, as Mitsuba does (grisx.scene.analytic); an emitter stays a mesh, since
+                # next-event estimation samples points on triangles
+                self.scene.add_shape(t, material=mid, to_world=to_world, flip_normals=flip, name=name)
+            else:
+                if mesh is None:
+                    mesh = {"sphere": shapes.sphere, "disk": shapes.disk, "cylinder": shapes.cylinder}[t](flip_normals=flip)
+                self.scene.add_mesh(mesh.vertices, mesh.faces, material=mid, normals=mesh.normals, uvs=mesh.uvs,
+                                    emission=emission, to_world=to_world, name=name)
         except GrisxError as exc:
             raise self.ctx.error(node, str(exc)) from None
+
+    def _sphere_similarity(self, node: _Node, to_world: np.ndarray) -> np.ndarray:
+        """What Mitsuba's ``sphere.cpp`` renders for ``to_world``: a sphere of centre M·0 and radius |M·x̂|. A
+        non-uniform scale or a shear (an ellipsoid) is warned about there and here, and dropped alike: the
+        rotation of M's polar decomposition is kept."""
+        a = to_world[:3, :3]
+        u, sv, vt = np.linalg.svd(a)
+        if np.ptp(sv) <= 1e-6 * sv.max():
+            return to_world
+        warnings.warn(f"{self.ctx.where(node)} a sphere's to_world has a non-uniform scale or a shear: rendered, as "
+                      f"Mitsuba renders it, as a sphere of radius |to_world·(1, 0, 0)|", GrisxWarning, stacklevel=2)
+        rot = u @ vt  # the polar decomposition's orthogonal factor (a reflection stays one: it turns the sphere inside out)
+        out = np.eye(4)
+        out[:3, :3] = rot * float(np.linalg.norm(a[:, 0]))
+        out[:3, 3] = to_world[:3, 3]
+        return out
 
     # -- emitters outside shapes
     def emitter(self, node: _Node) -> None:

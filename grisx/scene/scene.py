@@ -40,6 +40,7 @@ import warp as wp
 
 from grisx.device import resolve_device
 from grisx.errors import InvalidParameterError, InvalidValueError
+from grisx.scene.analytic import SHAPE_KIND_NAMES, AnalyticShape, ShapeSet, build_shape_set, intersect_shapes, shape_bounds, shape_surface, shapes_occluded
 from grisx.scene.camera import Camera, CameraData, CameraPath
 from grisx.scene.lights import ConstantEnvironment, EnvMap, LightSample, LightSet, PointLight, build_light_set
 from grisx.scene.material import (
@@ -132,6 +133,8 @@ class _Object:
     material: int
     emission: np.ndarray | None
     motion: RigidMotion | None
+    # an analytic shape (then ``vertices`` are the corners of its box, ``faces`` empty)
+    shape: AnalyticShape | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -181,6 +184,7 @@ class SceneData:
     moved_lo: wp.array(dtype=wp.vec3)
     moved_hi: wp.array(dtype=wp.vec3)
     moved_count: int
+    shapes: ShapeSet  # analytic spheres, disks, cylinders (grisx.scene.analytic); primitive ids after the triangles
 
 
 @wp.struct
@@ -191,8 +195,8 @@ class SurfaceInteraction:
     ng: wp.vec3  # geometric normal (winding order)
     ns: wp.vec3  # shading normal (interpolated, perturbed), same side as ng
     uv: wp.vec2
-    bary: wp.vec2  # Warp's (u, v): p = u·p0 + v·p1 + (1−u−v)·p2
-    tri: int
+    bary: wp.vec2  # Warp's (u, v): p = u·p0 + v·p1 + (1−u−v)·p2; uv on an analytic shape
+    tri: int  # primitive id: a triangle, or an analytic shape (ShapeSet.prim_base + its index)
     material: int
     object: int
     front: int  # 1 when the ray arrived on the side ng points to
@@ -269,42 +273,60 @@ def perturb_normal(n: wp.vec3, p: wp.vec3, amplitude: float, frequency: float) -
 
 @wp.func
 def intersect(scene: SceneData, o: wp.vec3, d: wp.vec3, tmax: float) -> SurfaceInteraction:
-    """Closest hit of the ray o + t·d (d unit), 0 < t < tmax."""
+    """Closest hit of the ray o + t·d (d unit), 0 < t < tmax: triangles, then analytic shapes before that hit."""
     si = SurfaceInteraction()
     si.valid = 0
     q = wp.mesh_query_ray(scene.mesh, o, d, tmax)
-    if not q.result:
-        return si
-    tri = q.face
-    i0 = scene.indices[3 * tri + 0]
-    i1 = scene.indices[3 * tri + 1]
-    i2 = scene.indices[3 * tri + 2]
-    b0 = q.u
-    b1 = q.v
-    b2 = 1.0 - b0 - b1
+    shape = int(-1)
+    if scene.shapes.count > 0:  # uniform: a scene without analytic shapes never asks
+        t_shape = tmax
+        if q.result:
+            t_shape = q.t
+        hit = intersect_shapes(scene.shapes, o, d, t_shape)
+        shape = int(hit[1])
+        if shape >= 0:
+            s = shape_surface(scene.shapes, shape, o, d, hit[0])
+            si.t = hit[0]
+            si.tri = scene.shapes.prim_base + shape
+            si.bary = s.uv
+            si.p = s.p
+            si.ng = s.n
+            si.uv = s.uv
+    if shape < 0:
+        if not q.result:
+            return si
+        tri = q.face
+        i0 = scene.indices[3 * tri + 0]
+        i1 = scene.indices[3 * tri + 1]
+        i2 = scene.indices[3 * tri + 2]
+        b0 = q.u
+        b1 = q.v
+        b2 = 1.0 - b0 - b1
+        si.t = q.t
+        si.tri = tri
+        si.bary = wp.vec2(b0, b1)
+        si.p = o + d * q.t
+        p0 = scene.positions[i0]
+        p1 = scene.positions[i1]
+        p2 = scene.positions[i2]
+        si.ng = wp.normalize(wp.cross(p1 - p0, p2 - p0))
+        flags = scene.tri_flags[tri]
+        si.ns = si.ng
+        if (flags & TRI_HAS_NORMALS) != 0:
+            nn = scene.normals[i0] * b0 + scene.normals[i1] * b1 + scene.normals[i2] * b2
+            if wp.length(nn) > 1.0e-12:
+                si.ns = wp.normalize(nn)
+        si.uv = wp.vec2(b1, b2)  # Mitsuba's default parametrization for meshes without UVs
+        if (flags & TRI_HAS_UVS) != 0:
+            si.uv = scene.uvs[i0] * b0 + scene.uvs[i1] * b1 + scene.uvs[i2] * b2
+    else:
+        si.ns = si.ng  # analytic shapes shade with their exact normal
     si.valid = 1
-    si.t = q.t
-    si.tri = tri
-    si.bary = wp.vec2(b0, b1)
-    si.p = o + d * q.t
-    p0 = scene.positions[i0]
-    p1 = scene.positions[i1]
-    p2 = scene.positions[i2]
-    ng = wp.normalize(wp.cross(p1 - p0, p2 - p0))
-    si.ng = ng
-    flags = scene.tri_flags[tri]
-    ns = ng
-    if (flags & TRI_HAS_NORMALS) != 0:
-        nn = scene.normals[i0] * b0 + scene.normals[i1] * b1 + scene.normals[i2] * b2
-        if wp.length(nn) > 1.0e-12:
-            ns = wp.normalize(nn)
-    uv = wp.vec2(b1, b2)  # Mitsuba's default parametrization for meshes without UVs
-    if (flags & TRI_HAS_UVS) != 0:
-        uv = scene.uvs[i0] * b0 + scene.uvs[i1] * b1 + scene.uvs[i2] * b2
-    si.uv = uv
-    mat_id = scene.tri_material[tri]
+    ng = si.ng
+    ns = si.ns
+    mat_id = scene.tri_material[si.tri]
     si.material = mat_id
-    si.object = scene.tri_object[tri]
+    si.object = scene.tri_object[si.tri]
     mat = scene.materials[mat_id]
     if mat.bump_amplitude > 0.0:
         ns = perturb_normal(ns, si.p, mat.bump_amplitude, mat.bump_frequency)
@@ -318,7 +340,12 @@ def intersect(scene: SceneData, o: wp.vec3, d: wp.vec3, tmax: float) -> SurfaceI
 @wp.func
 def occluded(scene: SceneData, o: wp.vec3, d: wp.vec3, dist: float) -> bool:
     """Whether anything blocks the segment o → o + dist·d (d unit); the end point's surface is excluded."""
-    return wp.mesh_query_ray_anyhit(scene.mesh, o, d, dist * (1.0 - 1.0e-4) - scene.ray_epsilon)
+    t_max = dist * (1.0 - 1.0e-4) - scene.ray_epsilon
+    if wp.mesh_query_ray_anyhit(scene.mesh, o, d, t_max):
+        return True
+    if scene.shapes.count > 0:
+        return shapes_occluded(scene.shapes, o, d, t_max)
+    return False
 
 
 @wp.func
@@ -338,7 +365,11 @@ def segment_occluded(scene: SceneData, p0: wp.vec3, n0: wp.vec3, p1: wp.vec3, n1
     dist = wp.length(e)
     if dist <= 0.0:
         return False
-    return wp.mesh_query_ray_anyhit(scene.mesh, o, e / dist, dist)
+    if wp.mesh_query_ray_anyhit(scene.mesh, o, e / dist, dist):
+        return True
+    if scene.shapes.count > 0:
+        return shapes_occluded(scene.shapes, o, e / dist, dist)
+    return False
 
 
 @wp.func
@@ -468,6 +499,15 @@ class Scene:
             raise InvalidValueError(f"texture {name or len(self.textures)}: expected (H, W, 3), got {img.shape}")
         return img[:, :, :3]
 
+    def _placement(self, what: str, material: Any, to_world: Any) -> np.ndarray:
+        """Check an object's material id and ``to_world`` (finite, invertible); the 4×4 matrix."""
+        if not (isinstance(material, (int, np.integer)) and 0 <= material < len(self.materials)):
+            raise InvalidParameterError(f"{what}: unknown material id {material!r}")
+        m = np.eye(4) if to_world is None else np.asarray(to_world, dtype=np.float64).reshape(4, 4)
+        if not np.all(np.isfinite(m)) or abs(np.linalg.det(m[:3, :3])) < 1e-20:
+            raise InvalidValueError(f"{what}: to_world must be finite and invertible")
+        return m
+
     def add_mesh(
         self,
         vertices: Any,
@@ -491,11 +531,7 @@ class Scene:
             raise InvalidValueError(f"mesh '{name}' faces: vertex index out of range [0, {len(v)})")
         if len(f) == 0:
             raise InvalidValueError(f"mesh '{name}' has no triangles")
-        if not (isinstance(material, (int, np.integer)) and 0 <= material < len(self.materials)):
-            raise InvalidParameterError(f"mesh '{name}': unknown material id {material!r}")
-        m = np.eye(4) if to_world is None else np.asarray(to_world, dtype=np.float64).reshape(4, 4)
-        if not np.all(np.isfinite(m)) or abs(np.linalg.det(m[:3, :3])) < 1e-20:
-            raise InvalidValueError(f"mesh '{name}': to_world must be finite and invertible")
+        m = self._placement(f"mesh '{name}'", material, to_world)
         vw = v @ m[:3, :3].T + m[:3, 3]
         n = None
         if normals is not None:
@@ -512,6 +548,21 @@ class Scene:
                 raise InvalidValueError(f"mesh '{name}': {len(uv)} uvs for {len(v)} vertices")
         e = None if emission is None else _rgb(f"mesh '{name}' emission", emission)
         self.objects.append(_Object(name, vw, f.astype(np.int64), n, uv, int(material), e, motion))
+        return len(self.objects) - 1
+
+    def add_shape(self, kind: str, *, material: int, to_world: Any = None, flip_normals: bool = False,
+                  name: str | None = None) -> int:
+        """Add an analytic ``"sphere"``, ``"disk"`` or ``"cylinder"`` (:mod:`grisx.scene.analytic`: the unit shape
+        mapped by ``to_world``). Analytic shapes neither emit nor move: give an emitter or a moving object as a
+        mesh (:mod:`grisx.scene.shapes` tessellates the same shapes)."""
+        name = name or f"{kind}{len(self.objects)}"
+        if kind not in SHAPE_KIND_NAMES:
+            raise InvalidParameterError(f"shape '{name}': unknown analytic shape {kind!r} (known: {', '.join(SHAPE_KIND_NAMES)})")
+        m = self._placement(f"shape '{name}'", material, to_world)
+        shape = AnalyticShape(SHAPE_KIND_NAMES[kind], m, bool(flip_normals))
+        lo, hi = shape_bounds(shape)
+        corners = np.array([[(lo, hi)[(c >> a) & 1][a] for a in range(3)] for c in range(8)])
+        self.objects.append(_Object(name, corners, np.zeros((0, 3), np.int64), None, None, int(material), None, None, shape))
         return len(self.objects) - 1
 
     def add_point_light(self, position: Sequence[float], intensity: Any, direction: Sequence[float] | None = None,
@@ -532,6 +583,11 @@ class Scene:
     @property
     def triangle_count(self) -> int:
         return sum(len(o.faces) for o in self.objects)
+
+    @property
+    def shape_count(self) -> int:
+        """The number of analytic shapes (:meth:`add_shape`)."""
+        return sum(o.shape is not None for o in self.objects)
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         if not self.objects:
@@ -620,6 +676,17 @@ class BuiltScene:
                 emitter_radiance.append(np.repeat(o.emission[None, :], nf, axis=0))
             base += nv
             tri_base += nf
+        if tri_base == 0:  # analytic shapes only: the triangle BVH still needs a triangle (zero area: never hit)
+            faces.append(np.zeros((1, 3), np.int64))
+            tri_mat.append(np.array([objs[0].material]))
+            tri_obj.append(np.zeros(1))
+            tri_flags.append(np.zeros(1))
+            tri_base = 1
+        # analytic shapes are the primitives after the triangles (grisx.scene.analytic, "Primitive ids")
+        shape_objs = [(oid, o) for oid, o in enumerate(objs) if o.shape is not None]
+        tri_mat.append(np.array([o.material for _, o in shape_objs], dtype=np.int64))
+        tri_obj.append(np.array([oid for oid, _ in shape_objs], dtype=np.int64))
+        tri_flags.append(np.zeros(len(shape_objs), dtype=np.int64))
         dev = device
         f32 = np.float32
         self.base_positions = wp.array(np.concatenate(verts).astype(f32), dtype=wp.vec3, device=dev)
@@ -639,6 +706,7 @@ class BuiltScene:
         extent = float(np.max(np.abs(np.concatenate([lo, hi])))) if np.all(np.isfinite(np.concatenate([lo, hi]))) else radius
         self.scene_radius = radius
         self.num_triangles = tri_base
+        self.num_shapes = len(shape_objs)
         self.num_vertices = base
 
         # lights
@@ -653,6 +721,7 @@ class BuiltScene:
             point_lights=list(scene.point_lights),
             environment=scene.environment,
             scene_radius=radius,
+            num_primitives=tri_base + len(shape_objs),
         )
 
         mats = list(scene.materials)
@@ -668,6 +737,7 @@ class BuiltScene:
         d.tri_material = wp.array(np.concatenate(tri_mat).astype(np.int32), dtype=wp.int32, device=dev)
         d.tri_object = wp.array(np.concatenate(tri_obj).astype(np.int32), dtype=wp.int32, device=dev)
         d.tri_flags = wp.array(np.concatenate(tri_flags).astype(np.int32), dtype=wp.int32, device=dev)
+        d.shapes, self._shape_bvh = build_shape_set([o.shape for _, o in shape_objs], tri_base, dev)
         d.materials = self.materials
         d.textures = self.textures
         d.lights = self.lights
@@ -679,6 +749,9 @@ class BuiltScene:
         # (grisx.scene.caustics) is the square that covers an object's sphere as seen from the shading point
         centers = np.array([0.5 * (o.vertices.min(axis=0) + o.vertices.max(axis=0)) for o in objs], dtype=np.float64)
         radii = np.array([float(np.max(np.linalg.norm(o.vertices - c, axis=1))) for o, c in zip(objs, centers)])
+        for oid, o in shape_objs:  # a sphere's own: its centre and largest semi-axis (its box's corners lie outside it)
+            if o.shape.kind == SHAPE_KIND_NAMES["sphere"]:
+                radii[oid] = float(np.linalg.norm(o.shape.to_world[:3, :3], ord=2))
         self._object_centers = centers
         self.object_center = wp.array(centers.astype(f32), dtype=wp.vec3, device=dev)
         d.object_center = self.object_center

@@ -30,6 +30,7 @@ from grisx.render import render
 from grisx.scene.material import Diffuse
 from grisx.scene.mitsuba import load_mitsuba
 from grisx.scene.texture import Bitmap, Checkerboard
+from grisx.scene.transform import rotate
 from grisx.testing import block_means, image_agreement_test
 
 HERE = Path(__file__).resolve().parent
@@ -54,6 +55,8 @@ CASES: dict[str, Case] = {
     "cube": Case(32, 16),
     "sphere": Case(32, 16),
     "cylinder": Case(32, 16),
+    "sphere_glass": Case(32, 16),
+    "sphere_mirror": Case(32, 16),
     "sphere_light": Case(32, 16),
     "obj_normals_uv": Case(32, 16),
     "obj_plain": Case(32, 16),
@@ -194,9 +197,9 @@ def test_a_thin_pane_reflecting_at_one_interface_only_is_caught():
 def test_a_cylinder_framed_otherwise_than_mitsuba_is_caught():
     """The tube's uv seam where Mitsuba's ``to_frame`` puts φ = 0, not a quarter turn away (a gradient texture in u)."""
     scene = load_mitsuba(SCENES / "cylinder.xml")
-    tube = scene.objects[3]  # the textured tube
-    uvs = tube.uvs + [0.25, 0.0]
-    scene.objects[3] = dataclasses.replace(tube, uvs=uvs)
+    tube = scene.objects[3]  # the textured tube (analytic: grisx.scene.analytic)
+    turned = tube.shape.to_world @ rotate((0, 0, 1), 90.0)  # the same tube, φ = 0 a quarter turn away
+    scene.objects[3] = dataclasses.replace(tube, shape=dataclasses.replace(tube.shape, to_world=turned))
     result = agreement(scene, "cylinder")
     assert not result.passed, f"a cylinder's uv a quarter turn off went unnoticed: {result}"
 
@@ -204,9 +207,20 @@ def test_a_cylinder_framed_otherwise_than_mitsuba_is_caught():
 def test_a_cylinder_with_its_normals_unflipped_is_caught():
     scene = load_mitsuba(SCENES / "cylinder.xml")
     tube = scene.objects[5]  # flip_normals: seen from outside it shows its black back
-    scene.objects[5] = dataclasses.replace(tube, faces=tube.faces[:, ::-1].copy(), normals=-tube.normals)
+    assert tube.shape.flip_normals
+    scene.objects[5] = dataclasses.replace(tube, shape=dataclasses.replace(tube.shape, flip_normals=False))
     result = agreement(scene, "cylinder")
     assert not result.passed, f"a cylinder's flip_normals ignored went unnoticed: {result}"
+
+
+def test_an_inside_out_sphere_read_right_side_out_is_caught():
+    """A negative radius turns a sphere inside out in Mitsuba (``sphere.cpp``): its diffuse front faces inward."""
+    scene = load_mitsuba(SCENES / "sphere_mirror.xml")
+    inside_out = next(i for i, o in enumerate(scene.objects) if o.shape is not None and o.shape.orientation < 0)
+    o = scene.objects[inside_out]
+    scene.objects[inside_out] = dataclasses.replace(o, shape=dataclasses.replace(o.shape, flip_normals=True))
+    result = agreement(scene, "sphere_mirror")
+    assert not result.passed, f"an inside-out sphere rendered right side out went unnoticed: {result}"
 
 
 def test_a_checkerboard_with_its_colours_swapped_is_caught():

@@ -22,6 +22,7 @@ from grisx.scene.material import (
     RoughDielectric,
     TextureRef,
 )
+from grisx.scene.analytic import SHAPE_KIND_NAMES
 from grisx.scene.mitsuba import NAMED_IORS, load_mitsuba
 
 DATA = Path(__file__).parent / "data"
@@ -35,6 +36,16 @@ def doc(body: str) -> str:
 
 def objects(scene):
     return {o.name: o for o in scene.objects}
+
+
+def tessellated(o) -> shapes.MeshData:
+    """An analytic shape's record as its tessellated twin in world space (the same unit shape, ``to_world``
+    applied as for a mesh), so one set of checks reads both."""
+    kind = {v: k for k, v in SHAPE_KIND_NAMES.items()}[o.shape.kind]
+    m = getattr(shapes, kind)(flip_normals=o.shape.flip_normals)
+    to_world = o.shape.to_world
+    n = m.normals @ np.linalg.inv(to_world[:3, :3])
+    return shapes.MeshData(m.vertices @ to_world[:3, :3].T + to_world[:3, 3], m.faces, n / np.linalg.norm(n, axis=1, keepdims=True), m.uvs)
 
 
 def unit_face_normals(o) -> np.ndarray:
@@ -173,19 +184,22 @@ def test_transform_ops():
 def test_sphere_center_radius_and_to_world():
     s = load_mitsuba(doc('<shape type="sphere"><point name="center" x="1" y="2" z="3"/><float name="radius" value="0.5"/>'
                          '<transform name="to_world"><translate z="10"/></transform></shape>'))
-    v = s.objects[0].vertices
+    assert s.shape_count == 1 and s.triangle_count == 0  # analytic (grisx.scene.analytic)
+    o = tessellated(s.objects[0])
+    v = o.vertices
     np.testing.assert_allclose(np.linalg.norm(v - [1, 2, 13], axis=1), 0.5, atol=1e-12)
-    n = s.objects[0].normals
-    np.testing.assert_allclose(n, (v - [1, 2, 13]) / 0.5, atol=1e-9)  # outward
+    np.testing.assert_allclose(o.normals, (v - [1, 2, 13]) / 0.5, atol=1e-9)  # outward
+    assert s.objects[0].shape.orientation == 1.0
     s = load_mitsuba(doc('<shape type="sphere"><boolean name="flip_normals" value="true"/></shape>'))
-    o = s.objects[0]
+    assert s.objects[0].shape.orientation == -1.0
+    o = tessellated(s.objects[0])
     assert np.all(np.einsum("ij,ij->i", o.normals, o.vertices) < 0)
 
 
 def test_cylinder_p0_p1_radius_and_mitsubas_frame():
     s = load_mitsuba(doc('<shape type="cylinder"><point name="p0" x="1" y="2" z="3"/><point name="p1" x="1" y="5" z="3"/>'
                          '<float name="radius" value="0.5"/></shape>'))
-    o = s.objects[0]
+    o = tessellated(s.objects[0])
     v = o.vertices
     np.testing.assert_allclose(np.hypot(v[:, 0] - 1, v[:, 2] - 3), 0.5, atol=1e-12)  # axis along +y through (1, ·, 3)
     assert set(np.round(np.unique(v[:, 1]), 12)) == {2.0, 5.0}
@@ -200,7 +214,7 @@ def test_cylinder_p0_p1_radius_and_mitsubas_frame():
 def test_disk_and_flipped_rectangle():
     s = load_mitsuba(doc('<shape type="disk"><transform name="to_world"><scale value="2"/></transform></shape>\n'
                          '<shape type="rectangle"><boolean name="flip_normals" value="true"/></shape>'))
-    d, r = s.objects
+    d, r = tessellated(s.objects[0]), s.objects[1]
     assert shapes.mesh_area(d.vertices, d.faces) == pytest.approx(4 * math.pi, rel=1e-3)
     np.testing.assert_allclose(unit_face_normals(d), np.tile([0, 0, 1], (len(d.faces), 1)), atol=1e-12)
     np.testing.assert_allclose(unit_face_normals(r), [[0, 0, -1]] * 2)
