@@ -1,8 +1,11 @@
 """Triangle meshes for Mitsuba 3's shapes, and OBJ/PLY loading.
 
-grisx renders triangles only, so Mitsuba's analytic shapes are tessellated
-here with **Mitsuba 3's object-space conventions** [Mitsuba3], so that a
-scene file frames and lights the same in both renderers:
+Mitsuba's shapes as triangle meshes, with **Mitsuba 3's object-space
+conventions** [Mitsuba3], so that a scene file frames and lights the same in
+both renderers. Spheres, disks and cylinders are intersected exactly
+(:mod:`grisx.scene.analytic`, same conventions); their tessellations here
+serve emitters (next-event estimation samples triangles), moving objects and
+the built-in scenes:
 
 =============  ==================================================================
 ``rectangle``  [-1, 1]² in the z = 0 plane, normal +z, uv = (x+1, y+1)/2
