@@ -200,7 +200,16 @@ from grisx.render.base.reuse import (
     spatial_neighbor,
     temporal_neighbor,
 )
-from grisx.scene.scene import SceneData, SurfaceInteraction, intersect, motion_touches, segment_occluded, spawn_origin, surface_material
+from grisx.scene.scene import (
+    SceneData,
+    SurfaceInteraction,
+    intersect,
+    motion_touches,
+    segment_occluded,
+    spawn_origin,
+    surface_material,
+    surface_material_at,
+)
 from grisx.theory.gris import ris_weight
 from grisx.theory.mis import support_count, support_count_term, support_mis
 from grisx.theory.random import random_subkey, random_uniform
@@ -282,8 +291,9 @@ class GISample:
     valid: int
     # ---- exact_bsdf: x_s's BSDF and the two techniques of its path, to re-evaluate L_o toward any x_v ----
     exact: int  # 0: lo reused as if Lambertian; 1: re-evaluated from the records below; 2: its own direction only
-    mat_s: int  # material and texture coordinates at x_s
+    mat_s: int  # material, texture coordinates and triangle at x_s
     uv_s: wp.vec2
+    tri_s: int
     ns_s: wp.vec3  # shading normal at x_s (the path tracer's frame there)
     nee_wi: wp.vec3
     nee_li: wp.vec3
@@ -402,10 +412,7 @@ def make_restir_gi_kernels(kinds: frozenset[int], moving: bool = False) -> Any:
             if wp.dot(toward, -s.ray_d) >= 1.0 - 1.0e-6:
                 return s.lo
             return wp.vec3(0.0)
-        at = SurfaceInteraction()
-        at.material = s.mat_s
-        at.uv = s.uv_s
-        m = surface_material(scene, at)
+        m = surface_material_at(scene, s.mat_s, s.uv_s, s.tri_s, s.xs)
         frame = frame_from_normal(s.ns_s)
         wo_s = to_local(frame, toward)
         f_nee = bsdf.eval(m, wo_s, to_local(frame, s.nee_wi))
@@ -839,6 +846,7 @@ def make_restir_gi_kernels(kinds: frozenset[int], moving: bool = False) -> Any:
         if exact_bsdf != 0:
             s.mat_s = hit.material
             s.uv_s = hit.uv
+            s.tri_s = hit.tri
             s.ns_s = hit.ns
         s.valid = 1
         s_out[y, x] = s

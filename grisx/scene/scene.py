@@ -52,7 +52,17 @@ from grisx.scene.material import (
     material_kinds,
     pack_materials,
 )
-from grisx.scene.texture import Bitmap, Checkerboard, TextureSet, pack_textures, texture_lookup
+from grisx.scene.texture import (
+    TEXTURE_MESH_ATTRIBUTE,
+    AttributeTexels,
+    Bitmap,
+    Checkerboard,
+    MeshAttribute,
+    TextureSet,
+    attribute_lookup,
+    pack_textures,
+    texture_lookup,
+)
 from grisx.scene.transform import rotate, translate
 
 wp.set_module_options({"enable_backward": False})
@@ -71,6 +81,8 @@ __all__ = [
     "light_occluded",
     "finite_or_dropped",
     "surface_material",
+    "surface_material_at",
+    "triangle_barycentrics",
     "spawn_origin",
     "TRI_HAS_NORMALS",
     "TRI_HAS_UVS",
@@ -135,6 +147,7 @@ class _Object:
     motion: RigidMotion | None
     # an analytic shape (then ``vertices`` are the corners of its box, ``faces`` empty)
     shape: AnalyticShape | None = None
+    attributes: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)  # Mitsuba's mesh attributes
 
 
 @dataclasses.dataclass(frozen=True)
@@ -401,11 +414,54 @@ def finite_or_dropped(L: wp.vec3, nonfinite: wp.array(dtype=wp.int32)) -> wp.vec
 
 
 @wp.func
+def triangle_barycentrics(scene: SceneData, tri: int, p: wp.vec3) -> wp.vec3:
+    """Barycentrics (b₀, b₁, b₂) of ``p`` on triangle ``tri`` (this frame's positions), p = Σ bₖ pₖ, in the order
+    of :func:`intersect`'s ``bary`` (b₀ = Warp's u at vertex 0, b₁ = v at vertex 1)."""
+    p0 = scene.positions[scene.indices[3 * tri + 0]]
+    e1 = scene.positions[scene.indices[3 * tri + 1]] - p0
+    e2 = scene.positions[scene.indices[3 * tri + 2]] - p0
+    d = p - p0
+    d00 = wp.dot(e1, e1)
+    d01 = wp.dot(e1, e2)
+    d11 = wp.dot(e2, e2)
+    den = d00 * d11 - d01 * d01
+    if den <= 0.0:
+        return wp.vec3(1.0, 0.0, 0.0)  # a degenerate triangle (never hit)
+    b1 = (d11 * wp.dot(d, e1) - d01 * wp.dot(d, e2)) / den
+    b2 = (d00 * wp.dot(d, e2) - d01 * wp.dot(d, e1)) / den
+    return wp.vec3(1.0 - b1 - b2, b1, b2)
+
+
+@wp.func
+def _texture_at(scene: SceneData, texture: int, uv: wp.vec2, tri: int, b: wp.vec3) -> wp.vec3:
+    """Texture ``texture`` at a surface point: by ``uv``, or (a mesh attribute) by triangle and barycentrics."""
+    if scene.textures.info[texture].kind == TEXTURE_MESH_ATTRIBUTE:
+        if tri < 0:
+            return wp.vec3(0.0, 0.0, 0.0)  # not a mesh point
+        corners = wp.vec3i(scene.indices[3 * tri + 0], scene.indices[3 * tri + 1], scene.indices[3 * tri + 2])
+        return attribute_lookup(scene.textures, texture, tri, corners, b)
+    return texture_lookup(scene.textures, texture, uv)
+
+
+@wp.func
 def surface_material(scene: SceneData, si: SurfaceInteraction) -> Material:
     """The material at ``si`` with its texture (if any) resolved into ``reflectance``."""
     m = scene.materials[si.material]
     if m.texture >= 0:
-        m.reflectance = texture_lookup(scene.textures, m.texture, si.uv)
+        m.reflectance = _texture_at(scene, m.texture, si.uv, si.tri, wp.vec3(si.bary[0], si.bary[1], 1.0 - si.bary[0] - si.bary[1]))
+    return m
+
+
+@wp.func
+def surface_material_at(scene: SceneData, material: int, uv: wp.vec2, tri: int, p: wp.vec3) -> Material:
+    """The material of a stored surface point (material id, uv, triangle, position ``p`` on it) with its
+    texture resolved, as :func:`surface_material` resolves it at the hit (barycentrics recomputed from ``p``)."""
+    m = scene.materials[material]
+    if m.texture >= 0:
+        b = wp.vec3(1.0, 0.0, 0.0)
+        if tri >= 0:
+            b = triangle_barycentrics(scene, tri, p)
+        m.reflectance = _texture_at(scene, m.texture, uv, tri, b)
     return m
 
 
@@ -460,7 +516,7 @@ class Scene:
         self.name = name
         self.materials: list[Any] = []
         self.material_names: dict[str, int] = {}
-        self.textures: list[np.ndarray | Bitmap | Checkerboard] = []
+        self.textures: list[np.ndarray | Bitmap | Checkerboard | MeshAttribute] = []
         self.objects: list[_Object] = []
         self.point_lights: list[PointLight] = []
         self.environment: ConstantEnvironment | EnvMap | None = None
@@ -479,10 +535,10 @@ class Scene:
             self.material_names[name] = mid
         return mid
 
-    def add_texture(self, image: np.ndarray | Bitmap | Checkerboard, name: str | None = None) -> int:
-        """Register an albedo texture — a linear RGB image (H, W, 3), or a :class:`~grisx.scene.texture.Bitmap`
-        or :class:`~grisx.scene.texture.Checkerboard` record; returns its id."""
-        if isinstance(image, Checkerboard):
+    def add_texture(self, image: np.ndarray | Bitmap | Checkerboard | MeshAttribute, name: str | None = None) -> int:
+        """Register an albedo texture — a linear RGB image (H, W, 3), or a :class:`~grisx.scene.texture.Bitmap`,
+        :class:`~grisx.scene.texture.Checkerboard` or :class:`~grisx.scene.texture.MeshAttribute` record; returns its id."""
+        if isinstance(image, (Checkerboard, MeshAttribute)):
             self.textures.append(image)
             return len(self.textures) - 1
         if isinstance(image, Bitmap):
@@ -520,8 +576,12 @@ class Scene:
         to_world: Any = None,
         motion: RigidMotion | None = None,
         name: str | None = None,
+        attributes: dict[str, Any] | None = None,
     ) -> int:
-        """Add a triangle mesh (object-space ``vertices``, ``faces`` as vertex index triples)."""
+        """Add a triangle mesh (object-space ``vertices``, ``faces`` as vertex index triples).
+
+        ``attributes``: Mitsuba's mesh attributes, name → (rows, dim) values with one row per vertex
+        (``vertex_*``) or per face (``face_*``), read by :class:`~grisx.scene.texture.MeshAttribute` textures."""
         name = name or f"mesh{len(self.objects)}"
         v = _as_float_array(f"mesh '{name}' vertices", vertices, (3,))
         f = np.asarray(faces)
@@ -547,7 +607,28 @@ class Scene:
             if len(uv) != len(v):
                 raise InvalidValueError(f"mesh '{name}': {len(uv)} uvs for {len(v)} vertices")
         e = None if emission is None else _rgb(f"mesh '{name}' emission", emission)
-        self.objects.append(_Object(name, vw, f.astype(np.int64), n, uv, int(material), e, motion))
+        attrs = {}
+        for key, values in (attributes or {}).items():
+            a = np.asarray(values, dtype=np.float64)
+            a = a.reshape(-1, 1) if a.ndim == 1 else a
+            rows = len(v) if key.startswith("vertex_") else len(f) if key.startswith("face_") else None
+            if rows is None:
+                raise InvalidValueError(f"mesh '{name}': attribute name {key!r} must start with 'vertex_' or 'face_'")
+            if a.ndim != 2 or a.shape[0] != rows or not 1 <= a.shape[1] <= 4 or not np.all(np.isfinite(a)):
+                raise InvalidValueError(f"mesh '{name}': attribute {key!r} must be finite with {rows} rows of 1 to 4 "
+                                        f"values, got shape {a.shape}")
+            attrs[key] = a
+        for tid in sorted(_texture_ids(self.materials[material])):
+            tex = self.textures[tid] if 0 <= tid < len(self.textures) else None
+            if isinstance(tex, MeshAttribute):
+                if tex.name not in attrs:
+                    have = ", ".join(sorted(attrs)) or "none"
+                    raise InvalidParameterError(f"mesh '{name}': its material reads mesh attribute '{tex.name}', which the "
+                                                f"mesh does not have (its attributes: {have})")
+                if attrs[tex.name].shape[1] not in (1, 3):
+                    raise InvalidParameterError(f"mesh '{name}': attribute '{tex.name}' has {attrs[tex.name].shape[1]} channels; a "
+                                                f"mesh_attribute texture reads 1 (grey) or 3 (RGB), as Mitsuba's RGB variants do")
+        self.objects.append(_Object(name, vw, f.astype(np.int64), n, uv, int(material), e, motion, attributes=attrs))
         return len(self.objects) - 1
 
     def add_shape(self, kind: str, *, material: int, to_world: Any = None, flip_normals: bool = False,
@@ -629,6 +710,46 @@ class Scene:
         if not any(o.emission is not None for o in self.objects) and not self.point_lights and self.environment is None:
             raise InvalidParameterError(f"scene '{self.name}' has no light source (area emitter, point light or environment)")
         return BuiltScene(self, resolve_device(device))
+
+
+def _texture_ids(record: Any) -> set[int]:
+    """The texture ids a material record uses (its :class:`~grisx.scene.material.TextureRef` fields, nested records included)."""
+    from grisx.scene.material import TextureRef
+
+    if isinstance(record, TextureRef):
+        return {int(record.texture_id)}
+    if dataclasses.is_dataclass(record) and not isinstance(record, type):
+        return set().union(*(_texture_ids(getattr(record, f.name)) for f in dataclasses.fields(record)))
+    if isinstance(record, (list, tuple)):
+        return set().union(*(_texture_ids(x) for x in record)) if record else set()
+    return set()
+
+
+def _resolve_attributes(scene: Scene) -> list:
+    """The scene's textures with every :class:`MeshAttribute` gathered over the scene's vertices or triangles
+    (:class:`AttributeTexels`; :meth:`Scene.add_mesh` checked that each mesh whose material reads one has it)."""
+    textures = list(scene.textures)
+    wanted = {i for i, t in enumerate(textures) if isinstance(t, MeshAttribute)}
+    if not wanted:
+        return textures
+    readers: dict[int, list[_Object]] = {i: [] for i in wanted}
+    for o in scene.objects:
+        for tid in _texture_ids(scene.materials[o.material]) & wanted:
+            readers[tid].append(o)
+    n_vertices = sum(len(o.vertices) for o in scene.objects)
+    n_faces = sum(len(o.faces) for o in scene.objects)
+    for tid in wanted:
+        tex = textures[tid]
+        per_face = tex.name.startswith("face_")
+        values = np.zeros((n_faces if per_face else n_vertices, 3))
+        row = 0
+        for o in scene.objects:
+            rows = len(o.faces) if per_face else len(o.vertices)
+            if any(o is r for r in readers[tid]):
+                values[row:row + rows] = np.broadcast_to(o.attributes[tex.name], (rows, 3)) * tex.scale
+            row += rows
+        textures[tid] = AttributeTexels(values, per_face)
+    return textures
 
 
 def _struct_copy(s: Any, **changes: Any) -> Any:
@@ -726,7 +847,7 @@ class BuiltScene:
 
         mats = list(scene.materials)
         self.materials = pack_materials(mats, dev)
-        self.textures = pack_textures(scene.textures, dev)
+        self.textures = pack_textures(_resolve_attributes(scene), dev)
 
         d = SceneData()
         d.mesh = self.mesh.id

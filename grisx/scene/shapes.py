@@ -50,7 +50,10 @@ vertex normals (``nx, ny, nz``) and texture coordinates (``u, v``, ``s, t``,
 are (Mitsuba's ``ply`` has ``flip_tex_coords`` too, default false). When a file has no normals, smooth normals are computed with Mitsuba's
 weighting (face normals weighted by the corner angle; Thürmer & Wüthrich
 1998), unless ``face_normals=True``, which drops normals altogether (faceted
-shading, Mitsuba's ``face_normals``).
+shading, Mitsuba's ``face_normals``). A PLY file's other vertex and face properties become Mitsuba's
+**mesh attributes** (``MeshData.attributes``), grouped and named as its ``ply`` plugin does
+(:func:`ply_attributes`: ``r, g, b`` → ``vertex_color``, ``weight_0`` → ``face_weight``, ...), for
+``mesh_attribute`` textures (:mod:`grisx.scene.texture`).
 
 Every function returns a :class:`MeshData` record in object space.
 
@@ -87,6 +90,7 @@ __all__ = [
     "mesh_area",
     "face_normals_of",
     "finish_mesh",
+    "ply_attributes",
 ]
 
 
@@ -103,6 +107,9 @@ class MeshData:
     faces: np.ndarray
     normals: np.ndarray | None = None
     uvs: np.ndarray | None = None
+    #: Mitsuba's mesh attributes: name → (rows, dim) float values, one row per vertex (``vertex_*``) or per
+    #: face (``face_*``), as a PLY file's extra properties are grouped (:func:`ply_attributes`)
+    attributes: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
 
     def __iter__(self):  # allows ``vertices, faces, normals, uvs = load_mesh(...)``
         return iter((self.vertices, self.faces, self.normals, self.uvs))
@@ -110,12 +117,7 @@ class MeshData:
 
 def flip_mesh(mesh: MeshData) -> MeshData:
     """Turn the mesh inside out: reverse the winding and negate the vertex normals (Mitsuba's ``flip_normals``)."""
-    return MeshData(
-        mesh.vertices,
-        mesh.faces[:, [0, 2, 1]].copy(),
-        None if mesh.normals is None else -mesh.normals,
-        mesh.uvs,
-    )
+    return dataclasses.replace(mesh, faces=mesh.faces[:, [0, 2, 1]].copy(), normals=None if mesh.normals is None else -mesh.normals)
 
 
 def _finish(mesh: MeshData, flip_normals: bool) -> MeshData:
@@ -401,6 +403,70 @@ def _ply_used_vertices(face_data: Any) -> np.ndarray | None:
     return np.unique(np.concatenate(flat)) if flat else None
 
 
+#: postfix categories of a multi-field PLY attribute (Mitsuba's ``ply.h``): {x,y,z,w}, {r,g,b,a}, {0,1,2,3}, {1,2,3,4}
+_PLY_POSTFIXES = ("xr01", "yg12", "zb23", "wa34")
+
+
+def ply_attributes(kind: str, names: list[str], reserved: set[str]) -> list[tuple[str, list[str]]]:
+    """Mitsuba's grouping of a PLY element's extra properties into mesh attributes (``find_other_fields``).
+
+    ``kind`` is ``"vertex_"`` or ``"face_"``, ``names`` the element's properties in file order, ``reserved``
+    those read otherwise (positions, normals, uvs; vertex indices). Returns ``(attribute name, property names)``:
+
+    * ``r, g, b[, a]`` (or ``red, green, blue[, alpha]``) → ``{kind}color``;
+    * consecutive ``{prefix}_{x|y|z}``, ``{prefix}_{r|g|b}`` (→ ``{kind}{prefix}_color``), ``{prefix}_{0|1|2}``
+      or ``{prefix}_{1|2|3}`` → ``{kind}{prefix}``, of 1 or 3 fields (others, and properties without a
+      one-letter postfix, are ignored, as Mitsuba ignores them with a warning).
+    """
+    out: list[tuple[str, list[str]]] = []
+    present = set(names)
+    rename = {}
+    if not {"r", "g", "b"} <= present and {"red", "green", "blue"} <= present:
+        rename = {"red": "r", "green": "g", "blue": "b", "alpha": "a"}
+    named = [rename.get(n, n) for n in names]
+    if {"r", "g", "b"} <= set(named):
+        fields = ["r", "g", "b"] + (["a"] if "a" in named else [])
+        out.append((kind + "color", [names[named.index(f)] for f in fields]))
+    reserved = set(reserved) | {"r", "g", "b", "a"}
+    encountered: set[str] = set()
+    prefix, category, fields = "", 0, []
+
+    def flush() -> None:
+        if len(fields) in (1, 3):
+            out.append((kind + prefix + ("_color" if category == 1 else ""), list(fields)))
+            encountered.add(prefix)
+
+    for name, mapped in zip(names, named):
+        if mapped in reserved:
+            continue
+        head, sep, postfix = mapped.rpartition("_")
+        if not sep or len(postfix) != 1:  # no one-letter postfix: ignored
+            flush()
+            prefix, fields = "", []
+            continue
+        if fields and head != prefix:
+            flush()
+            prefix, fields = "", []
+        if not fields:
+            if head in encountered or postfix not in _PLY_POSTFIXES[0]:
+                continue
+            prefix, category = head, _PLY_POSTFIXES[0].index(postfix)
+        elif len(fields) >= 4 or postfix != _PLY_POSTFIXES[len(fields)][category]:
+            prefix, fields = "", []  # a broken sequence: the attribute is ignored
+            encountered.add(head)
+            continue
+        fields.append(name)
+    flush()
+    return out
+
+
+def _ply_columns(element: dict) -> dict[str, np.ndarray]:
+    """A trimesh ``_ply_raw`` element's properties by name, in file order (ASCII: a dict; binary: a record array)."""
+    data = element.get("data", {})
+    names = (data.dtype.names or ()) if isinstance(data, np.ndarray) else tuple(data)
+    return {name: data[name] for name in names}
+
+
 def load_ply(path: str | os.PathLike, flip_tex_coords: bool = False) -> MeshData:
     """Read a PLY file (ASCII or binary) with trimesh, keeping its vertex order, normals and uvs.
 
@@ -420,10 +486,8 @@ def load_ply(path: str | os.PathLike, flip_tex_coords: bool = False) -> MeshData
         raise _mesh_error(path, "no triangle faces (point clouds are not supported)")
     vertices = np.asarray(m.vertices, dtype=np.float64)
     faces = np.asarray(m.faces, dtype=np.int64)
-    data = (m.metadata or {}).get("_ply_raw", {}).get("vertex", {}).get("data", {})
-    # ASCII files come back as a dict of columns, binary ones as a structured array
-    names = data.dtype.names or () if isinstance(data, np.ndarray) else tuple(data)
-    raw = {name: data[name] for name in names}
+    ply_raw = (m.metadata or {}).get("_ply_raw", {})
+    raw = _ply_columns(ply_raw.get("vertex", {}))
     if "x" in raw:  # trimesh keeps the file's vertex order with process=False; check it
         xyz = np.column_stack([np.asarray(raw[c], dtype=np.float64).reshape(-1) for c in ("x", "y", "z")])
         if xyz.shape != vertices.shape:
@@ -456,7 +520,28 @@ def load_ply(path: str | os.PathLike, flip_tex_coords: bool = False) -> MeshData
             break
     if not np.all(np.isfinite(vertices)):
         raise _mesh_error(path, "invalid vertex position data")
-    return MeshData(vertices, faces, normals, uvs)
+    return MeshData(vertices, faces, normals, uvs, _ply_mesh_attributes(path, ply_raw, raw, len(faces)))
+
+
+def _ply_mesh_attributes(path: Path, ply_raw: dict, vertex_columns: dict, face_count: int) -> dict[str, np.ndarray]:
+    """A PLY file's vertex and face attributes, grouped as Mitsuba groups them (:func:`ply_attributes`)."""
+    vertex_names = list(vertex_columns)
+    reserved = {"x", "y", "z", "nx", "ny", "nz", "u", "v"}
+    if {"texture_u", "texture_v"} <= set(vertex_names):  # Mitsuba reads these as u, v
+        reserved |= {"texture_u", "texture_v"}
+    elif {"s", "t"} <= set(vertex_names):
+        reserved |= {"s", "t"}
+    face_columns = _ply_columns(ply_raw.get("face", {}))
+    out = {}
+    for kind, columns, skip in (("vertex_", vertex_columns, reserved), ("face_", face_columns, {"vertex_indices", "vertex_index"})):
+        for name, fields in ply_attributes(kind, list(columns), skip):
+            out[name] = np.column_stack([np.asarray(columns[f], dtype=np.float64).reshape(-1) for f in fields])
+    if any(k.startswith("face_") for k in out):
+        lists = face_columns.get("vertex_indices", face_columns.get("vertex_index"))
+        counts = lists["f0"] if isinstance(lists, np.ndarray) and lists.dtype.names else [len(f) for f in lists]
+        if len(counts) != face_count or np.any(np.asarray(counts) != 3):
+            raise _mesh_error(path, "face attributes on polygons that are not triangles (Mitsuba reads triangle PLYs only)")
+    return out
 
 
 def load_mesh(
@@ -487,7 +572,7 @@ def finish_mesh(mesh: MeshData, face_normals: bool = False, flip_normals: bool =
     """A file's mesh as Mitsuba renders it: face normals if asked, else the file's vertex normals or
     Mitsuba's smooth ones where it has none; turned inside out with ``flip_normals``."""
     if face_normals:
-        mesh = MeshData(mesh.vertices, mesh.faces, None, mesh.uvs)
+        mesh = dataclasses.replace(mesh, normals=None)
     elif mesh.normals is None:
-        mesh = MeshData(mesh.vertices, mesh.faces, vertex_normals(mesh.vertices, mesh.faces), mesh.uvs)
+        mesh = dataclasses.replace(mesh, normals=vertex_normals(mesh.vertices, mesh.faces))
     return _finish(mesh, flip_normals)

@@ -14,6 +14,19 @@ Mitsuba 3's meaning:
   (``checkerboard.cpp``).
 
 Both look up at ``to_uv · (u, v, 1)``, a 2×3 affine map (Mitsuba's ``to_uv``).
+
+A third kind reads no uv: **mesh_attribute** (:class:`MeshAttribute`, Mitsuba's ``mesh_attribute``
+texture) evaluates a named attribute of the mesh that was hit (a PLY file's extra vertex or face
+properties, :func:`grisx.scene.shapes.ply_attributes`), times ``scale``, as Mitsuba's
+``Mesh::interpolate_attribute`` does in its RGB variants:
+
+* ``vertex_*``: the barycentric blend ``b₀ a[i₀] + b₁ a[i₁] + b₂ a[i₂]`` of the triangle's three vertices;
+* ``face_*``: the triangle's own value, constant over it;
+
+a 1-channel attribute is grey (its value in all three channels), a 3-channel one is RGB.
+:meth:`~grisx.scene.scene.Scene.build` gathers each such texture's values over the whole scene
+(one row per scene vertex or triangle: :class:`AttributeTexels`) so that :func:`attribute_lookup`
+indexes them by the hit's triangle and vertices.
 """
 
 from __future__ import annotations
@@ -27,10 +40,12 @@ from grisx.errors import InvalidValueError
 
 wp.set_module_options({"enable_backward": False})
 
-__all__ = ["Bitmap", "Checkerboard", "TextureInfo", "TextureSet", "texture_lookup", "pack_textures", "TEXTURE_BITMAP", "TEXTURE_CHECKERBOARD"]
+__all__ = ["Bitmap", "Checkerboard", "MeshAttribute", "AttributeTexels", "TextureInfo", "TextureSet", "texture_lookup",
+           "attribute_lookup", "pack_textures", "TEXTURE_BITMAP", "TEXTURE_CHECKERBOARD", "TEXTURE_MESH_ATTRIBUTE"]
 
 TEXTURE_BITMAP = wp.constant(0)
 TEXTURE_CHECKERBOARD = wp.constant(1)
+TEXTURE_MESH_ATTRIBUTE = wp.constant(2)
 #: the identity 2×3 uv map
 IDENTITY_UV = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0))
 
@@ -52,11 +67,32 @@ class Checkerboard:
     to_uv: tuple[tuple[float, float, float], tuple[float, float, float]] = IDENTITY_UV
 
 
+@dataclasses.dataclass(frozen=True)
+class MeshAttribute:
+    """Mitsuba's ``mesh_attribute``: the hit mesh's attribute ``name`` (``vertex_*`` or ``face_*``) times ``scale``."""
+
+    name: str
+    scale: float = 1.0
+
+    def __post_init__(self) -> None:
+        if not (self.name.startswith("vertex_") or self.name.startswith("face_")):
+            raise InvalidValueError(f"mesh attribute name must start with 'vertex_' or 'face_', got {self.name!r}")
+
+
+@dataclasses.dataclass(frozen=True)
+class AttributeTexels:
+    """A :class:`MeshAttribute` resolved over a built scene: RGB ``values`` (N, 3), one row per scene vertex
+    (``per_face`` false) or per scene triangle (true); rows of meshes without the attribute are unused."""
+
+    values: np.ndarray
+    per_face: bool
+
+
 @wp.struct
 class TextureInfo:
     kind: int  # TEXTURE_*
     offset: int
-    width: int
+    width: int  # mesh attributes: 1 per face, 0 per vertex
     height: int
     uv_row0: wp.vec3  # to_uv: u' = row0 · (u, v, 1)
     uv_row1: wp.vec3  # v' = row1 · (u, v, 1)
@@ -103,6 +139,19 @@ def texture_lookup(ts: TextureSet, texture: int, uv_in: wp.vec2) -> wp.vec3:
     return a * (1.0 - fy) + b * fy
 
 
+@wp.func
+def attribute_lookup(ts: TextureSet, texture: int, tri: int, corners: wp.vec3i, b: wp.vec3) -> wp.vec3:
+    """Mesh-attribute texture ``texture`` at barycentrics ``b`` of triangle ``tri`` (scene vertices ``corners``):
+    a face attribute's row ``tri``, or the blend of a vertex attribute's rows (Mitsuba's ``interpolate_attribute``)."""
+    info = ts.info[texture]
+    if info.width == 1:
+        return ts.texels[info.offset + tri]
+    a0 = ts.texels[info.offset + corners[0]]
+    a1 = ts.texels[info.offset + corners[1]]
+    a2 = ts.texels[info.offset + corners[2]]
+    return a0 * b[0] + a1 * b[1] + a2 * b[2]
+
+
 def _to_uv(m: object, i: int) -> np.ndarray:
     a = np.asarray(m, dtype=np.float64)
     if a.shape != (2, 3) or not np.all(np.isfinite(a)):
@@ -111,11 +160,22 @@ def _to_uv(m: object, i: int) -> np.ndarray:
 
 
 def pack_textures(textures: list, device: wp.context.Device) -> TextureSet:
-    """Pack textures — linear RGB images (H, W, 3), :class:`Bitmap` or :class:`Checkerboard` records — into one device atlas."""
+    """Pack textures — linear RGB images (H, W, 3), :class:`Bitmap`, :class:`Checkerboard` or
+    :class:`AttributeTexels` records — into one device atlas."""
     infos = []
     chunks = []
     offset = 0
     for i, tex in enumerate(textures):
+        if isinstance(tex, MeshAttribute):
+            raise InvalidValueError(f"texture {i}: a mesh attribute ('{tex.name}') is resolved by Scene.build, not packed by itself")
+        if isinstance(tex, AttributeTexels):
+            a = np.asarray(tex.values, dtype=np.float32).reshape(-1, 3)
+            if not np.all(np.isfinite(a)) or np.any(a < 0):
+                raise InvalidValueError(f"texture {i}: mesh attribute values must be finite and non-negative")
+            infos.append((int(TEXTURE_MESH_ATTRIBUTE), offset, int(bool(tex.per_face)), len(a), np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3)))
+            chunks.append(a)
+            offset += len(a)
+            continue
         if isinstance(tex, Checkerboard):
             colours = np.asarray([tex.color0, tex.color1], dtype=np.float64)
             if colours.shape != (2, 3) or not np.all(np.isfinite(colours)) or np.any(colours < 0):

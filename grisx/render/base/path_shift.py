@@ -122,7 +122,7 @@ from grisx.scene.scene import (
     occluded,
     segment_occluded,
     spawn_origin,
-    surface_material,
+    surface_material_at,
 )
 from grisx.theory.control_variate import decoupled_contribution
 from grisx.theory.mis import target_from, technique_mis
@@ -392,12 +392,9 @@ def _shift_failed(x: PathSample) -> PathShiftResult:
 
 
 @wp.func
-def vertex_material(scene: SceneData, material: int, uv: wp.vec2) -> Material:
-    """The material of a stored vertex (material id, uv) with its texture resolved, as at the hit."""
-    si = SurfaceInteraction()
-    si.material = material
-    si.uv = uv
-    return surface_material(scene, si)
+def vertex_material(scene: SceneData, material: int, uv: wp.vec2, tri: int, p: wp.vec3) -> Material:
+    """The material of a stored vertex (material id, uv, triangle, position) with its texture resolved, as at the hit."""
+    return surface_material_at(scene, material, uv, tri, p)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -481,7 +478,7 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
         done = bool(False)
         i = int(1)
         while i < n and not done:
-            m = vertex_material(scene, v.material, v.uv)
+            m = vertex_material(scene, v.material, v.uv, v.tri, v.p)
             frame = frame_from_normal(v.ns)
             wo_l = to_local(frame, v.wo)
             rough = bsdf.roughness(m)
@@ -516,7 +513,7 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                 f = wp.cw_mul(f, fo)
                 pdf_bsdf = bsdf.pdf(m, wo_l, to_local(frame, d))  # for m_t when x_k is the end vertex
                 if x.rc_kind == VERTEX_SURFACE:
-                    mk = vertex_material(scene, x.rc_material, x.rc_uv)
+                    mk = vertex_material(scene, x.rc_material, x.rc_uv, x.rc_tri, x.rc_p)
                     frame_k = frame_from_normal(x.rc_ns)
                     wo_k = to_local(frame_k, -d)
                     wi_k = to_local(frame_k, x.rc_wi)
@@ -648,7 +645,7 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                 ls = sample_light(scene.lights, v.p, random_uniform(key, c), wp.vec2(random_uniform(key, c + 1), random_uniform(key, c + 2)))
                 return motion_on_segment(scene, v.p, ls.wi, ls.dist)
             if i > k:
-                m = vertex_material(scene, v.material, v.uv)
+                m = vertex_material(scene, v.material, v.uv, v.tri, v.p)
                 frame = frame_from_normal(v.ns)
                 c = path_dim(i, DIM_BSDF)
                 bs = bsdf.sample(m, to_local(frame, v.wo), random_uniform(key, c), wp.vec2(random_uniform(key, c + 1), random_uniform(key, c + 2)))
@@ -709,7 +706,7 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
         suffix_thru = wp.vec3(1.0, 1.0, 1.0)  # f factors after x_k's BSDF
         i = int(1)
         while max_bounces < 0 or i <= max_bounces:
-            m = vertex_material(scene, v.material, v.uv)
+            m = vertex_material(scene, v.material, v.uv, v.tri, v.p)
             frame_l = frame_from_normal(v.ns)
             wo_l = to_local(frame_l, v.wo)
             rough = bsdf.roughness(m)
