@@ -85,6 +85,14 @@ Transforms ``<transform name="to_world">``
     ``shape_index`` [0], ``face_normals``; :mod:`grisx.scene.serialized`); all with ``to_world`` and
     ``flip_normals``; a nested or referenced ``bsdf`` (default: diffuse 0.5 — black
     on a shape with an emitter, as in Mitsuba 3) and a nested ``emitter type="area"``. Geometry: :mod:`grisx.scene.shapes`.
+    A PLY file's extra vertex and face properties become mesh attributes, named and grouped as
+    Mitsuba's ``ply`` does (``vertex_color``, ``face_weight``, ...; :func:`grisx.scene.shapes.ply_attributes`).
+    ``shapegroup`` (shapes without emitters, invisible by themselves) and ``instance`` (one ``<ref>``
+    to a group, ``to_world``): each instance is flattened into world-space meshes at load time
+    (``to_world`` of the instance · ``to_world`` of the member; a mirroring instance keeps the members'
+    front sides, as Mitsuba's ``instance.cpp``), at the cost of the members' vertices once per
+    instance. ``sdfgrid`` and curves (``linearcurve``, ``bsplinecurve``) are refused (grisx intersects
+    triangles).
 ``bsdf``
     ``diffuse`` (``reflectance``: colour or ``bitmap`` texture [0.5]);
     ``conductor`` / ``roughconductor`` (``material`` [none] or ``eta``/``k``,
@@ -111,12 +119,15 @@ Transforms ``<transform name="to_world">``
     ``wrap_mode`` repeat (Mitsuba's defaults; the only modes grisx samples).
     ``checkerboard``: ``color0`` [0.4], ``color1`` [0.2] (constant colours).
     Both take ``to_uv`` (a ``<transform>``; its x/y rows and translation make
-    Mitsuba's 2D affine map). Textures are supported as diffuse ``reflectance`` and
-    a plastic's ``diffuse_reflectance`` only.
+    Mitsuba's 2D affine map). ``mesh_attribute``: ``name`` (``vertex_*``: blended
+    with the hit's barycentrics; ``face_*``: the face's value), ``scale`` [1]; a
+    1-channel attribute is grey, a 3-channel one RGB; every mesh that uses it must
+    have it (:mod:`grisx.scene.texture`). Textures are supported as diffuse ``reflectance`` and
+    a plastic's ``diffuse_reflectance`` only (not a mesh attribute there: a plastic
+    needs its texture's mean, as in Mitsuba).
 
 File names are looked up in the ``<path>`` folders, then the XML file's directory (the current directory
-for XML given as a string). Elements not listed (``medium``,
-``shapegroup``, ``instance``, other plugin types ...) are errors.
+for XML given as a string). Elements not listed (``medium``, other plugin types ...) are errors.
 
 References
 ----------
@@ -143,7 +154,7 @@ from grisx.scene.serialized import load_serialized
 from grisx.scene import transform as xf
 from grisx.scene.camera import Camera, lookat
 from grisx.scene.lights import ConstantEnvironment, EnvMap, load_envmap_image
-from grisx.scene.texture import Bitmap, Checkerboard
+from grisx.scene.texture import Bitmap, Checkerboard, MeshAttribute
 from grisx.imageio import srgb_decode as srgb_to_linear
 from grisx.scene.material import (
     Conductor,
@@ -313,6 +324,8 @@ _WHY_NOT = {
     **dict.fromkeys(("tent", "mitchell", "lanczos", "catmullrom"),
                     "grisx films filter with box or gaussian only (another filter would change the camera kernels)"),
     "depth": "grisx integrators render radiance", "orthographic": "grisx cameras are perspective or thin-lens",
+    "sdfgrid": "grisx intersects triangles (and Mitsuba's analytic shapes), not signed distance fields",
+    **dict.fromkeys(("linearcurve", "bsplinecurve"), "grisx intersects triangles (and Mitsuba's analytic shapes), not curves"),
 }
 
 #: Mitsuba's limit on nested <include>s (MI_XML_INCLUDE_MAX_RECURSION); deeper means a cycle, in practice
@@ -780,6 +793,22 @@ class _Props:
 # ---- the loader --------------------------------------------------------------------
 
 _SAMPLERS = ("independent", "stratified", "multijitter", "orthogonal", "ldsampler")
+_SHAPES = ("obj", "ply", "serialized", "rectangle", "cube", "sphere", "disk", "cylinder", "shapegroup", "instance")
+
+
+@dataclasses.dataclass(frozen=True)
+class _ShapePart:
+    """A shape as read, before it enters the scene: its type, object-space mesh (``None``: a sphere, disk or
+    cylinder, analytic unless it emits), ``to_world``, material id, emission."""
+
+    kind: str
+    mesh: shapes.MeshData | None
+    to_world: np.ndarray
+    material: int
+    emission: Any
+    name: str
+    node: _Node  # the element errors name
+    flip_normals: bool = False  # of an analytic shape (a mesh has it applied already)
 
 
 class _Loader:
@@ -792,6 +821,8 @@ class _Loader:
         self.texture_means: dict[int, float] = {}  # scene texture id -> mean value
         self.default_materials: dict[str, int] = {}  # "default" / "default_emitter" -> scene material id
         self.shape_count = 0
+        self.instance_count = 0
+        self.groups: dict[int, list[_ShapePart]] = {}  # id(shapegroup node) -> its members
         self.area_emitters_used: set[int] = set()  # id(node) of area emitters attached to a shape
         self.sensor_seen: _Node | None = None
         self.environment_seen: _Node | None = None
@@ -860,8 +891,17 @@ class _Loader:
         node = self._deref(node, "texture")
         if id(node) in self.texture_ids:
             return self.texture_ids[id(node)]
-        t = self._require_type(node, ("bitmap", "checkerboard"))
+        t = self._require_type(node, ("bitmap", "checkerboard", "mesh_attribute"))
         p = _Props(self, node)
+        if t == "mesh_attribute":  # the hit mesh's own values: no uv, no mean (Mitsuba's Texture::mean is undefined)
+            try:
+                attribute = MeshAttribute(p.string("name"), p.float("scale", 1.0))
+            except GrisxError as exc:
+                raise self.ctx.error(p.values.get("name", node), str(exc), "name") from None
+            p.finish()
+            tid = self.scene.add_texture(attribute, name=node.attrs.get("id") or attribute.name)
+            self.texture_ids[id(node)] = tid
+            return tid
         to_uv = p.transform("to_uv")
         # Mitsuba's to_uv is a 2D affine map: of a 4x4 transform, rows and columns x, y and the translation
         uv_map = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0)) if to_uv is None else tuple(tuple(float(to_uv[r, c]) for c in (0, 1, 3)) for r in (0, 1))
@@ -932,7 +972,7 @@ class _Loader:
             diffuse = p.color("diffuse_reflectance", 0.5, texture=True)
             kw = {
                 "diffuse_reflectance": diffuse,
-                "diffuse_mean": self.texture_means[diffuse.texture_id] if isinstance(diffuse, TextureRef) else None,
+                "diffuse_mean": self._texture_mean(p, "diffuse_reflectance", diffuse),
                 "specular_reflectance": p.color("specular_reflectance", 1.0),
                 "int_ior": p.ior("int_ior", "polypropylene"),
                 "ext_ior": p.ior("ext_ior", "air"),
@@ -962,6 +1002,15 @@ class _Loader:
         self.records[id(node)] = rec
         return rec
 
+    def _texture_mean(self, p: _Props, name: str, value: Any) -> float | None:
+        """Mitsuba's ``texture.mean()`` of parameter ``name`` (``None`` for a constant); a mesh attribute has none."""
+        if not isinstance(value, TextureRef):
+            return None
+        if value.texture_id not in self.texture_means:
+            raise self.ctx.error(p.values[name], f"parameter '{name}': this BSDF needs its texture's mean, which a "
+                                                 f"mesh_attribute texture does not have (Mitsuba refuses it too)", name)
+        return self.texture_means[value.texture_id]
+
     def _smooth_or_rough(self, p: _Props, rough: bool, kw: dict[str, Any], smooth: type, rough_cls: type) -> Any:
         if not rough:
             return smooth(**kw)
@@ -984,7 +1033,95 @@ class _Loader:
 
     # -- shapes
     def shape(self, node: _Node) -> None:
-        t = self._require_type(node, ("obj", "ply", "serialized", "rectangle", "cube", "sphere", "disk", "cylinder"))
+        """A top-level ``<shape>``: one object of the scene, a ``shapegroup`` (read now, placed by instances) or
+        an ``instance`` of one (its members flattened into world space, see :meth:`instance`)."""
+        t = self._type(node)
+        if t == "shapegroup":
+            self.shapegroup(node)
+        elif t == "instance":
+            self.instance(node)
+        else:
+            self._add_shape(self.shape_part(node))
+
+    def shapegroup(self, node: _Node) -> list[_ShapePart]:
+        """Mitsuba's ``shapegroup``: its shapes, invisible on their own, read once (``Instance``s place copies).
+
+        As in Mitsuba, a group holds shapes only — no emitters (``Instancing of emitters is not supported``), no
+        nested groups or instances."""
+        if id(node) in self.groups:
+            return self.groups[id(node)]
+        p = _Props(self, node)
+        members = []
+        for child in p.take_objects(("shape",)):
+            if child.tag == "ref":
+                raise self.ctx.error(child, "a shapegroup holds nested <shape>s, not references")
+            if self._type(child) in ("shapegroup", "instance"):
+                raise self.ctx.error(child, f"a {self._type(child)} inside a shapegroup (Mitsuba permits no nesting)", "type")
+            part = self.shape_part(child)
+            if part.emission is not None:
+                raise self.ctx.error(child, "a shape inside a shapegroup cannot emit (Mitsuba does not instance emitters)")
+            members.append(part)
+        p.finish()
+        if not members:
+            raise self.ctx.error(node, "an empty shapegroup (it needs at least one nested <shape>)")
+        self.groups[id(node)] = members
+        return members
+
+    def instance(self, node: _Node) -> None:
+        """Mitsuba's ``instance``: a copy of a ``shapegroup``'s shapes placed by the instance's ``to_world``.
+
+        grisx flattens it at load time: each member becomes a world-space mesh, or an analytic shape, with the
+        transform ``to_world(instance) · to_world(member)`` (one triangle BVH, no instance level; an instanced
+        sphere under a non-uniform instance scale is an ellipsoid, as in Mitsuba). What it costs: a mesh
+        member's vertices, normals and uvs once per instance (about 100 bytes per vertex and 12 per triangle on
+        the device, plus their BVH nodes), where Mitsuba stores them once. Orientation as Mitsuba's
+        ``instance.cpp``: its normals are the member's normals under the instance transform, ``M⁻ᵀ n``, so a
+        mirroring instance (det M < 0) keeps its members' front sides, where a mesh's winding alone would turn
+        them (the winding is reversed to match) and where an analytic sphere or tube would read the mirror as
+        "inside out" (its orientation is turned back).
+        """
+        p = _Props(self, node)
+        to_world = p.transform("to_world")
+        to_world = np.eye(4) if to_world is None else to_world
+        groups = p.take_objects(("shape",))
+        if len(groups) != 1:
+            raise self.ctx.error(node, f"an instance needs exactly one <ref> to a shapegroup, got {len(groups)}")
+        group = self._deref(groups[0], "shape")
+        if self._type(group) != "shapegroup":
+            raise self.ctx.error(groups[0], f"an instance takes a shapegroup, not a shape of type '{self._type(group)}'")
+        p.finish()
+        members = self.shapegroup(group)
+        mirror = bool(np.linalg.det(to_world[:3, :3]) < 0)
+        self.instance_count += 1
+        for part in members:
+            mesh, flip = part.mesh, part.flip_normals
+            if mirror and mesh is not None:
+                mesh = dataclasses.replace(mesh, faces=mesh.faces[:, [0, 2, 1]])
+            elif mirror and part.kind in ("sphere", "cylinder"):
+                flip = not flip  # analytic: sphere.cpp/cylinder.cpp turn a shape whose own to_world mirrors inside out;
+                # under a mirroring instance Mitsuba keeps the member's orientation (a disk's normal is M⁻ᵀ z either way)
+            self._add_shape(dataclasses.replace(part, mesh=mesh, flip_normals=flip, to_world=to_world @ part.to_world,
+                                                name=f"{part.name}@instance{self.instance_count}", node=node))
+
+    def _add_shape(self, part: _ShapePart) -> None:
+        try:
+            if part.mesh is None and part.emission is None:
+                # intersected exactly, as Mitsuba does (grisx.scene.analytic); an emitter stays a mesh, since
+                # next-event estimation samples points on triangles
+                self.scene.add_shape(part.kind, material=part.material, to_world=part.to_world, flip_normals=part.flip_normals,
+                                     name=part.name)
+            else:
+                mesh = part.mesh
+                if mesh is None:
+                    mesh = {"sphere": shapes.sphere, "disk": shapes.disk, "cylinder": shapes.cylinder}[part.kind](flip_normals=part.flip_normals)
+                self.scene.add_mesh(mesh.vertices, mesh.faces, material=part.material, normals=mesh.normals, uvs=mesh.uvs,
+                                    emission=part.emission, to_world=part.to_world, name=part.name, attributes=mesh.attributes)
+        except GrisxError as exc:
+            raise self.ctx.error(part.node, str(exc)) from None
+
+    def shape_part(self, node: _Node) -> _ShapePart:
+        """A ``<shape>`` read into a mesh, its ``to_world``, material and emission (not yet in the scene)."""
+        t = self._require_type(node, _SHAPES)
         p = _Props(self, node)
         to_world = p.transform("to_world")
         to_world = np.eye(4) if to_world is None else to_world
@@ -1059,18 +1196,7 @@ class _Loader:
         p.finish()
         self.shape_count += 1
         name = node.attrs.get("id") or f"{t}{self.shape_count}"
-        try:
-            if t in ("sphere", "disk", "cylinder") and emission is None:
-                # intersected exactly, as Mitsuba does (grisx.scene.analytic); an emitter stays a mesh, since
-                # next-event estimation samples points on triangles
-                self.scene.add_shape(t, material=mid, to_world=to_world, flip_normals=flip, name=name)
-            else:
-                if mesh is None:
-                    mesh = {"sphere": shapes.sphere, "disk": shapes.disk, "cylinder": shapes.cylinder}[t](flip_normals=flip)
-                self.scene.add_mesh(mesh.vertices, mesh.faces, material=mid, normals=mesh.normals, uvs=mesh.uvs,
-                                    emission=emission, to_world=to_world, name=name)
-        except GrisxError as exc:
-            raise self.ctx.error(node, str(exc)) from None
+        return _ShapePart(t, mesh, to_world, mid, emission, name, node, flip)
 
     def _sphere_similarity(self, node: _Node, to_world: np.ndarray) -> np.ndarray:
         """What Mitsuba's ``sphere.cpp`` renders for ``to_world``: a sphere of centre M·0 and radius |M·x̂|. A

@@ -433,35 +433,42 @@ def triangle_barycentrics(scene: SceneData, tri: int, p: wp.vec3) -> wp.vec3:
 
 
 @wp.func
-def _texture_at(scene: SceneData, texture: int, uv: wp.vec2, tri: int, b: wp.vec3) -> wp.vec3:
-    """Texture ``texture`` at a surface point: by ``uv``, or (a mesh attribute) by triangle and barycentrics."""
-    if scene.textures.info[texture].kind == TEXTURE_MESH_ATTRIBUTE:
-        if tri < 0:
-            return wp.vec3(0.0, 0.0, 0.0)  # not a mesh point
-        corners = wp.vec3i(scene.indices[3 * tri + 0], scene.indices[3 * tri + 1], scene.indices[3 * tri + 2])
-        return attribute_lookup(scene.textures, texture, tri, corners, b)
-    return texture_lookup(scene.textures, texture, uv)
+def _attribute_at(scene: SceneData, texture: int, tri: int, b: wp.vec3) -> wp.vec3:
+    """Mesh-attribute texture ``texture`` at barycentrics ``b`` of primitive ``tri`` (0 off the triangles: the
+    loader gives attribute textures to meshes only)."""
+    if tri < 0 or tri >= scene.shapes.prim_base:
+        return wp.vec3(0.0, 0.0, 0.0)
+    corners = wp.vec3i(scene.indices[3 * tri + 0], scene.indices[3 * tri + 1], scene.indices[3 * tri + 2])
+    return attribute_lookup(scene.textures, texture, tri, corners, b)
 
 
 @wp.func
 def surface_material(scene: SceneData, si: SurfaceInteraction) -> Material:
-    """The material at ``si`` with its texture (if any) resolved into ``reflectance``."""
+    """The material at ``si`` with its texture (if any) resolved into ``reflectance``: looked up at ``si.uv``, or a
+    mesh attribute at the hit's triangle and barycentrics."""
     m = scene.materials[si.material]
     if m.texture >= 0:
-        m.reflectance = _texture_at(scene, m.texture, si.uv, si.tri, wp.vec3(si.bary[0], si.bary[1], 1.0 - si.bary[0] - si.bary[1]))
+        if scene.textures.info[m.texture].kind == TEXTURE_MESH_ATTRIBUTE:
+            b = wp.vec3(si.bary[0], si.bary[1], 1.0 - si.bary[0] - si.bary[1])
+            m.reflectance = _attribute_at(scene, m.texture, si.tri, b)
+        else:
+            m.reflectance = texture_lookup(scene.textures, m.texture, si.uv)
     return m
 
 
 @wp.func
 def surface_material_at(scene: SceneData, material: int, uv: wp.vec2, tri: int, p: wp.vec3) -> Material:
-    """The material of a stored surface point (material id, uv, triangle, position ``p`` on it) with its
+    """The material of a stored surface point (material id, uv, primitive, position ``p`` on it) with its
     texture resolved, as :func:`surface_material` resolves it at the hit (barycentrics recomputed from ``p``)."""
     m = scene.materials[material]
     if m.texture >= 0:
-        b = wp.vec3(1.0, 0.0, 0.0)
-        if tri >= 0:
-            b = triangle_barycentrics(scene, tri, p)
-        m.reflectance = _texture_at(scene, m.texture, uv, tri, b)
+        if scene.textures.info[m.texture].kind == TEXTURE_MESH_ATTRIBUTE:
+            b = wp.vec3(1.0, 0.0, 0.0)
+            if tri >= 0 and tri < scene.shapes.prim_base:
+                b = triangle_barycentrics(scene, tri, p)
+            m.reflectance = _attribute_at(scene, m.texture, tri, b)
+        else:
+            m.reflectance = texture_lookup(scene.textures, m.texture, uv)
     return m
 
 
@@ -618,18 +625,22 @@ class Scene:
                 raise InvalidValueError(f"mesh '{name}': attribute {key!r} must be finite with {rows} rows of 1 to 4 "
                                         f"values, got shape {a.shape}")
             attrs[key] = a
+        self._check_attributes(f"mesh '{name}'", material, attrs)
+        self.objects.append(_Object(name, vw, f.astype(np.int64), n, uv, int(material), e, motion, attributes=attrs))
+        return len(self.objects) - 1
+
+    def _check_attributes(self, what: str, material: int, attrs: dict[str, np.ndarray]) -> None:
+        """Every mesh attribute that ``material`` reads must be among ``attrs``, with 1 or 3 channels."""
         for tid in sorted(_texture_ids(self.materials[material])):
             tex = self.textures[tid] if 0 <= tid < len(self.textures) else None
             if isinstance(tex, MeshAttribute):
                 if tex.name not in attrs:
                     have = ", ".join(sorted(attrs)) or "none"
-                    raise InvalidParameterError(f"mesh '{name}': its material reads mesh attribute '{tex.name}', which the "
-                                                f"mesh does not have (its attributes: {have})")
+                    raise InvalidParameterError(f"{what}: its material reads mesh attribute '{tex.name}', which it does not "
+                                                f"have (its attributes: {have})")
                 if attrs[tex.name].shape[1] not in (1, 3):
-                    raise InvalidParameterError(f"mesh '{name}': attribute '{tex.name}' has {attrs[tex.name].shape[1]} channels; a "
+                    raise InvalidParameterError(f"{what}: attribute '{tex.name}' has {attrs[tex.name].shape[1]} channels; a "
                                                 f"mesh_attribute texture reads 1 (grey) or 3 (RGB), as Mitsuba's RGB variants do")
-        self.objects.append(_Object(name, vw, f.astype(np.int64), n, uv, int(material), e, motion, attributes=attrs))
-        return len(self.objects) - 1
 
     def add_shape(self, kind: str, *, material: int, to_world: Any = None, flip_normals: bool = False,
                   name: str | None = None) -> int:
@@ -640,6 +651,7 @@ class Scene:
         if kind not in SHAPE_KIND_NAMES:
             raise InvalidParameterError(f"shape '{name}': unknown analytic shape {kind!r} (known: {', '.join(SHAPE_KIND_NAMES)})")
         m = self._placement(f"shape '{name}'", material, to_world)
+        self._check_attributes(f"shape '{name}'", material, {})
         shape = AnalyticShape(SHAPE_KIND_NAMES[kind], m, bool(flip_normals))
         lo, hi = shape_bounds(shape)
         corners = np.array([[(lo, hi)[(c >> a) & 1][a] for a in range(3)] for c in range(8)])

@@ -94,6 +94,8 @@ CASES: dict[str, Case] = {
     "fov_axis_larger": Case(16, 16),
     "focal_length": Case(16, 16),
     "nested_transforms": Case(32, 16),
+    "instancing": Case(32, 16),
+    "mesh_attribute": Case(32, 16, block=4),  # faces of a few pixels: blocks small enough to see a face's colour
     "max_depth_1": Case(16, 16),
     "max_depth_2": Case(16, 16),
     "max_depth_4_rr_1": Case(32, 16),

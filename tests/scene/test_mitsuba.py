@@ -425,7 +425,7 @@ ERRORS = [
     (doc('<include filename="x.xml"/>'), 2, "include", "filename", "included file 'x.xml' not found"),
     (doc('<path value="no/such/folder"/>'), 2, "path", "value", "folder 'no/such/folder' not found"),
     (doc('<shape type="cube">\n<path value="."/></shape>'), 3, "path", None, "only allowed directly inside <scene>"),
-    (doc('<shape type="shapegroup"/>'), 2, "shape", "type", "unsupported shape type 'shapegroup'"),
+    (doc('<shape type="sdfgrid"/>'), 2, "shape", "type", "unsupported shape type 'sdfgrid'"),
     (doc('<shape type="cube">\n<bsdf type="pplastic"/>\n</shape>'), 3, "bsdf", "type", "pplastic"),  # plastic is supported; its polarized sibling is not
     (doc('<shape type="cube">\n<bsdf type="diffuse">\n<float name="foo" value="1"/></bsdf></shape>'), 4, "float", "foo", "unsupported parameter 'foo'"),
     (doc('<shape type="cube">\n<float name="radius" value="1"/></shape>'), 3, "float", "radius", "unsupported parameter"),
@@ -461,8 +461,8 @@ ERRORS = [
     (doc('<shape type="obj">\n<string name="filename" value="mesh.ply"/></shape>'), 3, "string", "filename", ".obj file"),
     (doc('<shape type="cube"><bsdf type="conductor">\n<texture type="bitmap" name="specular_reflectance">'
          '<string name="filename" value="t.png"/></texture></bsdf></shape>'), 3, "texture", "specular_reflectance", "textures are supported only"),
-    (doc('<shape type="cube"><bsdf type="diffuse">\n<texture type="mesh_attribute" name="reflectance"/></bsdf></shape>'),
-     3, "texture", "type", "mesh_attribute"),
+    (doc('<shape type="cube"><bsdf type="diffuse">\n<texture type="noise" name="reflectance"/></bsdf></shape>'),
+     3, "texture", "type", "unsupported texture type 'noise'"),
     (doc('<shape type="cube"><bsdf type="diffuse"><texture type="checkerboard" name="reflectance">\n<texture type="bitmap" name="color0">'
          '<string name="filename" value="t.png"/></texture></texture></bsdf></shape>'), 3, "texture", "color0", "textures are supported only"),
     (doc('<shape type="cube"><bsdf type="diffuse">\n<float name="reflectance" value="abc"/></bsdf></shape>'), 3, "float", "value", "cannot parse"),
