@@ -157,13 +157,13 @@ def test_kernel_loads_that_take_a_while_are_announced_on_a_terminal_only(monkeyp
     import sys as _sys
 
     import grisx.device as device
-    from grisx.render.pt import _scale
+    from grisx.render.pt import image_from_sum
 
     monkeypatch.setattr(device, "COMPILE_NOTICE_SECONDS", 0.0)  # every load counts as slow
     monkeypatch.setattr(_sys.stderr, "isatty", lambda: True)
-    device.load_kernels([_scale, _scale], "cpu", "pt (diffuse)")
+    device.load_kernels([image_from_sum, image_from_sum], "cpu", "pt (diffuse)")
     err = capsys.readouterr().err
     assert err.count("compiling kernels for pt (diffuse)") == 1
     monkeypatch.setattr(_sys.stderr, "isatty", lambda: False)
-    device.load_kernels([_scale], "cpu", "pt (diffuse)")
+    device.load_kernels([image_from_sum], "cpu", "pt (diffuse)")
     assert capsys.readouterr().err == ""

@@ -47,7 +47,7 @@ from grisx.theory.random import random_key, random_subkey
 
 wp.set_module_options({"enable_backward": False})
 
-__all__ = ["PathTracer", "make_path_tracer_kernel", "create_path_tracer", "variance_of_mean", "sample_key", "pixel_ray", "add_sample"]
+__all__ = ["PathTracer", "make_path_tracer_kernel", "create_path_tracer", "variance_of_mean", "sample_key", "pixel_ray", "add_sample", "image_from_sum"]
 
 
 
@@ -108,7 +108,8 @@ def add_sample(total: wp.array2d(dtype=wp.vec3d), total_sq: wp.array2d(dtype=wp.
 
 
 @wp.kernel
-def _scale(total: wp.array2d(dtype=wp.vec3d), s: wp.float64, out: wp.array2d(dtype=wp.vec3)):
+def image_from_sum(total: wp.array2d(dtype=wp.vec3d), s: wp.float64, out: wp.array2d(dtype=wp.vec3)):
+    """The float32 image ``s`` · ``total`` of a float64 per-pixel sum (s = 1/N: the mean of N samples)."""
     y, x = wp.tid()
     v = total[y, x] * s
     out[y, x] = wp.vec3(float(v[0]), float(v[1]), float(v[2]))
@@ -154,7 +155,7 @@ class PathTracer:
         self.samples = 0
 
     def kernels(self) -> list[Any]:
-        return [self.kernel, _scale]
+        return [self.kernel, image_from_sum]
 
     def reset(self) -> None:
         self.total.zero_()
@@ -190,7 +191,7 @@ class PathTracer:
                 self.add_samples(frame, self.spp)
         else:
             self.add_samples(frame, self.spp)
-        wp.launch(_scale, dim=self.total.shape, inputs=[self.total, wp.float64(1.0 / max(self.samples, 1))], outputs=[self.image], device=self.built.device)
+        wp.launch(image_from_sum, dim=self.total.shape, inputs=[self.total, wp.float64(1.0 / max(self.samples, 1))], outputs=[self.image], device=self.built.device)
         return self.image
 
     def mean(self) -> np.ndarray:

@@ -71,7 +71,7 @@ from grisx.errors import InvalidParameterError
 from grisx.params import Param
 from grisx.render.base.registry import RenderMethod, register, renderer_params
 from grisx.render.base.trace import PathRadiance, make_trace_path, no_first_hit
-from grisx.render.pt import PathTracer, _scale, add_sample, pixel_ray, sample_key
+from grisx.render.pt import PathTracer, image_from_sum, add_sample, pixel_ray, sample_key
 from grisx.scene.bsdf import make_bsdf
 from grisx.render.base.reuse import spatial_neighbor
 from grisx.scene.camera import CameraData, camera_project, camera_ray
@@ -523,7 +523,7 @@ class SMSRenderer(PathTracer):
         self.frames = 0
 
     def kernels(self) -> list[Any]:
-        return [self.kernels_["prior_pass"], self.kernels_["sample_pass"], _scale]
+        return [self.kernels_["prior_pass"], self.kernels_["sample_pass"], image_from_sum]
 
     def _timed(self, name: str) -> Any:
         return self.timer(name) if self.timer is not None else contextlib.nullcontext()
@@ -570,7 +570,7 @@ class SMSRenderer(PathTracer):
         self.reset()
         self.add_samples(frame, self.spp)
         self.frames += 1
-        wp.launch(_scale, dim=self.total.shape, inputs=[self.total, wp.float64(1.0 / max(self.samples, 1))], outputs=[self.image], device=self.built.device)
+        wp.launch(image_from_sum, dim=self.total.shape, inputs=[self.total, wp.float64(1.0 / max(self.samples, 1))], outputs=[self.image], device=self.built.device)
         return self.image
 
     def statistics(self) -> dict[str, float]:
@@ -608,7 +608,7 @@ class SMSReSTIR(SMSRenderer):
 
     def kernels(self) -> list[Any]:
         k = self.kernels_
-        return [k["prior_pass"], k["restir_initial"], k["restir_reuse"], k["restir_shade"], _scale]
+        return [k["prior_pass"], k["restir_initial"], k["restir_reuse"], k["restir_shade"], image_from_sum]
 
     def _reuse(self, frame: int, spatial: int, points_n: wp.array, src: int, nb: int, dst: int) -> None:
         cam_prev = self.built.camera_data(float(frame - 1), self.width, self.height)
@@ -651,7 +651,7 @@ class SMSReSTIR(SMSRenderer):
         self.history = True
         self.samples = 1
         self.frames += 1
-        wp.launch(_scale, dim=self.total.shape, inputs=[self.total, wp.float64(1.0)], outputs=[self.image], device=dev)
+        wp.launch(image_from_sum, dim=self.total.shape, inputs=[self.total, wp.float64(1.0)], outputs=[self.image], device=dev)
         return self.image
 
 
