@@ -92,7 +92,11 @@ Transforms ``<transform name="to_world">``
     (``to_world`` of the instance · ``to_world`` of the member; a mirroring instance keeps the members'
     front sides, as Mitsuba's ``instance.cpp``), at the cost of the members' vertices once per
     instance. ``sdfgrid`` and curves (``linearcurve``, ``bsplinecurve``) are refused (grisx intersects
-    triangles).
+    triangles). Under a mirroring ``to_world`` (det < 0) a shape's front side is Mitsuba's: where the
+    normals of a rectangle, a cube, a disk or a mesh with normals point (the winding is reversed to
+    agree, :func:`grisx.scene.shapes.finish_mesh`), the winding's side for a mesh without normals, and
+    inside out for a sphere or tube (``sphere.cpp``). A cube keeps its per-face normals with
+    ``face_normals``, as Mitsuba 3.9.1's does.
 ``bsdf``
     ``diffuse`` (``reflectance``: colour or ``bitmap`` texture [0.5]);
     ``conductor`` / ``roughconductor`` (``material`` [none] or ``eta``/``k``,
@@ -1112,8 +1116,11 @@ class _Loader:
                                      name=part.name)
             else:
                 mesh = part.mesh
-                if mesh is None:
+                if mesh is None:  # an emitting sphere, disk or tube, tessellated: a mirrored sphere or tube is inside out
+                    # (sphere.cpp, cylinder.cpp: as its winding), a disk's normal is to_world's inverse transpose of +z
                     mesh = {"sphere": shapes.sphere, "disk": shapes.disk, "cylinder": shapes.cylinder}[part.kind](flip_normals=part.flip_normals)
+                    if part.kind == "disk":
+                        mesh = shapes.finish_mesh(mesh, to_world=part.to_world)
                 self.scene.add_mesh(mesh.vertices, mesh.faces, material=part.material, normals=mesh.normals, uvs=mesh.uvs,
                                     emission=part.emission, to_world=part.to_world, name=part.name, attributes=mesh.attributes)
         except GrisxError as exc:
@@ -1127,12 +1134,12 @@ class _Loader:
         to_world = np.eye(4) if to_world is None else to_world
         flip = p.bool("flip_normals", False)
         try:
-            if t == "rectangle":
-                mesh = shapes.rectangle(flip_normals=flip)
-            elif t == "cube":  # a mesh in Mitsuba too, so it takes face_normals (its normals are per face anyway)
-                mesh = shapes.cube(flip_normals=flip)
-                if p.bool("face_normals", False):
-                    mesh = dataclasses.replace(mesh, normals=None)
+            # a mirroring to_world: the front side stays where the normals point (shapes.finish_mesh)
+            if t == "rectangle":  # rectangle.cpp: its normal is to_world's inverse transpose of +z, mirrored or not
+                mesh = shapes.finish_mesh(shapes.rectangle(flip_normals=flip), to_world=to_world)
+            elif t == "cube":  # a mesh in Mitsuba too: it takes face_normals, and keeps its (per-face) vertex normals
+                p.bool("face_normals", False)  # anyway (cube.cpp sets them; a mesh shades with them where it has them)
+                mesh = shapes.finish_mesh(shapes.cube(flip_normals=flip), to_world=to_world)
             elif t == "disk":
                 mesh = None  # analytic, or tessellated below if it emits
             elif t == "sphere":
@@ -1159,7 +1166,7 @@ class _Loader:
                 if index < 0:
                     raise self.ctx.error(p.values["shape_index"], f"shape_index must be >= 0, got {index}", "shape_index")
                 mesh = shapes.finish_mesh(load_serialized(self.ctx.resolve(filename), index),
-                                          face_normals=p.bool("face_normals", False), flip_normals=flip)
+                                          face_normals=p.bool("face_normals", False), flip_normals=flip, to_world=to_world)
             else:
                 filename = p.string("filename")
                 face_normals = p.bool("face_normals", False)
@@ -1168,7 +1175,7 @@ class _Loader:
                 if suffix != "." + t:
                     raise self.ctx.error(p.values["filename"], f"a <shape type=\"{t}\"> needs a .{t} file, got '{filename}'", "filename")
                 mesh = shapes.load_mesh(self.ctx.resolve(filename), face_normals=face_normals,
-                                        flip_normals=flip, flip_tex_coords=flip_tex)
+                                        flip_normals=flip, flip_tex_coords=flip_tex, to_world=to_world)
         except GrisxError as exc:
             if isinstance(exc, SceneFileError):
                 raise

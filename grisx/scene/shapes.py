@@ -549,13 +549,15 @@ def load_mesh(
     face_normals: bool = False,
     flip_normals: bool = False,
     flip_tex_coords: bool | None = None,
+    to_world: np.ndarray | None = None,
 ) -> MeshData:
     """Load an ``.obj`` or ``.ply`` mesh in object space (see module docstring).
 
     ``normals`` is the file's vertex normals, or Mitsuba's angle-weighted
     smooth normals when the file has none, or ``None`` with ``face_normals``.
     ``flip_tex_coords`` (v ← 1 − v) defaults to Mitsuba's per-format
-    default: ``True`` for OBJ, ``False`` for PLY.
+    default: ``True`` for OBJ, ``False`` for PLY. ``to_world``: the transform the
+    mesh will be placed with, where it mirrors (:func:`finish_mesh`).
     """
     path = Path(path)
     suffix = path.suffix.lower()
@@ -565,12 +567,21 @@ def load_mesh(
         mesh = load_ply(path, flip_tex_coords=bool(flip_tex_coords))
     else:
         raise _mesh_error(path, f"unknown mesh format '{suffix}' (expected .obj or .ply)")
-    return finish_mesh(mesh, face_normals, flip_normals)
+    return finish_mesh(mesh, face_normals, flip_normals, to_world)
 
 
-def finish_mesh(mesh: MeshData, face_normals: bool = False, flip_normals: bool = False) -> MeshData:
+def finish_mesh(mesh: MeshData, face_normals: bool = False, flip_normals: bool = False, to_world: np.ndarray | None = None) -> MeshData:
     """A file's mesh as Mitsuba renders it: face normals if asked, else the file's vertex normals or
-    Mitsuba's smooth ones where it has none; turned inside out with ``flip_normals``."""
+    Mitsuba's smooth ones where it has none; turned inside out with ``flip_normals``.
+
+    ``to_world``, where it mirrors (det < 0), decides the front side of a mesh that brings its own normals:
+    Mitsuba shades in the frame of the normals, mapped by ``to_world``'s inverse transpose, and its BSDFs
+    take the side they point to as the front, while the winding of the mapped vertices turns the other way
+    (Mitsuba ≥ 3.10 reverses the winding of such meshes explicitly, ``Mesh::flip_winding``); grisx's front
+    side is the winding's, so the winding is reversed here. A mesh without normals (or with
+    ``face_normals``) keeps the winding of its mapped vertices, whose normals Mitsuba computes from them."""
+    if to_world is not None and not face_normals and mesh.normals is not None and np.linalg.det(np.asarray(to_world)[:3, :3]) < 0:
+        mesh = dataclasses.replace(mesh, faces=mesh.faces[:, [0, 2, 1]].copy())
     if face_normals:
         mesh = dataclasses.replace(mesh, normals=None)
     elif mesh.normals is None:

@@ -95,6 +95,7 @@ CASES: dict[str, Case] = {
     "focal_length": Case(16, 16),
     "nested_transforms": Case(32, 16),
     "instancing": Case(32, 16),
+    "mirrored_meshes": Case(32, 16, block=4),
     "mesh_attribute": Case(32, 16, block=4),  # faces of a few pixels: blocks small enough to see a face's colour
     "max_depth_1": Case(16, 16),
     "max_depth_2": Case(16, 16),
@@ -238,3 +239,14 @@ def test_a_bitmap_without_its_to_uv_is_caught():
     scene.textures[:] = [t.image if isinstance(t, Bitmap) else t for t in scene.textures]
     result = agreement(scene, "checkerboard")
     assert not result.passed, f"a bitmap's to_uv ignored went unnoticed: {result}"
+
+
+def test_a_mirrored_mesh_shown_from_its_winding_side_is_caught():
+    """Under a mirroring to_world Mitsuba's front side is where a mesh's normals point, not where the winding
+    of its mirrored vertices does (the obj and the cube with face_normals shown from behind: black)."""
+    scene = load_mitsuba(SCENES / "mirrored_meshes.xml")
+    for i in (4, 5):  # cube5 (face_normals), obj6 (blob_nuv.obj)
+        o = scene.objects[i]
+        scene.objects[i] = dataclasses.replace(o, faces=o.faces[:, [0, 2, 1]].copy())
+    result = agreement(scene, "mirrored_meshes")
+    assert not result.passed, f"mirrored meshes seen from their winding's side went unnoticed: {result}"

@@ -249,7 +249,9 @@ def test_cube_face_normals_and_ply_flip_tex_coords():
                          f'<shape type="ply"><string name="filename" value="{DATA / "quad.ply"}"/>'
                          f'<boolean name="flip_tex_coords" value="true"/></shape>'))
     cube, quad = s.objects
-    assert cube.normals is None
+    # Mitsuba 3.9.1's cube sets its per-face vertex normals whatever face_normals says (they decide its front
+    # side under a mirroring to_world: conformance case mirrored_meshes)
+    np.testing.assert_allclose(cube.normals, shapes.cube().normals)
     np.testing.assert_allclose(quad.uvs[:, 1], [1, 1, 0, 0, 0.5])
 
 

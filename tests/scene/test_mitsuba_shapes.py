@@ -63,9 +63,8 @@ def _written_out(transforms) -> str:
     return "".join(m.format(t=_transform(ops + inst)) for inst in transforms for m, ops in MEMBERS)
 
 
-def _same_mesh(a, b, scene_a, scene_b, winding_reversed=False) -> None:
-    faces = b.faces[:, [0, 2, 1]] if winding_reversed else b.faces
-    np.testing.assert_array_equal(a.faces, faces)
+def _same_mesh(a, b, scene_a, scene_b) -> None:
+    np.testing.assert_array_equal(a.faces, b.faces)
     np.testing.assert_allclose(a.vertices, b.vertices, rtol=0, atol=1e-12)
     for x, y in ((a.normals, b.normals), (a.uvs, b.uvs)):
         assert (x is None) == (y is None)
@@ -98,11 +97,14 @@ def test_a_group_without_instances_adds_no_geometry_and_an_instance_may_come_fir
 
 def test_a_mirroring_instance_keeps_the_members_front_sides():
     """Mitsuba's ``instance.cpp`` maps a member's normals by M⁻ᵀ, so under a mirror (det M < 0) the front side
-    stays where the normals point; flattened vertices would turn it by winding, so the winding is reversed."""
+    stays where the normals point; flattened vertices would turn it by winding, so the winding is reversed
+    (as for these members written out with the mirror: each has normals, whose side is the front)."""
     instanced = load_mitsuba(doc(LIGHT + _group() + _instances([MIRROR])))
     explicit = load_mitsuba(doc(LIGHT + _written_out([MIRROR])))
-    for a, b in zip(instanced.objects, explicit.objects):
-        _same_mesh(a, b, instanced, explicit, winding_reversed=True)
+    plain = load_mitsuba(doc(LIGHT + _group() + _instances([""])))
+    for a, b, c in zip(instanced.objects, explicit.objects, plain.objects):
+        _same_mesh(a, b, instanced, explicit)
+        np.testing.assert_array_equal(a.faces, c.faces[:, [0, 2, 1]])
     rect = instanced.objects[1]  # the member rectangle: its winding's normal agrees with its (mirrored) normals again
     ng = shapes.face_normals_of(rect.vertices, rect.faces)
     assert np.all(np.einsum("ij,ij->i", ng, rect.normals[rect.faces[:, 0]]) > 0)
@@ -154,6 +156,24 @@ def test_shape_errors_name_the_element_and_line(body, line, element, message):
     err = info.value
     assert err.line == line and err.element == element, str(err)
     assert message in str(err) and "\n" not in str(err)
+
+
+# ---- mirroring transforms ----------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("face_normals", [False, True], ids=["own-normals", "face-normals"])
+def test_a_mirroring_to_world_keeps_a_meshs_front_where_its_normals_point(face_normals):
+    """Mitsuba shades a mesh in the frame of its normals (mapped by M⁻ᵀ): under a mirror (det M < 0) the winding
+    of the mapped vertices turns away from them, so grisx reverses it; a mesh without normals keeps its winding."""
+    fn = '<boolean name="face_normals" value="true"/>' if face_normals else ""
+    mirror, plain = '<scale x="-0.5" y="0.5" z="0.5"/>', '<scale x="0.5" y="0.5" z="0.5"/>'
+    body = "".join(f'<shape type="obj"><string name="filename" value="{BLOB}"/>{fn}{_transform(t)}</shape>' for t in (plain, mirror))
+    straight, mirrored = load_mitsuba(doc(LIGHT + body)).objects
+    reversed_ = not face_normals
+    np.testing.assert_array_equal(mirrored.faces, straight.faces[:, [0, 2, 1]] if reversed_ else straight.faces)
+    if not face_normals:  # the winding's normals agree with the mapped vertex normals again
+        ng = shapes.face_normals_of(mirrored.vertices, mirrored.faces)
+        assert np.mean(np.einsum("ij,ij->i", ng, mirrored.normals[mirrored.faces].mean(axis=1)) > 0) > 0.99
 
 
 # ---- mesh attributes ---------------------------------------------------------------------------
