@@ -99,7 +99,8 @@ Transforms ``<transform name="to_world">``
     ``face_normals``, as Mitsuba 3.9.1's does.
 ``bsdf``
     ``diffuse`` (``reflectance``: colour or ``bitmap`` texture [0.5]);
-    ``conductor`` / ``roughconductor`` (``material`` [none] or ``eta``/``k``,
+    ``conductor`` / ``roughconductor`` (``material`` [none]: any of Mitsuba's
+    71 ``data/ior`` presets, ``a-C`` to ``W``, in RGB as its rgb variants read them; or ``eta``/``k``,
     ``specular_reflectance``; rough: ``alpha`` [0.1], ``distribution``
     ``beckmann`` [default, as Mitsuba] or ``ggx``, ``sample_visible``);
     ``dielectric`` / ``roughdielectric`` (``int_ior`` [bk7], ``ext_ior`` [air]

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from grisx.scene import spectrum
-from grisx.scene.material import Conductor, Diffuse
+from grisx.scene.material import CONDUCTOR_PRESETS, Conductor, Diffuse, conductor_material
 from grisx.scene.mitsuba import load_mitsuba
 
 MD = Path(__file__).parent / "data" / "mitsuba_data"
@@ -63,6 +63,28 @@ def test_spd_files_as_mitsuba_reads_them():
     assert isinstance(m, Conductor)
     np.testing.assert_allclose(m.eta, [0.0798705, 0.404652, 1.55897], **TOL)
     np.testing.assert_allclose(m.k, [3.38675, 2.50071, 1.76891], **TOL)
+
+
+@pytest.mark.parametrize("name", ["Au", "a-C", "AlSb"])
+def test_named_conductors_are_mitsubas_ior_files_reduced_without_d65(name):
+    """``material="NAME"`` is data/ior/NAME.{eta,k}.spd reduced unbounded, without D65, negatives clamped (AlSb's red)."""
+    for got, part in zip(CONDUCTOR_PRESETS[name], ("eta", "k")):
+        w, v = spectrum.read_spd(MD / "ior" / f"{name}.{part}.spd")
+        np.testing.assert_allclose(got, spectrum.spectrum_list_to_srgb(w, v, bounded=False, d65=False), **TOL)
+    assert CONDUCTOR_PRESETS["AlSb"][0][0] == CONDUCTOR_PRESETS["AlSb"][1][0] == 0.0  # clamped, as Mitsuba's srgb texture clamps it
+    # eta = 0 is a mirror whatever k (Mitsuba's fresnel_conductor away from normal incidence): k = 1 as in 'none'
+    assert conductor_material("AlSb") == (CONDUCTOR_PRESETS["AlSb"][0], (1.0,) + CONDUCTOR_PRESETS["AlSb"][1][1:])
+
+
+def test_every_mitsuba_conductor_material_loads():
+    """All 71 materials of Mitsuba 3's data/ior, as conductor and roughconductor presets."""
+    names = [n for n in CONDUCTOR_PRESETS if n != "none"]
+    assert len(names) == 71
+    for name in names:
+        for plugin in ("conductor", "roughconductor"):
+            s = load_mitsuba(doc(f'<shape type="sphere"><bsdf type="{plugin}"><string name="material" value="{name}"/></bsdf></shape>'))
+            m = s.materials[s.objects[0].material]
+            assert (m.eta, m.k) == conductor_material(name), (plugin, name)
 
 
 @pytest.mark.parametrize("temperature, expected", [
