@@ -120,8 +120,8 @@ Transforms ``<transform name="to_world">``
 ``texture``
     ``bitmap``: ``filename`` (PNG/JPEG via pillow, 8-bit or 16-bit grey, sRGB-decoded
     to linear with the exact sRGB curve as Mitsuba does unless ``raw="true"``;
-    EXR via :func:`grisx.imageio.read_exr`, linear), ``filter_type`` bilinear,
-    ``wrap_mode`` repeat (Mitsuba's defaults; the only modes grisx samples).
+    EXR via :func:`grisx.imageio.read_exr`, linear), ``filter_type`` bilinear
+    [default] / nearest, ``wrap_mode`` repeat [default] / mirror / clamp (:mod:`grisx.scene.texture`).
     ``checkerboard``: ``color0`` [0.4], ``color1`` [0.2] (constant colours).
     Both take ``to_uv`` (a ``<transform>``; its x/y rows and translation make
     Mitsuba's 2D affine map). ``mesh_attribute``: ``name`` (``vertex_*``: blended
@@ -159,7 +159,7 @@ from grisx.scene.serialized import load_serialized
 from grisx.scene import transform as xf
 from grisx.scene.camera import Camera, lookat
 from grisx.scene.lights import ConstantEnvironment, EnvMap, load_envmap_image
-from grisx.scene.texture import Bitmap, Checkerboard, MeshAttribute
+from grisx.scene.texture import FILTER_TYPES, WRAP_MODES, Bitmap, Checkerboard, MeshAttribute
 from grisx.imageio import srgb_decode as srgb_to_linear
 from grisx.scene.material import (
     Conductor,
@@ -916,10 +916,11 @@ class _Loader:
         else:
             filename = p.string("filename")
             raw = p.bool("raw", False)
-            p.choice("filter_type", "bilinear", ("bilinear",), " — grisx textures are bilinear")
-            p.choice("wrap_mode", "repeat", ("repeat",), " — grisx textures wrap around")
+            filter_type = p.choice("filter_type", "bilinear", tuple(FILTER_TYPES))
+            wrap_mode = p.choice("wrap_mode", "repeat", tuple(WRAP_MODES))
             image = self.image(node, filename, raw)
-            tex = image if to_uv is None else Bitmap(image, to_uv=uv_map)
+            plain = to_uv is None and filter_type == "bilinear" and wrap_mode == "repeat"
+            tex = image if plain else Bitmap(image, to_uv=uv_map, wrap_mode=wrap_mode, filter_type=filter_type)
             name = node.attrs.get("id") or filename
         p.finish()
         tid = self.scene.add_texture(tex, name=name)

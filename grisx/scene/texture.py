@@ -1,4 +1,4 @@
-"""Albedo textures: one flat RGB atlas on the device, bilinear lookups with wrap-around.
+"""Albedo textures: one flat RGB atlas on the device, bilinear or nearest lookups, Mitsuba's wrap modes.
 
 Every texture registered on a :class:`~grisx.scene.scene.Scene` is packed
 into one ``wp.array(dtype=wp.vec3)`` with a :class:`TextureInfo` record
@@ -8,7 +8,12 @@ Mitsuba 3's meaning:
 
 * **bitmap** (a linear RGB image, :class:`Bitmap` or a bare array): texels
   row 0 at the top of the image; ``uv = (0, 0)`` is the top-left corner of
-  texel (0, 0), bilinear filter, ``repeat`` wrap mode;
+  texel (0, 0). ``filter_type``: ``bilinear`` (default; between the four texel
+  centres around ``uv · size − ½``) or ``nearest`` (the texel ``⌊uv · size⌋``);
+  ``wrap_mode`` maps a texel index outside the image back into it, as Dr.Jit's
+  ``Texture.wrap`` does for Mitsuba: ``repeat`` (default; index mod size),
+  ``mirror`` (period 2·size, every other copy flipped: …, 1, 0, 0, 1, …,
+  size−1, size−1, …) or ``clamp`` (the edge texel);
 * **checkerboard** (:class:`Checkerboard`): ``color0`` where the fractional
   parts of u and v are both above ½ or both at most ½, ``color1`` elsewhere
   (``checkerboard.cpp``).
@@ -41,21 +46,30 @@ from grisx.errors import InvalidValueError
 wp.set_module_options({"enable_backward": False})
 
 __all__ = ["Bitmap", "Checkerboard", "MeshAttribute", "AttributeTexels", "TextureInfo", "TextureSet", "texture_lookup",
-           "attribute_lookup", "pack_textures", "TEXTURE_BITMAP", "TEXTURE_CHECKERBOARD", "TEXTURE_MESH_ATTRIBUTE"]
+           "attribute_lookup", "pack_textures", "TEXTURE_BITMAP", "TEXTURE_CHECKERBOARD", "TEXTURE_MESH_ATTRIBUTE",
+           "WRAP_MODES", "FILTER_TYPES"]
 
 TEXTURE_BITMAP = wp.constant(0)
 TEXTURE_CHECKERBOARD = wp.constant(1)
 TEXTURE_MESH_ATTRIBUTE = wp.constant(2)
+#: Mitsuba's bitmap ``wrap_mode`` names → TextureInfo.wrap
+WRAP_MODES = {"repeat": 0, "mirror": 1, "clamp": 2}
+WRAP_MIRROR = wp.constant(1)
+WRAP_CLAMP = wp.constant(2)
+#: Mitsuba's bitmap ``filter_type`` names → TextureInfo.nearest
+FILTER_TYPES = {"bilinear": 0, "nearest": 1}
 #: the identity 2×3 uv map
 IDENTITY_UV = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0))
 
 
 @dataclasses.dataclass(frozen=True)
 class Bitmap:
-    """A linear RGB image (H, W, 3), looked up at ``to_uv · (u, v, 1)`` (2×3, rows)."""
+    """A linear RGB image (H, W, 3), looked up at ``to_uv · (u, v, 1)`` (2×3, rows); Mitsuba's ``wrap_mode`` and ``filter_type``."""
 
     image: np.ndarray
     to_uv: tuple[tuple[float, float, float], tuple[float, float, float]] = IDENTITY_UV
+    wrap_mode: str = "repeat"
+    filter_type: str = "bilinear"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -98,6 +112,8 @@ class TextureInfo:
     uv_row1: wp.vec3  # v' = row1 · (u, v, 1)
     color0: wp.vec3  # checkerboard colours
     color1: wp.vec3
+    wrap: int  # WRAP_MODES
+    nearest: int  # FILTER_TYPES
 
 
 @wp.struct
@@ -108,15 +124,28 @@ class TextureSet:
 
 
 @wp.func
+def _wrap(i: int, size: int, mode: int) -> int:
+    """A texel index in [0, size): Dr.Jit's ``Texture.wrap`` (repeat, mirror, clamp)."""
+    if mode == WRAP_CLAMP:
+        return wp.clamp(i, 0, size - 1)
+    if mode == WRAP_MIRROR:
+        m = ((i % (2 * size)) + 2 * size) % (2 * size)
+        if m >= size:
+            m = 2 * size - 1 - m
+        return m
+    return ((i % size) + size) % size
+
+
+@wp.func
 def _texel(ts: TextureSet, info: TextureInfo, x: int, y: int) -> wp.vec3:
-    xm = ((x % info.width) + info.width) % info.width
-    ym = ((y % info.height) + info.height) % info.height
+    xm = _wrap(x, info.width, info.wrap)
+    ym = _wrap(y, info.height, info.wrap)
     return ts.texels[info.offset + ym * info.width + xm]
 
 
 @wp.func
 def texture_lookup(ts: TextureSet, texture: int, uv_in: wp.vec2) -> wp.vec3:
-    """Texture ``texture`` at ``to_uv · uv``: a checkerboard's colour, or a bitmap's bilinear, wrap-around value."""
+    """Texture ``texture`` at ``to_uv · uv``: a checkerboard's colour, or a bitmap's bilinear (or nearest), wrapped value."""
     info = ts.info[texture]
     h = wp.vec3(uv_in[0], uv_in[1], 1.0)
     uv = wp.vec2(wp.dot(info.uv_row0, h), wp.dot(info.uv_row1, h))
@@ -126,6 +155,8 @@ def texture_lookup(ts: TextureSet, texture: int, uv_in: wp.vec2) -> wp.vec3:
         if upper_u == upper_v:
             return info.color0
         return info.color1
+    if info.nearest != 0:
+        return _texel(ts, info, int(wp.floor(uv[0] * float(info.width))), int(wp.floor(uv[1] * float(info.height))))
     x = uv[0] * float(info.width) - 0.5
     y = uv[1] * float(info.height) - 0.5
     x0 = wp.floor(x)
@@ -172,7 +203,7 @@ def pack_textures(textures: list, device: wp.context.Device) -> TextureSet:
             a = np.asarray(tex.values, dtype=np.float32).reshape(-1, 3)
             if not np.all(np.isfinite(a)) or np.any(a < 0):
                 raise InvalidValueError(f"texture {i}: mesh attribute values must be finite and non-negative")
-            infos.append((int(TEXTURE_MESH_ATTRIBUTE), offset, int(bool(tex.per_face)), len(a), np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3)))
+            infos.append((int(TEXTURE_MESH_ATTRIBUTE), offset, int(bool(tex.per_face)), len(a), np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3), 0, 0))
             chunks.append(a)
             offset += len(a)
             continue
@@ -181,9 +212,13 @@ def pack_textures(textures: list, device: wp.context.Device) -> TextureSet:
             if colours.shape != (2, 3) or not np.all(np.isfinite(colours)) or np.any(colours < 0):
                 raise InvalidValueError(f"texture {i}: checkerboard colours must be finite, non-negative RGB, got {tex.color0}, {tex.color1}")
             uv = _to_uv(tex.to_uv, i)
-            infos.append((int(TEXTURE_CHECKERBOARD), 0, 1, 1, uv[0], uv[1], colours[0], colours[1]))
+            infos.append((int(TEXTURE_CHECKERBOARD), 0, 1, 1, uv[0], uv[1], colours[0], colours[1], 0, 0))
             continue
         img, uv = (tex.image, _to_uv(tex.to_uv, i)) if isinstance(tex, Bitmap) else (tex, np.asarray(IDENTITY_UV))
+        wrap, filt = (tex.wrap_mode, tex.filter_type) if isinstance(tex, Bitmap) else ("repeat", "bilinear")
+        if wrap not in WRAP_MODES or filt not in FILTER_TYPES:
+            raise InvalidValueError(f"texture {i}: wrap_mode must be one of {sorted(WRAP_MODES)} and filter_type one of "
+                                    f"{sorted(FILTER_TYPES)}, got {wrap!r}, {filt!r}")
         a = np.asarray(img, dtype=np.float32)
         if a.ndim == 2:
             a = np.repeat(a[:, :, None], 3, axis=2)
@@ -192,18 +227,20 @@ def pack_textures(textures: list, device: wp.context.Device) -> TextureSet:
         a = a[:, :, :3]
         if not np.all(np.isfinite(a)) or np.any(a < 0):
             raise InvalidValueError(f"texture {i}: texels must be finite and non-negative")
-        infos.append((int(TEXTURE_BITMAP), offset, a.shape[1], a.shape[0], uv[0], uv[1], np.zeros(3), np.zeros(3)))
+        infos.append((int(TEXTURE_BITMAP), offset, a.shape[1], a.shape[0], uv[0], uv[1], np.zeros(3), np.zeros(3),
+                      WRAP_MODES[wrap], FILTER_TYPES[filt]))
         chunks.append(a.reshape(-1, 3))
         offset += a.shape[0] * a.shape[1]
     ts = TextureSet()
     data = np.concatenate(chunks) if chunks else np.zeros((1, 3), dtype=np.float32)
     ts.texels = wp.array(data, dtype=wp.vec3, device=device)
     records = []
-    for kind, off, w, hgt, row0, row1, c0, c1 in infos or [(int(TEXTURE_BITMAP), 0, 1, 1, (1, 0, 0), (0, 1, 0), (0, 0, 0), (0, 0, 0))]:
+    for kind, off, w, hgt, row0, row1, c0, c1, wrap_id, nearest in infos or [(int(TEXTURE_BITMAP), 0, 1, 1, (1, 0, 0), (0, 1, 0), (0, 0, 0), (0, 0, 0), 0, 0)]:
         t = TextureInfo()
         t.kind, t.offset, t.width, t.height = kind, off, w, hgt
         t.uv_row0, t.uv_row1 = wp.vec3(*map(float, row0)), wp.vec3(*map(float, row1))
         t.color0, t.color1 = wp.vec3(*map(float, c0)), wp.vec3(*map(float, c1))
+        t.wrap, t.nearest = wrap_id, nearest
         records.append(t)
     ts.info = wp.array(records, dtype=TextureInfo, device=device)
     ts.count = len(textures)

@@ -360,6 +360,25 @@ def test_bitmap_textures(tmp_path):
     np.testing.assert_allclose(s.textures[2], 0.25)
 
 
+def test_bitmap_wrap_mode_and_filter_type(tmp_path):
+    from grisx.imageio import write_exr
+
+    write_exr(tmp_path / "t.exr", np.full((2, 3, 3), 0.25, dtype=np.float32))
+
+    def texture(params: str):
+        (tmp_path / "s.xml").write_text(doc('<shape type="rectangle"><bsdf type="diffuse"><texture type="bitmap" name="reflectance">'
+                                            f'<string name="filename" value="t.exr"/>{params}</texture></bsdf></shape>'))
+        return load_mitsuba(tmp_path / "s.xml").textures[0]
+
+    assert isinstance(texture(""), np.ndarray)  # Mitsuba's defaults: repeat, bilinear
+    for wrap in ("repeat", "mirror", "clamp"):
+        for filt in ("bilinear", "nearest"):
+            t = texture(f'<string name="wrap_mode" value="{wrap}"/><string name="filter_type" value="{filt}"/>')
+            assert isinstance(t, np.ndarray) if (wrap, filt) == ("repeat", "bilinear") else (t.wrap_mode, t.filter_type) == (wrap, filt)
+    with pytest.raises(SceneFileError, match=r"s\.xml:2: <string name=\"wrap_mode\"> parameter 'wrap_mode' = 'border' is not supported \(supported: repeat, mirror, clamp\)"):
+        texture('<string name="wrap_mode" value="border"/>')
+
+
 def test_emitters(tmp_path):
     from grisx.imageio import write_exr
 
