@@ -36,6 +36,14 @@ per-pixel means and variances (pixels independent, as a path tracer's are),
 and the image mean and block means are z-tested, Šidák-corrected over a whole
 suite of scenes (``tests/conformance``).
 
+Mitsuba 3's own render-test suite (``src/render/tests/test_renders.py``, scenes and
+references in mitsuba-data ``tests/scenes``) has its own verdict, kept here as
+:func:`mitsuba_render_test` so that grisx is judged by exactly Mitsuba's rule: a
+budget of 2·10⁶ samples spread over the pixels, every pixel and XYZ channel
+z-tested against the 32k-spp reference and its variance image (floored at
+1e-4) at a Šidák-corrected 1% level, and the scene passes when at least
+99.75% of the pixels' channels pass.
+
 References: Z. Šidák, "Rectangular confidence regions for the means of
 multivariate normal distributions", JASA 62 (1967); W. Jakob et al., Mitsuba 3
 ``mitsuba.chi2``.
@@ -65,6 +73,9 @@ __all__ = [
     "sidak_threshold",
     "chi2_test",
     "image_agreement_test",
+    "MitsubaRenderTestResult",
+    "mitsuba_render_test",
+    "mitsuba_render_test_spp",
     "DEFAULT_K",
     "BIASED_K",
 ]
@@ -353,3 +364,84 @@ def image_agreement_test(
     blocks = check(block_means(a, block), block_means(b, block), se_a_blocks, se_b_blocks)
     mean = check(a.reshape(-1, c).mean(axis=0), b.reshape(-1, c).mean(axis=0), se_a, se_b)
     return ReuseTestResult(image=mean, blocks=blocks, runs=0)
+
+
+# ---- Mitsuba 3's render-test criterion --------------------------------------------------------
+
+#: Mitsuba's render tests: samples per scene, spread evenly over the pixels
+MITSUBA_SAMPLE_BUDGET = 2_000_000
+#: Mitsuba's render tests: family-wise significance level of one scene's pixel tests
+MITSUBA_SIGNIFICANCE = 0.01
+#: Mitsuba's render tests: the floor under the reference's per-pixel variance
+MITSUBA_VARIANCE_FLOOR = 1e-4
+#: Mitsuba's render tests: the fraction of pixels (channels counted, divided by 3) that must pass
+MITSUBA_PASS_FRACTION = 0.9975
+
+
+def mitsuba_render_test_spp(width: int, height: int) -> int:
+    """Samples per pixel of Mitsuba's render tests for a ``width``×``height`` film: ⌊2·10⁶ / pixels⌋."""
+    if width < 1 or height < 1:
+        raise InvalidParameterError(f"film size must be positive, got {width}x{height}")
+    return MITSUBA_SAMPLE_BUDGET // (width * height)
+
+
+@dataclasses.dataclass(frozen=True)
+class MitsubaRenderTestResult:
+    """Outcome of :func:`mitsuba_render_test`: per-value p-values (XYZ), the Šidák level, the pass fraction."""
+
+    p_value: np.ndarray
+    alpha: float
+    pass_fraction: float
+    passed: bool
+
+    @property
+    def min_p_value(self) -> float:
+        return float(np.min(self.p_value))
+
+    def __str__(self) -> str:
+        verdict = "pass" if self.passed else "FAIL"
+        return (f"{verdict}: {100.0 * self.pass_fraction:.2f}% of pixels pass (need {100.0 * MITSUBA_PASS_FRACTION:.2f}%), "
+                f"min p = {self.min_p_value:.3g}, level {self.alpha:.3g}")
+
+
+def mitsuba_render_test(
+    image: np.ndarray,
+    spp: int,
+    reference: np.ndarray,
+    reference_variance: np.ndarray,
+) -> MitsubaRenderTestResult:
+    """Mitsuba 3's render-test verdict on an ``image`` rendered at ``spp`` samples per pixel.
+
+    ``image``, ``reference`` and ``reference_variance`` are (H, W, 3) linear sRGB, as
+    mitsuba-data stores its ``*_ref_rgb.exr`` and ``*_ref_rgb_var.exr`` (the variance is the
+    per-pixel variance of *one sample*, so the image's variance is it divided by ``spp``).
+    As Mitsuba's ``test_render`` does, all three are converted to CIE XYZ with Mitsuba's
+    ``srgb_to_xyz`` matrix (the variance image too, linearly, as its Bitmap conversion does),
+    the variance is floored at 1e-4, and per pixel and channel
+
+        z = |image − reference| · √(spp / variance),   p = 2 (1 − Φ(z)),
+
+    is compared with the Šidák level α = 1 − (1 − 0.01)^(1/pixels); the scene passes when
+    (number of values with p > α) / 3 ≥ 0.9975 · pixels. ``spp`` is the image's sample count
+    (Mitsuba renders :func:`mitsuba_render_test_spp` samples). p-values are computed in float64
+    (Mitsuba computes them in float32, which rounds p below ~6e-8 to 0: the verdict can
+    differ only for a value within a hair of the level).
+    """
+    from grisx.scene.spectrum import SRGB_TO_XYZ
+
+    img, ref, var = (np.asarray(a, dtype=np.float64) for a in (image, reference, reference_variance))
+    if img.ndim != 3 or img.shape[-1] != 3 or not (img.shape == ref.shape == var.shape):
+        raise InvalidParameterError(f"mitsuba_render_test needs three (H, W, 3) RGB arrays of one shape, got {img.shape}, {ref.shape}, {var.shape}")
+    if spp < 1:
+        raise InvalidParameterError(f"spp must be >= 1, got {spp}")
+    for name, a in (("image", img), ("reference", ref), ("reference_variance", var)):
+        if not np.all(np.isfinite(a)):
+            raise InvalidValueError(f"{name} contains NaN or Inf")
+    img, ref, var = (a @ SRGB_TO_XYZ.T for a in (img, ref, var))
+    z = np.abs(img - ref) * np.sqrt(spp / np.maximum(var, MITSUBA_VARIANCE_FLOOR))
+    p_value = 2.0 * scipy.stats.norm.sf(z)
+    pixels = img.shape[0] * img.shape[1]
+    alpha = sidak_alpha(MITSUBA_SIGNIFICANCE, pixels)
+    fraction = np.count_nonzero(p_value > alpha) / 3 / pixels
+    return MitsubaRenderTestResult(p_value=p_value, alpha=alpha, pass_fraction=float(fraction),
+                                   passed=bool(fraction >= MITSUBA_PASS_FRACTION))

@@ -5,7 +5,8 @@ import pytest
 import scipy.stats
 
 from grisx.errors import InvalidValueError
-from grisx.testing import chi2_test, image_agreement_test, sidak_alpha, sidak_threshold, z_test
+from grisx.scene.spectrum import SRGB_TO_XYZ
+from grisx.testing import chi2_test, image_agreement_test, mitsuba_render_test, mitsuba_render_test_spp, sidak_alpha, sidak_threshold, z_test
 
 
 def test_z_test_hand_computed():
@@ -90,3 +91,32 @@ def test_image_agreement_test_passes_equal_means_and_catches_a_shift():
     assert not image_agreement_test(flat, zero, flat * 1.001, zero).passed
     # a larger family raises the threshold (Šidák)
     assert image_agreement_test(a, var, b, var, family=10_000).image.threshold > image_agreement_test(a, var, b, var).image.threshold
+
+
+def test_mitsuba_render_test_is_mitsubas_criterion():
+    """test_renders.py: spp = ⌊2e6 / pixels⌋, XYZ, variance floored at 1e-4, Šidák at 1%, ≥ 99.75% of pixels pass."""
+    assert mitsuba_render_test_spp(48, 48) == 868 and mitsuba_render_test_spp(200, 120) == 83
+    rng = np.random.default_rng(5)
+    h, w, spp = 48, 48, 868
+    ref = rng.uniform(0.1, 1.0, (h, w, 3))
+    var = rng.uniform(0.01, 0.5, (h, w, 3))  # per-sample variance, as mitsuba-data stores it
+    xyz_sd = np.sqrt(var @ SRGB_TO_XYZ.T / spp)  # Mitsuba converts the variance image linearly, as a colour
+
+    def image(noise_sd):
+        return ref + (rng.standard_normal(ref.shape) * noise_sd) @ np.linalg.inv(SRGB_TO_XYZ).T  # noise in XYZ
+
+    ok = mitsuba_render_test(image(xyz_sd), spp, ref, var)
+    assert ok.passed and ok.pass_fraction > 0.999, ok
+    assert ok.alpha == pytest.approx(1 - 0.99 ** (1 / (h * w)), rel=1e-9)
+    # the line: 0.25% of 2304 pixels = 5.76 pixels' worth of failing values (each counts 1/3): 17 values pass, 18 fail
+    img = image(xyz_sd * 0)
+    assert mitsuba_render_test(img, spp, ref, var).pass_fraction == 1.0
+    for n, passes in ((17, True), (18, False)):
+        offset = np.zeros((h * w, 3))
+        offset[:n, 1] = 10.0  # Y of n pixels, far off
+        result = mitsuba_render_test(img + (offset @ np.linalg.inv(SRGB_TO_XYZ).T).reshape(h, w, 3), spp, ref, var)
+        assert result.passed is passes and result.pass_fraction == pytest.approx(1 - n / 3 / (h * w)), (n, result)
+    # noise twice the reference's: many pixels beyond the Šidák level
+    assert not mitsuba_render_test(image(2 * xyz_sd), spp, ref, var).passed
+    # a zero variance image is floored at 1e-4: a difference of 1e-4 passes at 868 spp (z ≈ 2.9)
+    assert mitsuba_render_test(ref + 1e-4, spp, ref, np.zeros_like(ref)).passed

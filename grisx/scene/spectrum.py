@@ -46,7 +46,7 @@ import numpy as np
 
 from grisx.errors import GrisxError
 
-__all__ = ["CIE_MIN", "CIE_MAX", "XYZ_TO_SRGB", "cie_xyz", "cie_d65", "uniform_rgb", "spectrum_list_to_srgb",
+__all__ = ["CIE_MIN", "CIE_MAX", "XYZ_TO_SRGB", "SRGB_TO_XYZ", "cie_xyz", "cie_d65", "uniform_rgb", "spectrum_list_to_srgb",
            "blackbody_rgb", "read_spd"]
 
 CIE_MIN, CIE_MAX = 360.0, 830.0
@@ -55,6 +55,10 @@ CIE_Y_NORMALIZATION = 1.0 / 106.7502593994140625  # Mitsuba's MI_CIE_Y_NORMALIZA
 XYZ_TO_SRGB = np.array([[3.240479, -1.537150, -0.498535],
                         [-0.969256, 1.875991, 0.041556],
                         [0.055648, -0.204043, 1.057311]])
+#: CIE XYZ from linear sRGB: Mitsuba 3's ``srgb_to_xyz`` (and its Bitmap's RGB → XYZ conversion)
+SRGB_TO_XYZ = np.array([[0.412453, 0.357580, 0.180423],
+                        [0.212671, 0.715160, 0.072169],
+                        [0.019334, 0.119193, 0.950227]])
 
 #: x̄, ȳ, z̄ of the CIE 1931 2° observer and D65 (divided by 98.99741751876255) at 360, 365, ..., 830 nm
 _TABLE = np.array([
