@@ -70,6 +70,7 @@ __all__ = [
     "intersect_shapes",
     "shapes_occluded",
     "shape_surface",
+    "shape_normal_derivative",
 ]
 
 SHAPE_SPHERE = wp.constant(0)
@@ -285,3 +286,25 @@ def shape_surface(shapes: ShapeSet, k: int, o: wp.vec3, d: wp.vec3, t: float) ->
     out.n = wp.normalize(wp.transform_vector(wp.transpose(m), n)) * shapes.orientation[k]
     out.uv = uv
     return out
+
+
+@wp.func
+def shape_normal_derivative(shapes: ShapeSet, k: int, p: wp.vec3, n: wp.vec3, dp: wp.vec3) -> wp.vec3:
+    """∂n: how the unit normal ``n`` of shape ``k`` at surface point ``p`` turns when ``p`` moves by the tangent
+    displacement ``dp`` (the Weingarten map; exact, no differences): the object-space normal's change mapped by
+    the inverse transpose, with its component along ``n`` removed (n stays unit)."""
+    m = shapes.to_object[k]
+    dq = wp.transform_vector(m, dp)
+    kind = shapes.kind[k]
+    dn_obj = wp.vec3(0.0, 0.0, 0.0)  # the disk is flat
+    if kind == SHAPE_SPHERE:
+        dn_obj = dq  # n_obj = q on the unit sphere (dq ⟂ q)
+    elif kind == SHAPE_CYLINDER:
+        dn_obj = wp.vec3(dq[0], dq[1], 0.0)  # n_obj = (q_x, q_y, 0)
+    q = wp.transform_point(m, p)
+    n_obj = q
+    if kind == SHAPE_CYLINDER:
+        n_obj = wp.vec3(q[0], q[1], 0.0)
+    big_n = wp.transform_vector(wp.transpose(m), n_obj)  # the unnormalized world normal
+    dbig = wp.transform_vector(wp.transpose(m), dn_obj) * shapes.orientation[k]
+    return (dbig - n * wp.dot(n, dbig)) / wp.length(big_n)

@@ -28,11 +28,22 @@ from x₁, as footnote 2 recommends, so the map is continuous):
   the law of reflection/refraction with the bumped shading normal and the last
   segment reaches x_n). For the **environment** x_n is a sampled direction ω_n
   and C(u) is the last direction's tangential part about ω_n (its antipode is
-  refused), so |det ∂C/∂u| is per solid angle at ω_n. ∂C/∂u is taken by
-  central differences of the shot (step 1e-3 in U; one-sided within a step of
-  O's outline or of a chain-length change, so that no solution there is lost);
-  the walks are
-  :func:`grisx.theory.manifold.make_manifold_sampler`'s;
+  refused), so |det ∂C/∂u| is per solid angle at ω_n. A vertex with total
+  internal reflection has no canonical lobe: no chain;
+* **∂C/∂u from the same shot** (ray differentials, Igehy 1999): the shot
+  carries ∂/∂u₀ and ∂/∂u₁ of its point and direction — from the seed map,
+  onto each vertex's tangent plane (:func:`transfer_differential`), turned by
+  the law of reflection or refraction with the normal's own derivative
+  (:func:`scatter_differential`; the normal's derivative is the analytic
+  shape's Weingarten map, the interpolated mesh normal's through its
+  barycentrics, and the procedural bump's through its height field's Hessian:
+  :func:`~grisx.scene.scene.shading_normal_derivative`) — to the emitter
+  plane. A Newton step is then *one* shot, and the geometry term below is
+  exact. Where a normal is perturbed by something whose derivative is unknown
+  (a normal map), ∂C/∂u falls back to central differences of four more shots
+  (step 1e-3 in U; one-sided within a step of O's outline or of a chain-length
+  change, so that no solution there is lost). The walks are
+  :func:`grisx.theory.manifold.make_manifold_sampler`'s, given ``linearize``;
 * **generalized geometry term** (Jakob & Marschner 2012): a change of variables
   from ω₁ to the area of x_n, |∂ω₁/∂A(x_n)| = |∂ω₁/∂u| / |det ∂C/∂u| — for one
   flat mirror exactly cos θ_n / (ℓ₁ + ℓ₂)² of the mirrored light — so a solution
@@ -54,8 +65,7 @@ and directions outside the seed square stay with the path tracer; point lights
 are reached by neither through a delta chain.
 
 Simplifications (stated, not hidden): delta casters only (no offset manifolds
-for glossy casters, Sec. 5.3); a numerical (central-difference) Jacobian
-instead of Jakob's analytic one; the chain is shot from x₁ (a 2D Newton over
+for glossy casters, Sec. 5.3); the chain is shot from x₁ (a 2D Newton over
 the seed, not a Newton over all vertices at once), which is the paper's 2D
 sample-space view but converges less widely than a full manifold walk.
 """
@@ -74,9 +84,18 @@ from grisx.scene.bsdf import make_bsdf
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.material import MATERIAL_DIELECTRIC, Material
 from grisx.scene.lights import emitter_radiance, environment_eval
-from grisx.scene.scene import SceneData, SurfaceInteraction, intersect, occluded, segment_occluded, spawn_origin, surface_material
+from grisx.scene.scene import (
+    SceneData,
+    SurfaceInteraction,
+    intersect,
+    occluded,
+    segment_occluded,
+    shading_normal_derivative,
+    spawn_origin,
+    surface_material,
+)
 from grisx.theory.gris import luminance
-from grisx.theory.manifold import ManifoldSampler, make_manifold_sampler
+from grisx.theory.manifold import NEWTON_THRESHOLD, ManifoldLinearization, ManifoldSampler, make_manifold_sampler
 
 wp.set_module_options({"enable_backward": False})
 
@@ -97,6 +116,8 @@ __all__ = [
     "make_caustic_spec",
     "set_view",
     "solve_chains",
+    "transfer_differential",
+    "scatter_differential",
 ]
 
 #: the longest chain a walk solves (2: a slab's two refractions)
@@ -168,6 +189,8 @@ class CausticChain:
     throughput: wp.vec3  # Π weight · pdf of the canonical lobes
     seed_jacobian: float  # |∂ω₁/∂u|
     c: wp.vec2  # C(u) = q(u) − x_n in the emitter plane's frame
+    dc: wp.mat22  # ∂C/∂u carried along the shot (ray differentials), when ``exact``
+    exact: int  # 1: every vertex's normal has a known derivative (no bump), so ``dc`` is exact
 
 
 @wp.func
@@ -256,6 +279,34 @@ def canonical_lobe(m: Material, wo: wp.vec3, wi: wp.vec3) -> int:
     return 1
 
 
+# ---- ray differentials through a chain (∂/∂u of every vertex and direction) -------------------
+
+
+@wp.func
+def transfer_differential(dp: wp.vec3, dd: wp.vec3, d: wp.vec3, t: float, n: wp.vec3) -> wp.vec3:
+    """∂ of the point where the ray p + t·d meets the plane of normal ``n``, for the ray's differential
+    (∂p, ∂d): ∂t = −(∂p + t ∂d)·n / (d·n), ∂x = ∂p + t ∂d + ∂t d (Igehy 1999, Eq. 10)."""
+    a = dp + dd * t
+    return a - d * (wp.dot(a, n) / wp.dot(d, n))
+
+
+@wp.func
+def scatter_differential(d: wp.vec3, dd: wp.vec3, n: wp.vec3, dn: wp.vec3, d_out: wp.vec3, eta: float) -> wp.vec3:
+    """∂ω' of a delta vertex's outgoing direction ``d_out`` for incoming ``d`` (toward the vertex) and unit
+    normal ``n`` with differentials ∂d, ∂n. Reflection (``d_out`` on ``d``'s side): ω' = d − 2(d·n) n. Refraction
+    with η = ``eta`` (n_t / n_i, :class:`~grisx.scene.bsdf.BsdfSample`'s): ω' = d/η + μ n with μ = D' − D/η,
+    D = d·n, D' = ω'·n, D'² = 1 − (1 − D²)/η², so ∂D' = D ∂D / (η² D') (Igehy 1999, Eq. 14–16)."""
+    dot_d = wp.dot(d, n)
+    ddot = wp.dot(dd, n) + wp.dot(d, dn)
+    dot_out = wp.dot(d_out, n)
+    if dot_d * dot_out < 0.0:  # reflection: ω' leaves on the side the ray came from (d travels toward it)
+        return dd - (n * ddot + dn * dot_d) * 2.0
+    inv = 1.0 / eta
+    mu = dot_out - dot_d * inv
+    ddot_out = dot_d * ddot * inv * inv / dot_out
+    return dd * inv + n * (ddot_out - ddot * inv) + dn * mu
+
+
 # ---- the constraint over a scene's material kinds ---------------------------------------
 
 
@@ -263,8 +314,9 @@ def canonical_lobe(m: Material, wo: wp.vec3, wi: wp.vec3) -> int:
 class CausticFuncs:
     """The Warp functions of caustic chains for one set of material kinds (see :func:`make_caustics`).
 
-    ``shoot(spec, view, u) -> CausticChain``; ``constraint(spec, view, u) -> vec2`` (C);
-    ``jacobian(spec, view, u) -> mat22`` (∂C/∂u); ``geometry(spec, view, u) -> float``
+    ``shoot(spec, view, u) -> CausticChain`` (with C and its ray-differential ∂C/∂u);
+    ``constraint(spec, view, u) -> vec2`` (C); ``jacobian(spec, view, u) -> mat22`` (∂C/∂u);
+    ``geometry(spec, view, u) -> float``
     (|∂ω₁/∂A(x_n)|, 0 if singular); ``value(spec, view, u) -> vec3`` (f of Eq. 13) and
     ``target`` (p̂ = lum f); ``sms``: the :class:`~grisx.theory.manifold.ManifoldSampler`
     built over them (with ``reuse``: manifold-shift GRIS).
@@ -301,6 +353,14 @@ def _make_caustics(kinds: frozenset[int]) -> CausticFuncs:
         out.seed_jacobian = sd.jacobian
         d = sd.d
         o = spawn_origin(scene, x1, spec.x1_ng[view], d)
+        # ∂/∂u₀, ∂/∂u₁ of the ray (Igehy's ray differentials): x₁ is fixed; ω₁ = normalize(P(u) − x₁) with
+        # ∂P/∂u = 2s (t, b), so ∂ω₁ = (I − ω₁ω₁ᵀ) ∂P / ρ
+        rho = wp.length(sf.c + sf.t * (sf.half * (2.0 * u[0] - 1.0)) + sf.b * (sf.half * (2.0 * u[1] - 1.0)) - x1)
+        dp0 = wp.vec3(0.0, 0.0, 0.0)
+        dp1 = wp.vec3(0.0, 0.0, 0.0)
+        dd0 = (sf.t - d * wp.dot(d, sf.t)) * (2.0 * sf.half / rho)
+        dd1 = (sf.b - d * wp.dot(d, sf.b)) * (2.0 * sf.half / rho)
+        out.exact = 1
         beta = wp.vec3(1.0, 1.0, 1.0)
         for k in range(spec.chain_max):
             si = intersect(scene, o, d, 1.0e30)
@@ -314,10 +374,19 @@ def _make_caustics(kinds: frozenset[int]) -> CausticFuncs:
             frame = frame_from_normal(si.ns)
             wo = to_local(frame, -d)
             bs = bsdf.sample(m, wo, 1.0, wp.vec2(0.5, 0.5))  # u_lobe = 1: the canonical lobe
-            if bs.valid == 0:
-                return out
+            if bs.valid == 0 or bs.pdf <= 0.0:
+                return out  # no canonical lobe here (total internal reflection: refraction has probability 0)
             beta = wp.cw_mul(beta, bs.weight * bs.pdf)
-            d = wp.normalize(to_world(frame, bs.wi))
+            d_out = wp.normalize(to_world(frame, bs.wi))
+            # ---- the differentials through this vertex: onto its tangent plane, then the lobe's turn ----
+            dp0 = transfer_differential(dp0, dd0, d, si.t, si.ng)
+            dp1 = transfer_differential(dp1, dd1, d, si.t, si.ng)
+            dn0 = shading_normal_derivative(scene, si, dp0)
+            dn1 = shading_normal_derivative(scene, si, dp1)
+            out.exact = out.exact * int(dn0[3]) * int(dn1[3])
+            dd0 = scatter_differential(d, dd0, si.ns, wp.vec3(dn0[0], dn0[1], dn0[2]), d_out, bs.eta)
+            dd1 = scatter_differential(d, dd1, si.ns, wp.vec3(dn1[0], dn1[1], dn1[2]), d_out, bs.eta)
+            d = d_out
             o = spawn_origin(scene, si.p, si.ng, d)
             if k == 0:
                 out.first = si.p
@@ -334,6 +403,7 @@ def _make_caustics(kinds: frozenset[int]) -> CausticFuncs:
                 return out  # the antipode also has a zero tangential part: not a solution
             ef = frame_from_normal(xn)
             out.c = wp.vec2(wp.dot(d, ef.s), wp.dot(d, ef.t))
+            out.dc = wp.mat22(wp.dot(dd0, ef.s), wp.dot(dd1, ef.s), wp.dot(dd0, ef.t), wp.dot(dd1, ef.t))
             out.d_out = d
             out.throughput = beta
             out.valid = 1
@@ -348,6 +418,9 @@ def _make_caustics(kinds: frozenset[int]) -> CausticFuncs:
         lf = frame_from_normal(nn)
         e = out.last + d * t - xn
         out.c = wp.vec2(wp.dot(e, lf.s), wp.dot(e, lf.t))
+        de0 = transfer_differential(dp0, dd0, d, t, nn)
+        de1 = transfer_differential(dp1, dd1, d, t, nn)
+        out.dc = wp.mat22(wp.dot(de0, lf.s), wp.dot(de1, lf.s), wp.dot(de0, lf.t), wp.dot(de1, lf.t))
         out.d_out = d
         out.throughput = beta
         out.valid = 1
@@ -375,11 +448,16 @@ def _make_caustics(kinds: frozenset[int]) -> CausticFuncs:
         return wp.vec3(0.0, 0.0, 0.0)
 
     @wp.func
-    def jacobian(spec: CausticSpec, view: int, u: wp.vec2) -> wp.mat22:
-        h = JACOBIAN_STEP
-        center = shoot(spec, view, u)
+    def jacobian_of(spec: CausticSpec, view: int, u: wp.vec2, center: CausticChain) -> wp.mat22:
+        """∂C/∂u at ``u`` whose shot is ``center``: its ray differentials, or (where a bump perturbs a normal)
+        central differences of four more shots."""
         if center.valid == 0:
             return wp.mat22(0.0, 0.0, 0.0, 0.0)  # singular: the walk stops
+        if center.exact != 0:
+            if not (wp.isfinite(center.dc[0, 0]) and wp.isfinite(center.dc[0, 1]) and wp.isfinite(center.dc[1, 0]) and wp.isfinite(center.dc[1, 1])):
+                return wp.mat22(0.0, 0.0, 0.0, 0.0)  # a grazing vertex: singular, the walk stops
+            return center.dc
+        h = JACOBIAN_STEP
         d0 = _difference(center, shoot(spec, view, wp.vec2(u[0] + h, u[1])), shoot(spec, view, wp.vec2(u[0] - h, u[1])), h)
         d1 = _difference(center, shoot(spec, view, wp.vec2(u[0], u[1] + h)), shoot(spec, view, wp.vec2(u[0], u[1] - h)), h)
         if d0[2] == 0.0 or d1[2] == 0.0:
@@ -387,12 +465,29 @@ def _make_caustics(kinds: frozenset[int]) -> CausticFuncs:
         return wp.mat22(d0[0], d1[0], d0[1], d1[1])
 
     @wp.func
-    def geometry(spec: CausticSpec, view: int, u: wp.vec2) -> float:
+    def jacobian(spec: CausticSpec, view: int, u: wp.vec2) -> wp.mat22:
+        return jacobian_of(spec, view, u, shoot(spec, view, u))
+
+    @wp.func
+    def linearize(spec: CausticSpec, view: int, u: wp.vec2) -> ManifoldLinearization:
+        """C(u) and ∂C/∂u from one shot (its differentials), or C and, if a step needs it, differences."""
         ch = shoot(spec, view, u)
-        det = wp.abs(wp.determinant(jacobian(spec, view, u)))
+        out = ManifoldLinearization()
+        out.c = ch.c
+        if ch.exact != 0 or wp.length(ch.c) >= NEWTON_THRESHOLD:
+            out.jacobian = jacobian_of(spec, view, u, ch)
+        return out
+
+    @wp.func
+    def geometry_of(spec: CausticSpec, view: int, u: wp.vec2, ch: CausticChain) -> float:
+        det = wp.abs(wp.determinant(jacobian_of(spec, view, u, ch)))
         if ch.valid == 0 or not (det > 0.0):
             return 0.0
         return ch.seed_jacobian / det  # |∂ω₁/∂A(x_n)| = |∂ω₁/∂u| / |∂x_n/∂u|
+
+    @wp.func
+    def geometry(spec: CausticSpec, view: int, u: wp.vec2) -> float:
+        return geometry_of(spec, view, u, shoot(spec, view, u))
 
     @wp.func
     def value(spec: CausticSpec, view: int, u: wp.vec2) -> wp.vec3:
@@ -422,14 +517,14 @@ def _make_caustics(kinds: frozenset[int]) -> CausticFuncs:
         m = surface_material(spec.scene, x1)
         frame = frame_from_normal(x1.ns)
         f = bsdf.eval(m, to_local(frame, spec.x1_wo[view]), to_local(frame, ch.d1))
-        return wp.cw_mul(f, wp.cw_mul(ch.throughput, le)) * geometry(spec, view, u)
+        return wp.cw_mul(f, wp.cw_mul(ch.throughput, le)) * geometry_of(spec, view, u, ch)
 
     @wp.func
     def target(spec: CausticSpec, view: int, u: wp.vec2) -> float:
         """p̂ = lum f(x̂) (seed 003, Sec. 5.2)."""
         return luminance(value(spec, view, u))
 
-    sms = make_manifold_sampler(CausticSpec, constraint, jacobian, target)
+    sms = make_manifold_sampler(CausticSpec, constraint, jacobian, target, linearize)
 
     @wp.kernel
     def probe(
@@ -465,7 +560,7 @@ def _make_caustics(kinds: frozenset[int]) -> CausticFuncs:
         else:
             vertices[i, 4] = si.ns
             vertices[i, 5] = si.ng
-        vertices[i, 6] = wp.vec3(float(ch.length), float(ch.valid), 0.0)
+        vertices[i, 6] = wp.vec3(float(ch.length), float(ch.valid), float(ch.exact))
 
     return CausticFuncs(shoot, constraint, jacobian, geometry, value, target, sms, probe)
 
@@ -502,7 +597,8 @@ def solve_chains(
     """Manifold walks from ``seeds`` (n, 2) for n problems (x₁, its normal, x_n, its normal: (n, 3) each) on ``caster``.
 
     Returns the end ``u``, ``converged``, C(u), ∂C/∂u, |∂ω₁/∂A(x_n)| (``geometry``), and per walk
-    ``vertices`` (n, 7, 3): x₂, its shading and geometric normals, x_{k+1}, its normals, (k, valid, 0).
+    ``vertices`` (n, 7, 3): x₂, its shading and geometric normals, x_{k+1}, its normals, (k, valid, exact):
+    exact = 1 where ∂C/∂u came from the shot's ray differentials, 0 where from differences.
     ``light_tri`` < 0 makes x_n a direction of the environment. For tests and the tutorial (the
     renderers call the same functions in their kernels).
     """

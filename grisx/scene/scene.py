@@ -40,7 +40,17 @@ import warp as wp
 
 from grisx.device import resolve_device
 from grisx.errors import InvalidParameterError, InvalidValueError
-from grisx.scene.analytic import SHAPE_KIND_NAMES, AnalyticShape, ShapeSet, build_shape_set, intersect_shapes, shape_bounds, shape_surface, shapes_occluded
+from grisx.scene.analytic import (
+    SHAPE_KIND_NAMES,
+    AnalyticShape,
+    ShapeSet,
+    build_shape_set,
+    intersect_shapes,
+    shape_bounds,
+    shape_normal_derivative,
+    shape_surface,
+    shapes_occluded,
+)
 from grisx.scene.camera import Camera, CameraData, CameraPath
 from grisx.scene.lights import ConstantEnvironment, EnvMap, LightSample, LightSet, PointLight, build_light_set
 from grisx.scene.material import (
@@ -84,6 +94,7 @@ __all__ = [
     "surface_material_at",
     "triangle_barycentrics",
     "spawn_origin",
+    "shading_normal_derivative",
     "TRI_HAS_NORMALS",
     "TRI_HAS_UVS",
 ]
@@ -348,6 +359,89 @@ def intersect(scene: SceneData, o: wp.vec3, d: wp.vec3, tmax: float) -> SurfaceI
     si.ns = ns
     si.front = int(wp.dot(d, ng) < 0.0)
     return si
+
+
+@wp.func
+def _bump_hessian_times(p: wp.vec3, amplitude: float, frequency: float, v: wp.vec3) -> wp.vec3:
+    # H·v for the height field of _bump_gradient: ∂(∇h) along v (each term a_k cos(c f a_k·p) differentiates
+    # to −c f a_k (a_k·v) sin(c f a_k·p))
+    a1 = wp.vec3(0.8, 0.1, 0.59)
+    a2 = wp.vec3(-0.36, 0.2, 0.91)
+    a3 = wp.vec3(0.55, -0.6, -0.58)
+    f = frequency
+    h = (a1 * (wp.dot(a1, v) * wp.sin(f * wp.dot(a1, p))) + a2 * (wp.dot(a2, v) * wp.sin(f * wp.dot(a2, p)))
+         + a3 * (1.05 * 2.1 * wp.dot(a3, v) * wp.sin(2.1 * f * wp.dot(a3, p))))
+    return h * (-amplitude * f * f)
+
+
+@wp.func
+def perturb_normal_derivative(n: wp.vec3, dn: wp.vec3, p: wp.vec3, dp: wp.vec3, amplitude: float, frequency: float) -> wp.vec3:
+    """∂ of :func:`perturb_normal`'s n' = normalize(n − g_t), g_t = g − n(g·n), g = ∇h(p), for the base normal's
+    change ``dn`` and the point's ``dp``: ∂g = H ∂p (the height field's Hessian)."""
+    g = _bump_gradient(p, amplitude, frequency)
+    dg = _bump_hessian_times(p, amplitude, frequency, dp)
+    gn = wp.dot(g, n)
+    dg_t = dg - dn * gn - n * (wp.dot(dg, n) + wp.dot(g, dn))
+    m = n - (g - n * gn)
+    length = wp.length(m)
+    n_p = m / length
+    dm = dn - dg_t
+    return (dm - n_p * wp.dot(n_p, dm)) / length
+
+
+@wp.func
+def shading_normal_derivative(scene: SceneData, si: SurfaceInteraction, dp: wp.vec3) -> wp.vec4:
+    """∂n_s at hit ``si`` for the tangent displacement ``dp`` of its point, as (∂n_s, exact).
+
+    The normal :func:`intersect` shades with, differentiated the way it was built: the base normal (an
+    analytic shape's, :func:`~grisx.scene.analytic.shape_normal_derivative`; a triangle's interpolated vertex
+    normal through its barycentrics; a flat triangle's, constant), then a material's procedural bump
+    (:func:`perturb_normal_derivative`). A normal perturbed by anything else (a normal map) has a derivative
+    this does not know: w = 0 there, and the caller falls back to differences (grisx.scene.caustics).
+    """
+    zero = wp.vec4(0.0, 0.0, 0.0, 0.0)
+    n = si.ng
+    dn = wp.vec3(0.0, 0.0, 0.0)
+    if si.tri >= scene.shapes.prim_base and scene.shapes.count > 0:
+        dn = shape_normal_derivative(scene.shapes, si.tri - scene.shapes.prim_base, si.p, si.ng, dp)
+    elif (scene.tri_flags[si.tri] & TRI_HAS_NORMALS) != 0:
+        i0 = scene.indices[3 * si.tri + 0]
+        i1 = scene.indices[3 * si.tri + 1]
+        i2 = scene.indices[3 * si.tri + 2]
+        p2 = scene.positions[i2]
+        e0 = scene.positions[i0] - p2
+        e1 = scene.positions[i1] - p2
+        n2 = scene.normals[i2]
+        b0 = si.bary[0]
+        b1 = si.bary[1]
+        big_n = scene.normals[i0] * b0 + scene.normals[i1] * b1 + n2 * (1.0 - b0 - b1)
+        length = wp.length(big_n)
+        if length <= 1.0e-12:
+            return zero
+        n = big_n / length
+        # dp = ∂b₀ e₀ + ∂b₁ e₁ in the triangle's plane: the Gram system
+        g00 = wp.dot(e0, e0)
+        g01 = wp.dot(e0, e1)
+        g11 = wp.dot(e1, e1)
+        det = g00 * g11 - g01 * g01
+        if det <= 0.0:
+            return zero
+        r0 = wp.dot(e0, dp)
+        r1 = wp.dot(e1, dp)
+        db0 = (g11 * r0 - g01 * r1) / det
+        db1 = (g00 * r1 - g01 * r0) / det
+        dbig = (scene.normals[i0] - n2) * db0 + (scene.normals[i1] - n2) * db1
+        dn = (dbig - n * wp.dot(n, dbig)) / length
+    mat = scene.materials[si.material]
+    if mat.bump_amplitude > 0.0:
+        dn = perturb_normal_derivative(n, dn, si.p, dp, mat.bump_amplitude, mat.bump_frequency)
+        n = perturb_normal(n, si.p, mat.bump_amplitude, mat.bump_frequency)
+    c = wp.dot(n, si.ns)
+    if wp.abs(c) < 0.99999:
+        return zero  # n_s is not this normal: something else perturbed it
+    if c < 0.0:
+        dn = -dn  # n_s was turned to n_g's side
+    return wp.vec4(dn[0], dn[1], dn[2], 1.0)
 
 
 @wp.func

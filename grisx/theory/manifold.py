@@ -105,6 +105,7 @@ __all__ = [
     "SeedSpace",
     "ManifoldSampler",
     "make_manifold_sampler",
+    "ManifoldLinearization",
     "wrap_unit",
     "periodic_distance",
     "same_solution",
@@ -139,6 +140,14 @@ _SINGULAR = wp.constant(1.0e-12)
 
 
 # ---- records -------------------------------------------------------------------------
+
+
+@wp.struct
+class ManifoldLinearization:
+    """C(u) and, where a Newton step needs it (|C| ≥ the threshold), ∂C/∂u: what one walk step reads."""
+
+    c: wp.vec2
+    jacobian: wp.mat22
 
 
 @wp.struct
@@ -481,9 +490,23 @@ class ManifoldSampler:
     reuse: Any = None
 
 
-def make_manifold_sampler(spec_type: Any, constraint: Any, constraint_jacobian: Any, target: Any = None) -> ManifoldSampler:
+def make_manifold_sampler(
+    spec_type: Any, constraint: Any, constraint_jacobian: Any, target: Any = None, linearize: Any = None
+) -> ManifoldSampler:
     """Build the SMS functions for ``constraint(spec, view, u) -> vec2`` and its ∂C/∂u ``-> mat22``;
-    with ``target(spec, view, u) -> float`` (p̂ of solution u of a view, Eq. 13) also ``reuse``."""
+    with ``target(spec, view, u) -> float`` (p̂ of solution u of a view, Eq. 13) also ``reuse``.
+    ``linearize(spec, view, u) -> ManifoldLinearization`` gives both at once where a problem can (a chain
+    shot with its ray differentials: one shot per Newton step); by default C, then ∂C/∂u when a step needs it."""
+
+    if linearize is None:
+
+        @wp.func
+        def linearize(spec: spec_type, view: int, u: wp.vec2) -> ManifoldLinearization:
+            out = ManifoldLinearization()
+            out.c = constraint(spec, view, u)
+            if wp.length(out.c) >= NEWTON_THRESHOLD:
+                out.jacobian = constraint_jacobian(spec, view, u)
+            return out
 
     @wp.func
     def walk(spec: spec_type, view: int, u0: wp.vec2, tiles: int, max_iterations: int) -> ManifoldWalk:
@@ -496,14 +519,15 @@ def make_manifold_sampler(spec_type: Any, constraint: Any, constraint_jacobian: 
             center = tile_of(u0, tiles)
         u = u0
         for it in range(max_iterations + 1):
-            c = constraint(spec, view, u)
+            lin = linearize(spec, view, u)
+            c = lin.c
             if wp.length(c) < NEWTON_THRESHOLD:
                 out.u = u
                 out.converged = True
                 return out
             if it == max_iterations:
                 break
-            jac = constraint_jacobian(spec, view, u)
+            jac = lin.jacobian
             if wp.abs(wp.determinant(jac)) < _SINGULAR:
                 break
             u = wrap_unit(u - wp.inverse(jac) @ c)  # Newton step on the torus
