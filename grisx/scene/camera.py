@@ -38,6 +38,8 @@ wp.set_module_options({"enable_backward": False})
 __all__ = [
     "film_weight",
     "filter_reach",
+    "gaussian_filter_sample",
+    "tent_filter_sample",
     "Camera",
     "CameraPath",
     "CameraData",
@@ -126,6 +128,7 @@ class Camera:
         c.near_clip = float(self.near_clip)
         c.far_clip = float(self.far_clip)
         c.filter_stddev = 0.0  # the film's; set by BuiltScene.camera_data
+        c.filter_tent = 0.0
         return c
 
 
@@ -184,6 +187,7 @@ class CameraData:
     near_clip: float
     far_clip: float
     filter_stddev: float  # the film's reconstruction filter: 0 = box, else Mitsuba's gaussian (pixels)
+    filter_tent: float  # or, when > 0, Mitsuba's tent of this radius (pixels)
 
 
 @wp.struct
@@ -310,10 +314,44 @@ def gaussian_filter_sample(key: wp.uint32, x: int, y: int, width: int, height: i
 
 
 @wp.func
+def _tent_cdf(t: float, r: float) -> float:
+    """∫ from −r to t of (1 − |s|/r) ds, divided by r (the tent's integral): 0 at −r, ½ at 0, 1 at r."""
+    q = wp.clamp(t / r, -1.0, 1.0)
+    if q <= 0.0:
+        return 0.5 * (1.0 + q) * (1.0 + q)
+    return 1.0 - 0.5 * (1.0 - q) * (1.0 - q)
+
+
+@wp.func
+def sample_tent_offset(u: float, r: float, lo: float, hi: float) -> float:
+    """An offset t ∈ [lo, hi] ⊂ [−r, r] with density ∝ 1 − |t|/r there (inverse CDF of the truncated tent)."""
+    v = _tent_cdf(lo, r) + u * (_tent_cdf(hi, r) - _tent_cdf(lo, r))
+    t = r * (1.0 - wp.sqrt(wp.max(0.0, 2.0 * (1.0 - v))))
+    if v <= 0.5:
+        t = r * (wp.sqrt(wp.max(0.0, 2.0 * v)) - 1.0)
+    return wp.clamp(t, lo, hi)
+
+
+@wp.func
+def tent_filter_sample(key: wp.uint32, x: int, y: int, width: int, height: int, radius: float) -> wp.vec2:
+    """A film position for pixel (x, y) distributed as Mitsuba's ``tent`` filter f(t) = max(0, 1 − |t|/r) per axis
+    around its centre, restricted to the film (so the pixel estimates ∫ f·L / ∫ f over the film, as Mitsuba's
+    splatting film does; see :func:`gaussian_filter_sample`): per axis by the truncated tent's inverse CDF,
+    no rejection. Random counters 16 and 17 of ``key``."""
+    cx = float(x) + 0.5
+    cy = float(y) + 0.5
+    tx = sample_tent_offset(random_uniform(key, 16), radius, wp.max(-radius, -cx), wp.min(radius, float(width) - cx))
+    ty = sample_tent_offset(random_uniform(key, 17), radius, wp.max(-radius, -cy), wp.min(radius, float(height) - cy))
+    return wp.vec2(cx + tx, cy + ty)
+
+
+@wp.func
 def filter_reach(cam: CameraData) -> float:
-    """How far the pixel filter reaches from the pixel's centre: ½ (box) or r = 4σ (Mitsuba's gaussian)."""
+    """How far the pixel filter reaches from the pixel's centre: ½ (box), r = 4σ (Mitsuba's gaussian) or the tent's r."""
     if cam.filter_stddev > 0.0:
         return GAUSSIAN_RADIUS * cam.filter_stddev
+    if cam.filter_tent > 0.0:
+        return cam.filter_tent
     return 0.5
 
 
@@ -342,6 +380,14 @@ def film_weight(cam: CameraData, x: int, y: int, offset: wp.vec2) -> float:
     if px < 0.0 or py < 0.0 or px >= float(cam.width) or py >= float(cam.height):
         return 0.0  # Mitsuba's film takes samples from inside the film only
     sd = cam.filter_stddev
+    if cam.filter_tent > 0.0:
+        r = cam.filter_tent
+        cx = float(x) + 0.5
+        cy = float(y) + 0.5
+        w = wp.max(0.0, 1.0 - wp.abs(px - cx) / r) * wp.max(0.0, 1.0 - wp.abs(py - cy) / r)
+        zx = r * (_tent_cdf(wp.min(r, float(cam.width) - cx), r) - _tent_cdf(wp.max(-r, -cx), r))
+        zy = r * (_tent_cdf(wp.min(r, float(cam.height) - cy), r) - _tent_cdf(wp.max(-r, -cy), r))
+        return 4.0 * r * r * w / (zx * zy)
     if sd <= 0.0:
         return 1.0
     r = GAUSSIAN_RADIUS * sd
@@ -365,6 +411,8 @@ def sample_camera(cam: CameraData, key: wp.uint32, x: int, y: int, jitter: int) 
     if jitter != 0:
         if cam.filter_stddev > 0.0:
             s.pixel = gaussian_filter_sample(key, x, y, cam.width, cam.height, cam.filter_stddev)
+        elif cam.filter_tent > 0.0:
+            s.pixel = tent_filter_sample(key, x, y, cam.width, cam.height, cam.filter_tent)
         else:
             s.pixel = wp.vec2(float(x) + random_uniform(key, 0), float(y) + random_uniform(key, 1))
         s.lens = wp.vec2(random_uniform(key, 2), random_uniform(key, 3))

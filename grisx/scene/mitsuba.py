@@ -55,11 +55,12 @@ Transforms ``<transform name="to_world">``
 ``film``
     ``hdrfilm``: ``width`` [768], ``height`` [576]; ``pixel_format``,
     ``component_format``, ``file_format`` accepted, ignored (output encoding).
-    Nested ``rfilter``: ``box`` (each pixel averages its own area) or
+    Nested ``rfilter``: ``box`` (each pixel averages its own area),
     ``gaussian`` (``stddev`` [0.5], radius 4·stddev, Mitsuba's default when no
-    filter is given): camera rays are drawn from the filter around the pixel
+    filter is given) or ``tent`` (``radius`` [1]): camera rays are drawn from the filter around the pixel
     centre, so a pixel estimates what Mitsuba's splatting film converges to
-    (:func:`grisx.scene.camera.gaussian_filter_sample`). Other filters are errors.
+    (:func:`grisx.scene.camera.gaussian_filter_sample`, :func:`~grisx.scene.camera.tent_filter_sample`).
+    ``mitchell``, ``lanczos`` and ``catmullrom`` (negative lobes) are errors.
 ``sampler``
     ``independent``, ``stratified``, ``multijitter``, ``orthogonal``,
     ``ldsampler``: ``sample_count`` [4] → ``scene.defaults["spp"]``; ``seed``
@@ -326,8 +327,9 @@ _WHY_NOT = {
                     "participating media are not rendered by grisx (surfaces only)"),
     **dict.fromkeys(("stokes", "polarizer", "retarder"),
                     "polarization is not rendered by grisx (RGB radiance only)"),
-    **dict.fromkeys(("tent", "mitchell", "lanczos", "catmullrom"),
-                    "grisx films filter with box or gaussian only (another filter would change the camera kernels)"),
+    **dict.fromkeys(("mitchell", "lanczos", "catmullrom"),
+                    "grisx films filter with box, gaussian or tent only (a filter with negative lobes would need "
+                    "signed camera-sample weights in every renderer)"),
     "depth": "grisx integrators render radiance", "orthographic": "grisx cameras are perspective or thin-lens",
     "sdfgrid": "grisx intersects triangles (and Mitsuba's analytic shapes), not signed distance fields",
     **dict.fromkeys(("linearcurve", "bsplinecurve"), "grisx intersects triangles (and Mitsuba's analytic shapes), not curves"),
@@ -1337,18 +1339,21 @@ class _Loader:
         filters = p.take_objects(("rfilter",))
         if len(filters) > 1:
             raise self.ctx.error(filters[1], "a film takes one <rfilter>")
-        stddev = 0.5  # no <rfilter>: Mitsuba's default, a gaussian of standard deviation 0.5 px
+        stddev, tent = 0.5, 0.0  # no <rfilter>: Mitsuba's default, a gaussian of standard deviation 0.5 px
         if filters:
             f = self._deref(filters[0], "rfilter")
-            ft = self._require_type(f, ("box", "gaussian"))
+            ft = self._require_type(f, ("box", "gaussian", "tent"))
             fp = _Props(self, f)
             stddev = fp.float("stddev", 0.5) if ft == "gaussian" else 0.0
+            tent = fp.float("radius", 1.0) if ft == "tent" else 0.0
             fp.finish()
             if ft == "gaussian" and not (0 < stddev <= 64):
                 raise self.ctx.error(fp.values.get("stddev", f), f"stddev must be in (0, 64] pixels, got {stddev}", "stddev")
+            if ft == "tent" and not (0 < tent <= 64):
+                raise self.ctx.error(fp.values.get("radius", f), f"radius must be in (0, 64] pixels, got {tent}", "radius")
         p.finish()
         try:
-            self.scene.film = Film(width, height, filter_stddev=stddev)
+            self.scene.film = Film(width, height, filter_stddev=stddev, filter_tent=tent)
         except GrisxError as exc:
             raise self.ctx.error(node, str(exc)) from None
 

@@ -113,6 +113,7 @@ class Film:
     width: int = 256
     height: int = 256
     filter_stddev: float = 0.0  # reconstruction filter: 0 = box (the pixel's area), else Mitsuba's gaussian (pixels)
+    filter_tent: float = 0.0  # or, when > 0, Mitsuba's tent filter of this radius (pixels)
 
     def __post_init__(self) -> None:
         for name in ("width", "height"):
@@ -122,6 +123,11 @@ class Film:
         sd = self.filter_stddev
         if isinstance(sd, bool) or not isinstance(sd, (int, float, np.floating, np.integer)) or not (math.isfinite(sd) and 0 <= sd <= 64):
             raise InvalidParameterError(f"film filter_stddev must be 0 (box) or a gaussian's standard deviation in (0, 64] pixels, got {sd!r}")
+        r = self.filter_tent
+        if isinstance(r, bool) or not isinstance(r, (int, float, np.floating, np.integer)) or not (math.isfinite(r) and 0 <= r <= 64):
+            raise InvalidParameterError(f"film filter_tent must be 0 (none) or a tent filter's radius in (0, 64] pixels, got {r!r}")
+        if sd > 0 and r > 0:
+            raise InvalidParameterError(f"a film has one reconstruction filter: filter_stddev {sd} (gaussian) and filter_tent {r} both set")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -1096,4 +1102,5 @@ class BuiltScene:
     def camera_data(self, frame: float, width: int, height: int) -> CameraData:
         d = self.camera_at(frame).data(width, height)
         d.filter_stddev = float(self.film.filter_stddev)
+        d.filter_tent = float(self.film.filter_tent)
         return d

@@ -102,6 +102,7 @@ CASES: dict[str, Case] = {
     "max_depth_4_rr_1": Case(32, 16),
     "filter_gaussian_default": Case(32, 16, block=2),  # a filter moves energy between neighbouring pixels: small blocks
     "filter_gaussian_wide": Case(32, 16, block=2),
+    "filter_tent": Case(32, 16, block=2),
 }
 
 
@@ -172,6 +173,13 @@ def test_a_box_filter_is_caught_where_mitsuba_uses_its_default_gaussian():
     scene.film = dataclasses.replace(scene.film, filter_stddev=0.0)
     result = agreement(scene, "filter_gaussian_default")
     assert not result.passed, f"a box filter instead of Mitsuba's gaussian went unnoticed: {result}"
+
+
+def test_a_box_filter_is_caught_where_mitsuba_uses_a_tent():
+    scene = load_mitsuba(SCENES / "filter_tent.xml")
+    scene.film = dataclasses.replace(scene.film, filter_tent=0.0)
+    result = agreement(scene, "filter_tent")
+    assert not result.passed, f"a box filter instead of the file's tent went unnoticed: {result}"
 
 
 def test_ggx_is_caught_where_mitsuba_defaults_to_beckmann():

@@ -426,6 +426,16 @@ def test_gaussian_rfilter_is_accepted_as_box():
     assert s.film.width == 768
 
 
+def test_tent_rfilter():
+    def film(rfilter: str):
+        return load_mitsuba(doc(f'<shape type="cube"/><sensor type="perspective"><film type="hdrfilm">{rfilter}</film></sensor>')).film
+
+    f = film('<rfilter type="tent"/>')
+    assert (f.filter_tent, f.filter_stddev) == (1.0, 0.0)  # Mitsuba's default radius
+    assert film('<rfilter type="tent"><float name="radius" value="1.25"/></rfilter>').filter_tent == 1.25
+    assert (film("").filter_stddev, film("").filter_tent) == (0.5, 0.0)  # no filter: Mitsuba's gaussian
+
+
 def test_mitsuba_0x_names_are_upgraded():
     s = load_mitsuba('<scene version="0.6.0"><shape type="rectangle"><boolean name="flipNormals" value="true"/>'
                      '<transform name="toWorld"><translate x="1"/></transform>'
@@ -468,7 +478,9 @@ ERRORS = [
          '<float name="temperature" value="3000"/></spectrum></bsdf></shape>'), 3, "spectrum", "type", "emission spectrum"),
     (doc('<shape type="cube"><emitter type="area">\n<spectrum type="blackbody" name="radiance">'
          '<float name="temperature" value="-3"/></spectrum></emitter></shape>'), 3, "spectrum", None, "positive temperature"),
-    (doc('<sensor type="perspective"><film type="hdrfilm">\n<rfilter type="tent"/></film></sensor>'), 3, "rfilter", "type", "tent"),
+    (doc('<sensor type="perspective"><film type="hdrfilm">\n<rfilter type="lanczos"/></film></sensor>'), 3, "rfilter", "type", "lanczos"),
+    (doc('<sensor type="perspective"><film type="hdrfilm"><rfilter type="tent">\n<float name="radius" value="0"/></rfilter></film></sensor>'),
+     3, "float", "radius", "radius must be in (0, 64]"),
     (doc('<integrator type="stokes"><integrator type="path"/></integrator>'), 2, "integrator", "type", "polarization"),
     (doc('<integrator type="moment"/>'), 2, "integrator", None, "exactly one nested integrator"),
     (doc('<sensor type="orthographic"/>'), 2, "sensor", "type", "orthographic"),
@@ -666,5 +678,5 @@ def test_mitsuba_0x_files_srgb_colours_and_lookAt():
 
 def test_reconstruction_filters_without_a_film_hook_are_refused_with_the_reason():
     with pytest.raises(SceneFileError, match=r"<string>:3: <rfilter type=\"mitchell\"> unsupported rfilter type 'mitchell': "
-                                             r"grisx films filter with box or gaussian only"):
+                                             r"grisx films filter with box, gaussian or tent only \(a filter with negative lobes"):
         load_mitsuba(doc('<sensor type="perspective"><film type="hdrfilm">\n<rfilter type="mitchell"/></film></sensor>'))
