@@ -54,7 +54,8 @@ Transforms ``<transform name="to_world">``
     Nested ``film`` and ``sampler``. At most one sensor.
 ``film``
     ``hdrfilm``: ``width`` [768], ``height`` [576]; ``pixel_format``,
-    ``component_format``, ``file_format`` accepted, ignored (output encoding).
+    ``component_format``, ``file_format`` accepted, ignored (output encoding), and
+    ``banner`` (Mitsuba 3 ignores it too).
     Nested ``rfilter``: ``box`` (each pixel averages its own area),
     ``gaussian`` (``stddev`` [0.5], radius 4·stddev, Mitsuba's default when no
     filter is given) or ``tent`` (``radius`` [1]): camera rays are drawn from the filter around the pixel
@@ -1336,6 +1337,8 @@ class _Loader:
         for ignored in ("pixel_format", "component_format", "file_format"):
             if p.has(ignored):
                 p.string(ignored)  # output encoding only
+        if p.has("banner"):
+            p.bool("banner", False)  # Mitsuba 0.x's logo in the output file; Mitsuba 3 ignores it too ("no banner in Mitsuba 3")
         filters = p.take_objects(("rfilter",))
         if len(filters) > 1:
             raise self.ctx.error(filters[1], "a film takes one <rfilter>")

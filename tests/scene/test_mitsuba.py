@@ -434,6 +434,7 @@ def test_tent_rfilter():
     assert (f.filter_tent, f.filter_stddev) == (1.0, 0.0)  # Mitsuba's default radius
     assert film('<rfilter type="tent"><float name="radius" value="1.25"/></rfilter>').filter_tent == 1.25
     assert (film("").filter_stddev, film("").filter_tent) == (0.5, 0.0)  # no filter: Mitsuba's gaussian
+    assert film('<boolean name="banner" value="false"/>').width == 768  # accepted, ignored, as by Mitsuba 3
 
 
 def test_mitsuba_0x_names_are_upgraded():
