@@ -92,6 +92,8 @@ __all__ = [
     "finite_or_dropped",
     "surface_material",
     "surface_material_at",
+    "surface_texture",
+    "stored_surface",
     "triangle_barycentrics",
     "spawn_origin",
     "shading_normal_derivative",
@@ -533,43 +535,50 @@ def triangle_barycentrics(scene: SceneData, tri: int, p: wp.vec3) -> wp.vec3:
 
 
 @wp.func
-def _attribute_at(scene: SceneData, texture: int, tri: int, b: wp.vec3) -> wp.vec3:
-    """Mesh-attribute texture ``texture`` at barycentrics ``b`` of primitive ``tri`` (0 off the triangles: the
-    loader gives attribute textures to meshes only)."""
-    if tri < 0 or tri >= scene.shapes.prim_base:
-        return wp.vec3(0.0, 0.0, 0.0)
-    corners = wp.vec3i(scene.indices[3 * tri + 0], scene.indices[3 * tri + 1], scene.indices[3 * tri + 2])
-    return attribute_lookup(scene.textures, texture, tri, corners, b)
+def surface_texture(scene: SceneData, texture: int, si: SurfaceInteraction) -> wp.vec3:
+    """Texture ``texture`` at surface point ``si``, whatever its kind: a bitmap or checkerboard at ``si.uv``, a mesh
+    attribute at the triangle ``si.tri`` and barycentrics ``si.bary`` (0 off the triangles: the loader gives
+    attribute textures to meshes only). Every texture slot of a material resolves through this one function."""
+    if scene.textures.info[texture].kind == TEXTURE_MESH_ATTRIBUTE:
+        tri = si.tri
+        if tri < 0 or tri >= scene.shapes.prim_base:
+            return wp.vec3(0.0, 0.0, 0.0)
+        corners = wp.vec3i(scene.indices[3 * tri + 0], scene.indices[3 * tri + 1], scene.indices[3 * tri + 2])
+        return attribute_lookup(scene.textures, texture, tri, corners, wp.vec3(si.bary[0], si.bary[1], 1.0 - si.bary[0] - si.bary[1]))
+    return texture_lookup(scene.textures, texture, si.uv)
+
+
+@wp.func
+def stored_surface(scene: SceneData, material: int, uv: wp.vec2, tri: int, p: wp.vec3) -> SurfaceInteraction:
+    """A surface point kept by a renderer (material id, uv, primitive, position ``p`` on it) as the record
+    :func:`surface_material` reads: its barycentrics recomputed from ``p`` on a triangle (mesh attributes need
+    them), as :func:`intersect` gave them at the hit."""
+    si = SurfaceInteraction()
+    si.valid = 1
+    si.material = material
+    si.uv = uv
+    si.tri = tri
+    si.p = p
+    si.bary = wp.vec2(1.0, 0.0)
+    if tri >= 0 and tri < scene.shapes.prim_base:
+        b = triangle_barycentrics(scene, tri, p)
+        si.bary = wp.vec2(b[0], b[1])
+    return si
 
 
 @wp.func
 def surface_material(scene: SceneData, si: SurfaceInteraction) -> Material:
-    """The material at ``si`` with its texture (if any) resolved into ``reflectance``: looked up at ``si.uv``, or a
-    mesh attribute at the hit's triangle and barycentrics."""
+    """The material at ``si`` with its texture (if any) resolved into ``reflectance`` (:func:`surface_texture`)."""
     m = scene.materials[si.material]
     if m.texture >= 0:
-        if scene.textures.info[m.texture].kind == TEXTURE_MESH_ATTRIBUTE:
-            b = wp.vec3(si.bary[0], si.bary[1], 1.0 - si.bary[0] - si.bary[1])
-            m.reflectance = _attribute_at(scene, m.texture, si.tri, b)
-        else:
-            m.reflectance = texture_lookup(scene.textures, m.texture, si.uv)
+        m.reflectance = surface_texture(scene, m.texture, si)
     return m
 
 
 @wp.func
 def surface_material_at(scene: SceneData, material: int, uv: wp.vec2, tri: int, p: wp.vec3) -> Material:
-    """The material of a stored surface point (material id, uv, primitive, position ``p`` on it) with its
-    texture resolved, as :func:`surface_material` resolves it at the hit (barycentrics recomputed from ``p``)."""
-    m = scene.materials[material]
-    if m.texture >= 0:
-        if scene.textures.info[m.texture].kind == TEXTURE_MESH_ATTRIBUTE:
-            b = wp.vec3(1.0, 0.0, 0.0)
-            if tri >= 0 and tri < scene.shapes.prim_base:
-                b = triangle_barycentrics(scene, tri, p)
-            m.reflectance = _attribute_at(scene, m.texture, tri, b)
-        else:
-            m.reflectance = texture_lookup(scene.textures, m.texture, uv)
-    return m
+    """The material of a stored surface point (:func:`stored_surface`) with its texture resolved, as at the hit."""
+    return surface_material(scene, stored_surface(scene, material, uv, tri, p))
 
 
 @wp.kernel
