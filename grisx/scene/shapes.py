@@ -45,9 +45,9 @@ Mitsuba's ``obj.cpp`` exactly (vertices are unique ``v/vt/vn`` index triples,
 so UV and normal seams are kept; polygons are fan-triangulated; texture ``v``
 is flipped, ``v ← 1 − v``, Mitsuba's default ``flip_tex_coords=true``), and
 PLY with ``trimesh`` (``process=False``: no merging or reordering), taking
-vertex normals (``nx, ny, nz``) and texture coordinates (``u, v``, ``s, t``,
-``texture_u, texture_v`` or ``texture_s, texture_t``) from the file as they
-are (Mitsuba's ``ply`` has ``flip_tex_coords`` too, default false). When a file has no normals, smooth normals are computed with Mitsuba's
+vertex normals (``nx, ny, nz``) and texture coordinates (``u, v``, else
+``texture_u, texture_v``, else ``s, t``: Mitsuba's order; ``texture_s, texture_t``
+are not uvs to Mitsuba) from the file as they are (Mitsuba's ``ply`` has ``flip_tex_coords`` too, default false). When a file has no normals, smooth normals are computed with Mitsuba's
 weighting (face normals weighted by the corner angle; Thürmer & Wüthrich
 1998), unless ``face_normals=True``, which drops normals altogether (faceted
 shading, Mitsuba's ``face_normals``). A PLY file's other vertex and face properties become Mitsuba's
@@ -389,7 +389,7 @@ def load_obj(path: str | os.PathLike, flip_tex_coords: bool = True) -> MeshData:
     return MeshData(vertices, np.asarray(tris, dtype=np.int64), normals, uvs)
 
 
-_PLY_UV_NAMES = (("u", "v"), ("s", "t"), ("texture_u", "texture_v"), ("texture_s", "texture_t"))
+_PLY_UV_NAMES = (("u", "v"), ("texture_u", "texture_v"), ("s", "t"))  # ply.cpp's order
 
 
 def _ply_used_vertices(face_data: Any) -> np.ndarray | None:

@@ -226,6 +226,23 @@ def test_ply_files_bring_their_attributes(tmp_path, binary):
         np.testing.assert_allclose(mesh.attributes[name], values, rtol=1e-6)
 
 
+def test_ply_uvs_are_read_under_mitsubas_names_only(tmp_path):
+    """u, v, else texture_u, texture_v, else s, t (ply.cpp); Mitsuba 3.9.1 reads texture_s, texture_t as no uvs."""
+    def ply(names: str) -> Path:
+        path = tmp_path / f"{names.replace(' ', '_')}.ply"
+        header = ["ply", "format ascii 1.0", "element vertex 3", *(f"property float {p}" for p in ["x", "y", "z", *names.split()]),
+                  "element face 1", "property list uchar int vertex_indices", "end_header"]
+        cols = len(names.split())
+        rows = [" ".join(["0 0 0", *(f"0.{k}{c}" for c in range(cols))]) for k in range(1, 4)]
+        rows = [r.replace("0 0 0", p, 1) for r, p in zip(rows, ("0 0 0", "1 0 0", "0 1 0"))]
+        path.write_text("\n".join(header + rows + ["3 0 1 2"]) + "\n")
+        return path
+
+    assert shapes.load_ply(ply("texture_s texture_t")).uvs is None
+    np.testing.assert_allclose(shapes.load_ply(ply("s t texture_u texture_v")).uvs[:, 0], [0.12, 0.22, 0.32])
+    np.testing.assert_allclose(shapes.load_ply(ply("s t")).uvs[:, 1], [0.11, 0.21, 0.31])
+
+
 def _attribute_doc(name: str, filename: Path = ATTRIBUTES, extra: str = "", bsdf: str = "diffuse", param: str = "reflectance") -> str:
     return doc(f'{LIGHT}<shape type="ply"><string name="filename" value="{filename}"/><bsdf type="{bsdf}">\n'
                f'<texture type="mesh_attribute" name="{param}"><string name="name" value="{name}"/>{extra}</texture></bsdf></shape>')
