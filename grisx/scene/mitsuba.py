@@ -93,8 +93,10 @@ Transforms ``<transform name="to_world">``
     to a group, ``to_world``): each instance is flattened into world-space meshes at load time
     (``to_world`` of the instance · ``to_world`` of the member; a mirroring instance keeps the members'
     front sides, as Mitsuba's ``instance.cpp``), at the cost of the members' vertices once per
-    instance. ``sdfgrid`` and curves (``linearcurve``, ``bsplinecurve``) are refused (grisx intersects
-    triangles). Under a mirroring ``to_world`` (det < 0) a shape's front side is Mitsuba's: where the
+    instance. ``sdfgrid`` (``filename``: a ``.vol`` grid, ``normals`` smooth [default] or analytic) is
+    read as a fine triangle mesh of its zero set with Mitsuba's shading normals (:mod:`grisx.scene.sdfgrid`:
+    within 0.006 voxels of Mitsuba's surface, no uv, no emission); curves (``linearcurve``, ``bsplinecurve``) are refused
+    (grisx intersects triangles). Under a mirroring ``to_world`` (det < 0) a shape's front side is Mitsuba's: where the
     normals of a rectangle, a cube, a disk or a mesh with normals point (the winding is reversed to
     agree, :func:`grisx.scene.shapes.finish_mesh`), the winding's side for a mesh without normals, and
     inside out for a sphere or tube (``sphere.cpp``). A cube keeps its per-face normals with
@@ -158,6 +160,7 @@ import numpy as np
 from grisx.errors import GrisxError, GrisxWarning, SceneFileError
 from grisx.scene import shapes, spectrum
 from grisx.scene.serialized import load_serialized
+from grisx.scene.sdfgrid import read_vol, sdfgrid_mesh
 from grisx.scene import transform as xf
 from grisx.scene.camera import Camera, lookat
 from grisx.scene.lights import ConstantEnvironment, EnvMap, load_envmap_image
@@ -332,7 +335,6 @@ _WHY_NOT = {
                     "grisx films filter with box, gaussian or tent only (a filter with negative lobes would need "
                     "signed camera-sample weights in every renderer)"),
     "depth": "grisx integrators render radiance", "orthographic": "grisx cameras are perspective or thin-lens",
-    "sdfgrid": "grisx intersects triangles (and Mitsuba's analytic shapes), not signed distance fields",
     **dict.fromkeys(("linearcurve", "bsplinecurve"), "grisx intersects triangles (and Mitsuba's analytic shapes), not curves"),
 }
 
@@ -801,7 +803,7 @@ class _Props:
 # ---- the loader --------------------------------------------------------------------
 
 _SAMPLERS = ("independent", "stratified", "multijitter", "orthogonal", "ldsampler")
-_SHAPES = ("obj", "ply", "serialized", "rectangle", "cube", "sphere", "disk", "cylinder", "shapegroup", "instance")
+_SHAPES = ("obj", "ply", "serialized", "rectangle", "cube", "sphere", "disk", "cylinder", "sdfgrid", "shapegroup", "instance")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -831,6 +833,7 @@ class _Loader:
         self.shape_count = 0
         self.instance_count = 0
         self.groups: dict[int, list[_ShapePart]] = {}  # id(shapegroup node) -> its members
+        self.sdf_meshes: dict[tuple[str, str], shapes.MeshData] = {}  # (grid file, normals) -> its mesh
         self.area_emitters_used: set[int] = set()  # id(node) of area emitters attached to a shape
         self.sensor_seen: _Node | None = None
         self.environment_seen: _Node | None = None
@@ -1165,6 +1168,14 @@ class _Loader:
                 # cylinder.cpp: to_world · translate(p0) · to_frame(Frame3f(d / |d|)) · scale(radius, radius, |d|)
                 to_world = to_world @ xf.translate(p0) @ xf.to_frame((p1 - p0) / length) @ xf.scale((radius, radius, length))
                 mesh = None
+            elif t == "sdfgrid":  # a fine mesh of the grid's zero set (grisx.scene.sdfgrid); no uv, no emission
+                if flip:
+                    raise self.ctx.error(p.values["flip_normals"], "Mitsuba's sdfgrid takes no flip_normals", "flip_normals")
+                normals = p.choice("normals", "smooth", ("smooth", "analytic"))
+                key = (str(self.ctx.resolve(p.string("filename"))), normals)
+                if key not in self.sdf_meshes:  # a grid used twice is tessellated once
+                    self.sdf_meshes[key] = sdfgrid_mesh(read_vol(key[0]), normals)
+                mesh = shapes.finish_mesh(self.sdf_meshes[key], to_world=to_world)
             elif t == "serialized":
                 filename = p.string("filename")
                 index = p.int("shape_index", 0)
@@ -1192,6 +1203,8 @@ class _Loader:
         emitters = p.take_objects(("emitter",))
         if len(emitters) > 1:
             raise self.ctx.error(emitters[1], "a shape takes one emitter")
+        if emitters and t == "sdfgrid":
+            raise self.ctx.error(emitters[0], "an sdfgrid cannot be an area emitter (as in Mitsuba)")
         if emitters:
             em = self._deref(emitters[0], "emitter")  # nested, or a top-level area emitter by reference
             if id(em) in self.area_emitters_used:

@@ -145,8 +145,8 @@ def test_instanced_spheres_disks_and_tubes_stay_analytic_with_mitsubas_orientati
         ('<shape type="shapegroup" id="g"/>', 2, 'shape type="shapegroup" id="g"', "empty shapegroup"),
         ('<shape type="cube" id="c"/>\n<shape type="instance"/>', 3, 'shape type="instance"', "exactly one <ref> to a shapegroup"),
         ('<shape type="cube" id="c"/>\n<shape type="instance"><ref id="c"/></shape>', 3, 'ref id="c"', "takes a shapegroup, not a shape of type 'cube'"),
-        ('<shape type="shapegroup" id="g">\n<shape type="sdfgrid"><string name="filename" value="torus.vol"/></shape></shape>',
-         3, 'shape type="sdfgrid"', "unsupported shape type 'sdfgrid': grisx intersects triangles"),
+        ('<shape type="shapegroup" id="g">\n<shape type="linearcurve"><string name="filename" value="curve.txt"/></shape></shape>',
+         3, 'shape type="linearcurve"', "unsupported shape type 'linearcurve': grisx intersects triangles"),
         ('<shape type="bsplinecurve"/>', 2, 'shape type="bsplinecurve"', "not curves"),
     ],
 )
