@@ -93,12 +93,12 @@ from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.gbuffer import GBuffer, gbuffer_kernel
 from grisx.scene.lights import (
     LightSample,
+    delta_light_arrival,
     emitter_radiance,
     environment_eval,
     environment_pdf,
     light_pdf_emitter,
     luminance,
-    point_light_intensity,
     sample_light,
 )
 from grisx.render.base.reuse import (
@@ -252,6 +252,13 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
         dist = float(1.0e30)
         if lp.kind == LIGHT_ENV:
             le = environment_eval(scene.lights, wi)
+        elif lp.kind == LIGHT_POINT:
+            a = delta_light_arrival(scene.lights, lp.index, si.p)  # I(−wi) / d², or a directional light's E
+            if a.dist <= 0.0:
+                return e
+            wi = a.wi
+            dist = a.dist
+            le = a.radiance
         else:
             d = lp.p - si.p
             dist_sq = wp.dot(d, d)
@@ -259,16 +266,12 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
                 return e
             dist = wp.sqrt(dist_sq)
             wi = d / dist
-            if lp.kind == LIGHT_TRIANGLE:
-                cos_light = -wp.dot(lp.n, wi)
-                if cos_light <= 0.0:
-                    return e
-                le = emitter_radiance(scene.lights, lp.index, lp.n, -wi)
-                e.cos_light = cos_light
-                g = cos_light / dist_sq  # area measure: dω = |cos θ_y| dA / d²
-            else:
-                le = point_light_intensity(scene.lights, lp.index, -wi)
-                g = 1.0 / dist_sq
+            cos_light = -wp.dot(lp.n, wi)
+            if cos_light <= 0.0:
+                return e
+            le = emitter_radiance(scene.lights, lp.index, lp.n, -wi)
+            e.cos_light = cos_light
+            g = cos_light / dist_sq  # area measure: dω = |cos θ_y| dA / d²
         m = surface_material(scene, si)
         frame = frame_from_normal(si.ns)
         f = bsdf.eval(m, to_local(frame, wo), to_local(frame, wi))

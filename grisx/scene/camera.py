@@ -1,4 +1,4 @@
-"""Cameras: Mitsuba's perspective sensor, thin lens, keyframed paths, and reprojection.
+"""Cameras: Mitsuba's perspective sensor, thin lens, orthographic sensor, keyframed paths, and reprojection.
 
 A camera is a frame ``to_world`` (camera → world, 4×4) and a field of view.
 grisx follows Mitsuba 3's ``perspective`` sensor exactly, so a scene file
@@ -14,6 +14,12 @@ renders the same framing in both:
 
 A thin lens (``aperture_radius > 0``) samples the lens disk concentrically
 and focuses at ``focus_distance`` (Mitsuba's ``thinlens``).
+
+An orthographic camera (Mitsuba's ``orthographic``) shoots parallel rays
+along its +z from the film point ``((1 − 2 sx), (1 − 2 sy)/aspect, near_clip)``
+of camera space (aspect = width / height); ``to_world`` may scale that film
+(Mitsuba files do, ``<scale x="1.5" y="1.5"/>``), and world points project
+back by dropping z instead of dividing by it.
 
 :func:`camera_project` is the inverse of :func:`camera_ray` for pinhole
 cameras: it maps a world point to continuous pixel coordinates, which is what
@@ -53,9 +59,11 @@ __all__ = [
     "camera_sample_key",
     "sample_camera",
     "FOV_AXES",
+    "tan_half_fov",
 ]
 
 FOV_AXES = ("x", "y", "diagonal", "smaller", "larger")
+PROJECTIONS = ("perspective", "orthographic")
 
 
 def lookat(origin: Sequence[float], target: Sequence[float], up: Sequence[float]) -> np.ndarray:
@@ -75,9 +83,34 @@ def lookat(origin: Sequence[float], target: Sequence[float], up: Sequence[float]
     return m
 
 
+def tan_half_fov(fov: float, fov_axis: str, width: int, height: int) -> tuple[float, float]:
+    """(tan(fov_x/2), tan(fov_y/2)) of a perspective film of ``width``×``height`` whose ``fov`` (degrees)
+    measures ``fov_axis`` (Mitsuba's rules; a projector's image follows them too)."""
+    if fov_axis not in FOV_AXES:
+        raise InvalidParameterError(f"fov_axis must be one of {', '.join(FOV_AXES)}, got {fov_axis!r}")
+    if not (0.0 < float(fov) < 180.0):
+        raise InvalidParameterError(f"fov must be in (0, 180) degrees, got {fov}")
+    aspect = width / height
+    t = math.tan(math.radians(fov) / 2)
+    axis = fov_axis
+    if axis == "smaller":
+        axis = "x" if width <= height else "y"
+    elif axis == "larger":
+        axis = "x" if width >= height else "y"
+    if axis == "x":
+        return t, t / aspect
+    if axis == "y":
+        return t * aspect, t
+    # diagonal: t is the half-diagonal tangent
+    diag = math.hypot(aspect, 1.0)
+    return t * aspect / diag, t / diag
+
+
 @dataclasses.dataclass
 class Camera:
-    """A perspective camera as Mitsuba's ``perspective``/``thinlens`` sensor describes it."""
+    """A camera as Mitsuba's ``perspective``/``thinlens`` sensor describes it, or with ``projection="orthographic"``
+    its ``orthographic`` sensor (``fov`` unused: the film spans [−1, 1] × [−1/aspect, 1/aspect] of the camera's
+    x and y, scaled by ``to_world``)."""
 
     to_world: np.ndarray = dataclasses.field(default_factory=lambda: np.eye(4))
     fov: float = 39.3077
@@ -86,6 +119,7 @@ class Camera:
     far_clip: float = 1e4
     aperture_radius: float = 0.0
     focus_distance: float = 0.0
+    projection: str = "perspective"
 
     def __post_init__(self) -> None:
         self.to_world = np.asarray(self.to_world, dtype=np.float64).reshape(4, 4)
@@ -97,27 +131,21 @@ class Camera:
             raise InvalidParameterError(f"camera fov_axis must be one of {', '.join(FOV_AXES)}, got {self.fov_axis!r}")
         if self.aperture_radius < 0 or (self.aperture_radius > 0 and self.focus_distance <= 0):
             raise InvalidParameterError("thin lens needs aperture_radius >= 0 and a positive focus_distance")
+        if self.projection not in PROJECTIONS:
+            raise InvalidParameterError(f"camera projection must be one of {', '.join(PROJECTIONS)}, got {self.projection!r}")
+        if self.projection == "orthographic" and self.aperture_radius > 0:
+            raise InvalidParameterError("an orthographic camera has no lens (aperture_radius must be 0)")
 
     def tan_half_fov(self, width: int, height: int) -> tuple[float, float]:
         """(tan(fov_x/2), tan(fov_y/2)) for a film of ``width``×``height`` (Mitsuba's fov_axis rules)."""
-        aspect = width / height
-        t = math.tan(math.radians(self.fov) / 2)
-        axis = self.fov_axis
-        if axis == "smaller":
-            axis = "x" if width <= height else "y"
-        elif axis == "larger":
-            axis = "x" if width >= height else "y"
-        if axis == "x":
-            return t, t / aspect
-        if axis == "y":
-            return t * aspect, t
-        # diagonal: t is the half-diagonal tangent
-        diag = math.hypot(aspect, 1.0)
-        return t * aspect / diag, t / diag
+        return tan_half_fov(self.fov, self.fov_axis, width, height)
 
     def data(self, width: int, height: int) -> CameraData:
-        tx, ty = self.tan_half_fov(width, height)
+        orthographic = self.projection == "orthographic"
+        # orthographic.cpp: the film spans x ∈ [−1, 1], y ∈ [−1/aspect, 1/aspect] on the near plane (camera space)
+        tx, ty = (1.0, height / width) if orthographic else self.tan_half_fov(width, height)
         c = CameraData()
+        c.orthographic = int(orthographic)
         c.to_world = wp.mat44(*self.to_world.astype(np.float32).ravel())
         c.to_camera = wp.mat44(*np.linalg.inv(self.to_world).astype(np.float32).ravel())
         c.tan_half = wp.vec2(tx, ty)
@@ -179,7 +207,8 @@ class CameraPath:
 class CameraData:
     to_world: wp.mat44  # camera → world
     to_camera: wp.mat44  # world → camera
-    tan_half: wp.vec2  # tan(fov_x/2), tan(fov_y/2)
+    tan_half: wp.vec2  # tan(fov_x/2), tan(fov_y/2); orthographic: the film's half extents (1, 1/aspect)
+    orthographic: int  # 1: parallel rays from the near plane (Mitsuba's orthographic sensor)
     width: int
     height: int
     aperture_radius: float
@@ -224,17 +253,23 @@ def _concentric_disk(u: wp.vec2) -> wp.vec2:
 
 @wp.func
 def camera_ray(cam: CameraData, px: float, py: float, u_lens: wp.vec2) -> CameraRay:
-    """The primary ray through continuous pixel position (px, py) (Mitsuba's perspective/thinlens)."""
+    """The primary ray through continuous pixel position (px, py) (Mitsuba's perspective/thinlens; orthographic: from
+    the film point on the near plane along the camera's +z)."""
     sx = px / float(cam.width)
     sy = py / float(cam.height)
-    d_cam = wp.vec3((1.0 - 2.0 * sx) * cam.tan_half[0], (1.0 - 2.0 * sy) * cam.tan_half[1], 1.0)
+    film = wp.vec2((1.0 - 2.0 * sx) * cam.tan_half[0], (1.0 - 2.0 * sy) * cam.tan_half[1])
+    r = CameraRay()
+    if cam.orthographic != 0:
+        r.o = wp.transform_point(cam.to_world, wp.vec3(film[0], film[1], cam.near_clip))
+        r.d = wp.normalize(wp.transform_vector(cam.to_world, wp.vec3(0.0, 0.0, 1.0)))
+        return r
+    d_cam = wp.vec3(film[0], film[1], 1.0)
     o_cam = wp.vec3(0.0, 0.0, 0.0)
     if cam.aperture_radius > 0.0:
         lens = cam.aperture_radius * _concentric_disk(u_lens)
         focus = d_cam * cam.focus_distance
         o_cam = wp.vec3(lens[0], lens[1], 0.0)
         d_cam = focus - o_cam
-    r = CameraRay()
     r.o = wp.transform_point(cam.to_world, o_cam)
     r.d = wp.normalize(wp.transform_vector(cam.to_world, d_cam))
     return r
@@ -421,17 +456,23 @@ def sample_camera(cam: CameraData, key: wp.uint32, x: int, y: int, jitter: int) 
 
 @wp.func
 def camera_project(cam: CameraData, p: wp.vec3) -> PixelProjection:
-    """Continuous pixel coordinates of world point ``p`` (inverse of the pinhole ``camera_ray``)."""
+    """Continuous pixel coordinates of world point ``p`` (inverse of the pinhole or orthographic ``camera_ray``)."""
     q = wp.transform_point(cam.to_camera, p)
     out = PixelProjection()
     out.depth = q[2]
     out.valid = 0
     out.inside = 0
-    if q[2] <= 1.0e-8:
-        return out
+    film = wp.vec2(q[0], q[1])
+    if cam.orthographic != 0:
+        if q[2] < cam.near_clip:  # behind the near plane the rays start from
+            return out
+    else:
+        if q[2] <= 1.0e-8:
+            return out
+        film = film / q[2]
     out.valid = 1
-    sx = 0.5 * (1.0 - q[0] / (q[2] * cam.tan_half[0]))
-    sy = 0.5 * (1.0 - q[1] / (q[2] * cam.tan_half[1]))
+    sx = 0.5 * (1.0 - film[0] / cam.tan_half[0])
+    sy = 0.5 * (1.0 - film[1] / cam.tan_half[1])
     out.pixel = wp.vec2(sx * float(cam.width), sy * float(cam.height))
     if sx >= 0.0 and sx < 1.0 and sy >= 0.0 and sy < 1.0:
         out.inside = 1

@@ -16,9 +16,9 @@ Light selection
     radiance L emits Φ = π A lum(L) (one-sided Lambertian); a point light of
     intensity I emits 4π lum(I); an environment of radiance L(ω) delivers
     Φ = π R² ∫ lum(L) dω through the scene's bounding sphere of radius R
-    (pbrt-v4's estimate). ``lum`` is Mitsuba's luminance
+    (pbrt-v4's estimate); delta lights as below. ``lum`` is Mitsuba's luminance
     (0.212671, 0.715160, 0.072169). Selection indices: emissive triangles
-    first (emitter order), then point lights, then the environment.
+    first (emitter order), then delta lights, then the environment.
 
 Emissive triangles (Mitsuba ``area``)
     A point is drawn uniformly on the chosen triangle (Mitsuba's
@@ -34,13 +34,32 @@ Emissive triangles (Mitsuba ``area``)
     Triangle areas are read from the live positions, so a rigid motion of the
     scene (which moves ``positions`` in place) keeps pdfs exact.
 
-Point lights (Mitsuba ``point`` and ``spot``)
-    Intensity I in W/sr; a delta light: ``delta = 1``, ``radiance`` = I·s(ω) / d²,
-    ``pdf`` = its selection probability (a discrete, not a solid-angle, density).
-    A spot light emits into a cone around its axis with Mitsuba's falloff
-    s(ω) = 1 inside the beam (θ ≤ beam_width), (cutoff − θ)/(cutoff − beam_width)
-    between beam and cutoff, 0 beyond (``point_light_intensity``); a point light
-    has s = 1 everywhere.
+Delta lights (Mitsuba ``point``, ``spot``, ``projector``, ``directional``)
+    Lights that are a delta in position or in direction: ``delta = 1``,
+    ``pdf`` = the selection probability (a discrete, not a solid-angle,
+    density), and ``radiance`` the radiance they deliver at the reference
+    point. One function, :func:`delta_light_arrival`, gives it — when a
+    light is sampled and when a renderer re-evaluates a stored sample at
+    another point (a reuse method's neighbour, a shifted path's vertex):
+
+    * point: intensity I (W/sr), radiance I / d²; selection power 4π lum(I);
+    * spot: I·s(ω) / d² with Mitsuba's falloff s(ω) = 1 inside the beam
+      (θ ≤ beam_width), (cutoff − θ)/(cutoff − beam_width) between beam and
+      cutoff, 0 beyond; with a ``texture`` T, I·s(ω)·T(uv) / d² at
+      uv = ½ + ½ (x, y) / (z tan cutoff) of ω in the spot's frame (``spot.cpp``);
+      power 2π(1 − cos cutoff) lum(I) (× T's mean luminance), a bound;
+    * projector: a perspective camera run backwards (``projector.cpp``): ω in
+      the projector's frame (+z forward) lands on the film point
+      uv = (½(1 − x/(z t_x)), ½(1 − y/(z t_y))) (the camera's mapping, t the
+      half-fov tangents), and delivers E(uv)·π·scale / (z_p² cos θ), z_p the
+      reference point's depth — an intensity π·scale·E(uv)/cos³θ, so a plane
+      facing it at depth h receives the irradiance π·scale·E(uv)/h²;
+      power ∫ I dω = π·scale·4 t_x t_y·mean lum(E) (dω = cos³θ dA on the film
+      plane z = 1);
+    * directional: irradiance E arriving along −d from infinitely far; the
+      sample point sits 2·max(R, ‖x − c‖) back along the beam (beyond every
+      surface: R, c the scene's bounding sphere), radiance E; power π R² lum(E)
+      (Mitsuba's ``sample_ray`` weight), like the environment's.
 
 Constant environment (Mitsuba ``constant``)
     Radiance L from every direction, sampled uniformly on the sphere
@@ -76,7 +95,7 @@ degenerate geometry) and must be skipped.
 References: M. Pharr, W. Jakob, G. Humphreys, *Physically Based Rendering*,
 4th ed. (2023), §4.2 (solid angle ↔ area), §12.2–12.5 (light sampling,
 ``PowerLightSampler``, ``ImageInfiniteLight``); W. Jakob et al., Mitsuba 3,
-``src/emitters/{area,point,constant,envmap}.cpp`` and ``warp.h``.
+``src/emitters/{area,point,spot,projector,directional,constant,envmap}.cpp`` and ``warp.h``.
 """
 
 from __future__ import annotations
@@ -93,6 +112,7 @@ import warp as wp
 from grisx.errors import InvalidParameterError, InvalidValueError
 from grisx.imageio import srgb_decode
 from grisx.theory.gris import LUMINANCE_WEIGHTS, luminance
+from grisx.scene.texture import Bitmap, TextureSet, pack_textures, texture_lookup
 from grisx.scene.distribution import (
     AliasTable,
     PiecewiseConstant2D,
@@ -108,7 +128,14 @@ wp.set_module_options({"enable_backward": False})
 
 __all__ = [
     "PointLight",
-    "point_light_intensity",
+    "Projector",
+    "DirectionalLight",
+    "DeltaArrival",
+    "delta_light_arrival",
+    "DELTA_POINT",
+    "DELTA_PROJECTOR",
+    "DELTA_DIRECTIONAL",
+    "rigid_frame",
     "ConstantEnvironment",
     "EnvMap",
     "ENV_NONE",
@@ -135,6 +162,9 @@ __all__ = [
     "environment_pdf",
 ]
 
+DELTA_POINT = wp.constant(0)
+DELTA_PROJECTOR = wp.constant(1)
+DELTA_DIRECTIONAL = wp.constant(2)
 ENV_NONE = wp.constant(0)
 ENV_CONSTANT = wp.constant(1)
 ENV_ENVMAP = wp.constant(2)
@@ -159,6 +189,33 @@ class PointLight:
     direction: tuple[float, float, float] | np.ndarray | None = None
     cutoff_angle: float = 20.0
     beam_width: float | None = None
+    #: a spot's ``texture``: a linear RGB image (H, W, 3) multiplying the intensity, spread over the cone
+    texture: Any = None
+    #: the spot's frame (4×4, local → world; its +z is ``direction``): where the texture's axes lie
+    to_world: Any = None
+
+
+@dataclasses.dataclass(frozen=True)
+class Projector:
+    """Mitsuba ``projector``: a perspective camera run backwards — the ``irradiance`` image (linear RGB
+    (H, W, 3), or one RGB colour) projected from ``to_world`` (4×4, a rigid frame looking down its +z)
+    with field of view ``fov`` (degrees) along ``fov_axis`` (the camera's rules, the image's aspect)
+    and ``scale``."""
+
+    to_world: Any
+    irradiance: Any = 1.0
+    scale: float = 1.0
+    fov: float = 45.0
+    fov_axis: str = "x"
+
+
+@dataclasses.dataclass(frozen=True)
+class DirectionalLight:
+    """Mitsuba ``directional``: RGB ``irradiance`` (W/m² on a surface facing it) arriving along the unit
+    ``direction`` it travels in, from infinitely far away."""
+
+    direction: tuple[float, float, float] | np.ndarray
+    irradiance: tuple[float, float, float] | np.ndarray | float = 1.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -255,6 +312,39 @@ def _rotation(to_world: Any) -> np.ndarray:
     return r
 
 
+def rigid_frame(to_world: Any, what: str) -> np.ndarray:
+    """``to_world`` as a 4×4 array, checked to be a rigid frame (a rotation and a translation)."""
+    m = np.asarray(to_world, dtype=np.float64)
+    if m.shape != (4, 4) or not np.all(np.isfinite(m)):
+        raise InvalidParameterError(f"{what} must be a finite 4x4 matrix, got shape {m.shape}")
+    r = m[:3, :3]
+    if not np.allclose(r.T @ r, np.eye(3), atol=1e-4):
+        raise InvalidParameterError(f"{what} must be a rigid frame (orthonormal upper 3x3); scaling a projector or a spot's texture is not supported")
+    return m
+
+
+def _light_image(value: Any, what: str) -> np.ndarray | Bitmap:
+    """A light's image: an (H, W, 3) linear RGB array, a :class:`~grisx.scene.texture.Bitmap` (an image
+    with a ``to_uv`` map), or one colour (a 1×1 image); validated."""
+    if isinstance(value, Bitmap):
+        return dataclasses.replace(value, image=_light_image(value.image, what))
+    a = np.asarray(value, dtype=np.float64)
+    if a.ndim <= 1:
+        return _rgb(a, what).reshape(1, 1, 3)
+    if a.ndim == 2:
+        a = np.repeat(a[:, :, None], 3, axis=2)
+    if a.ndim != 3 or a.shape[2] not in (3, 4) or a.shape[0] < 1 or a.shape[1] < 1:
+        raise InvalidParameterError(f"{what} must be an RGB colour or an (H, W, 3) image, got shape {a.shape}")
+    a = a[:, :, :3]
+    if not np.all(np.isfinite(a)) or np.any(a < 0):
+        raise InvalidValueError(f"{what} must be finite and non-negative")
+    return a
+
+
+def _pixels(image: np.ndarray | Bitmap) -> np.ndarray:
+    return image.image if isinstance(image, Bitmap) else image
+
+
 # ---- Warp records ------------------------------------------------------------------------
 
 
@@ -278,6 +368,12 @@ class LightSet:
     point_intensity: wp.array(dtype=wp.vec3)
     point_axis: wp.array(dtype=wp.vec3)  # a spot light's unit axis; 0 for an isotropic point light
     point_cone: wp.array(dtype=wp.vec4)  # cos cutoff, cos beam width, cutoff (rad), 1 / (cutoff − beam width)
+    point_kind: wp.array(dtype=wp.int32)  # DELTA_POINT (point, spot), DELTA_PROJECTOR, DELTA_DIRECTIONAL
+    point_to_local: wp.array(dtype=wp.mat33)  # world → the light's frame (a textured spot, a projector)
+    point_texture: wp.array(dtype=wp.int32)  # its image in ``textures``; −1: none
+    point_uv: wp.array(dtype=wp.vec2)  # direction → uv: a spot's (tan cutoff, ·), a projector's (tan fov_x/2, tan fov_y/2)
+    textures: TextureSet  # the images of textured lights
+    scene_center: wp.vec3  # centre of the scene's bounding sphere (a directional light's samples lie outside it)
     # environment
     env_kind: int  # ENV_NONE, ENV_CONSTANT, ENV_ENVMAP
     env_radiance: wp.vec3  # constant environment
@@ -490,20 +586,78 @@ def _invalid_sample() -> LightSample:
     return s
 
 
+@wp.struct
+class DeltaArrival:
+    """What a delta light delivers at a reference point: where from, and the radiance it brings."""
+
+    p: wp.vec3  # the light's position (a point beyond the scene's bounding sphere for a directional light)
+    wi: wp.vec3  # unit, reference point → light
+    dist: float  # 0: no such direction (the reference point is on the light)
+    radiance: wp.vec3  # I(−wi) / d² (point, spot, projector) or the irradiance E (directional)
+
+
 @wp.func
-def point_light_intensity(ls: LightSet, k: int, w: wp.vec3) -> wp.vec3:
-    """Intensity of point light ``k`` toward unit direction ``w`` (from the light): I·s(w), Mitsuba's spot falloff."""
-    i = ls.point_intensity[k]
-    axis = ls.point_axis[k]
-    if wp.dot(axis, axis) == 0.0:
-        return i
+def _spot_falloff(ls: LightSet, k: int, w: wp.vec3) -> float:
+    """Mitsuba's spot falloff s(w) toward unit w (from the light): 1 in the beam, linear in angle to 0 at the cutoff."""
     cone = ls.point_cone[k]
-    cos_theta = wp.dot(axis, w)
+    cos_theta = wp.dot(ls.point_axis[k], w)
     if cos_theta <= cone[0]:
-        return wp.vec3(0.0, 0.0, 0.0)
+        return 0.0
     if cos_theta >= cone[1]:
-        return i
-    return i * ((cone[2] - wp.acos(wp.clamp(cos_theta, -1.0, 1.0))) * cone[3])
+        return 1.0
+    return (cone[2] - wp.acos(wp.clamp(cos_theta, -1.0, 1.0))) * cone[3]
+
+
+@wp.func
+def delta_light_arrival(ls: LightSet, k: int, ref_p: wp.vec3) -> DeltaArrival:
+    """Delta light ``k`` (0 ≤ k < num_points) seen from ``ref_p``: the one formula every renderer evaluates
+    such a light with, when sampling it and when re-evaluating a stored sample at another point."""
+    a = DeltaArrival()
+    a.dist = 0.0
+    kind = ls.point_kind[k]
+    if kind == DELTA_DIRECTIONAL:
+        # directional.cpp: a point 2·max(R, ‖x − c‖) back along the beam, beyond every surface
+        d = ls.point_axis[k]
+        dist = 2.0 * wp.max(ls.scene_radius, wp.length(ref_p - ls.scene_center))
+        a.wi = -d
+        a.p = ref_p - d * dist
+        a.dist = dist
+        a.radiance = ls.point_intensity[k]
+        return a
+    p = ls.point_position[k]
+    v = p - ref_p
+    dist_sq = wp.dot(v, v)
+    if dist_sq <= 0.0:
+        return a
+    dist = wp.sqrt(dist_sq)
+    a.p = p
+    a.wi = v / dist
+    a.dist = dist
+    w = -a.wi  # light → reference point
+    intensity = ls.point_intensity[k]
+    tex = ls.point_texture[k]
+    if kind == DELTA_PROJECTOR:
+        # projector.cpp: the film point uv of w (a perspective camera's mapping), E(uv) π·scale / (z² cos θ)
+        q = ls.point_to_local[k] * w
+        if q[2] <= 0.0:
+            return a
+        t = ls.point_uv[k]
+        uv = wp.vec2(0.5 * (1.0 - q[0] / (q[2] * t[0])), 0.5 * (1.0 - q[1] / (q[2] * t[1])))
+        if uv[0] < 0.0 or uv[0] > 1.0 or uv[1] < 0.0 or uv[1] > 1.0:
+            return a
+        cos_theta = q[2]  # |q| = 1: a rigid frame
+        z = dist * cos_theta  # the reference point's depth in the projector's frame
+        a.radiance = wp.cw_mul(intensity, texture_lookup(ls.textures, tex, uv)) / (z * z * cos_theta)
+        return a
+    if wp.dot(ls.point_axis[k], ls.point_axis[k]) > 0.0:  # a spot light
+        intensity = intensity * _spot_falloff(ls, k, w)
+        if tex >= 0 and wp.length_sq(intensity) > 0.0:
+            # spot.cpp: uv = ½ + ½ (x, y) / (z tan cutoff) in the spot's frame
+            q = ls.point_to_local[k] * w
+            f = 0.5 / (q[2] * ls.point_uv[k][0])
+            intensity = wp.cw_mul(intensity, texture_lookup(ls.textures, tex, wp.vec2(0.5 + q[0] * f, 0.5 + q[1] * f)))
+    a.radiance = intensity / dist_sq
+    return a
 
 
 @wp.func
@@ -555,20 +709,16 @@ def sample_given_light(ls: LightSet, light: int, pmf: float, ref_p: wp.vec3, u: 
             s.light = -1
         return s
     if light < ls.num_emitters + ls.num_points:
-        # ---- point light: a delta in direction ----
-        k = light - ls.num_emitters
-        p = ls.point_position[k]
-        d = p - ref_p
-        dist_sq = wp.dot(d, d)
-        if dist_sq <= 0.0:
+        # ---- delta lights: point, spot, projector (a delta in position), directional (in direction) ----
+        a = delta_light_arrival(ls, light - ls.num_emitters, ref_p)
+        if a.dist <= 0.0:
             s.light = -1
             return s
-        dist = wp.sqrt(dist_sq)
-        s.p = p
-        s.wi = d / dist
-        s.n = -s.wi
-        s.dist = dist
-        s.radiance = point_light_intensity(ls, k, -s.wi) / dist_sq
+        s.p = a.p
+        s.wi = a.wi
+        s.n = -a.wi
+        s.dist = a.dist
+        s.radiance = a.radiance
         s.pdf = pmf
         s.pdf_area = pmf
         s.delta = 1
@@ -651,6 +801,7 @@ def build_light_set(
     environment: ConstantEnvironment | EnvMap | None = None,
     scene_radius: float = 1.0,
     num_primitives: int | None = None,
+    scene_center: Any = None,
 ) -> LightSet:
     """Pack a scene's lights into a :class:`LightSet`.
 
@@ -659,9 +810,12 @@ def build_light_set(
     then referenced, not copied, so in-place rigid motion is seen).
     ``emitter_tris`` lists the emissive scene triangles and
     ``emitter_radiance`` their RGB radiance ((k, 3), or one triple for all).
-    ``point_lights`` is a sequence of :class:`PointLight`; ``environment`` a
+    ``point_lights`` is a sequence of delta lights — :class:`PointLight`,
+    :class:`Projector`, :class:`DirectionalLight`; ``environment`` a
     :class:`ConstantEnvironment`, an :class:`EnvMap` or None; ``scene_radius``
-    the radius of the scene's bounding sphere (the environment's power);
+    and ``scene_center`` the scene's bounding sphere (the power of the
+    environment and of directional lights, where a directional light's
+    samples lie; centre (0, 0, 0) if not given);
     ``num_primitives`` the number of primitive ids the scene hands out (its triangles, then its analytic
     shapes, which never emit: :mod:`grisx.scene.analytic`), by default the triangles.
     """
@@ -700,21 +854,61 @@ def build_light_set(
     tri_emitter = np.full(max(num_tris if num_primitives is None else num_primitives, 1), -1, dtype=np.int32)
     tri_emitter[tris] = np.arange(tris.size, dtype=np.int32)
 
-    # ---- point lights ----
+    # ---- delta lights: point, spot, projector, directional ----
     points = list(point_lights or ())
-    pp = np.zeros((len(points), 3))
-    pi_ = np.zeros((len(points), 3))
-    axes = np.zeros((len(points), 3))
-    cones = np.zeros((len(points), 4))
-    cone_solid_angle = np.full(len(points), 4.0 * math.pi)
+    n_points = len(points)
+    pp = np.zeros((n_points, 3))
+    pi_ = np.zeros((n_points, 3))
+    axes = np.zeros((n_points, 3))
+    cones = np.zeros((n_points, 4))
+    kinds = np.zeros(n_points, dtype=np.int32)
+    to_local = np.tile(np.eye(3), (n_points, 1, 1))
+    tex_of = np.full(n_points, -1, dtype=np.int32)
+    uv_of = np.zeros((n_points, 2))
+    point_power = np.zeros(n_points)
+    light_images: list[np.ndarray] = []
+    radius = float(scene_radius)
     for k, light in enumerate(points):
+        if isinstance(light, DirectionalLight):
+            d = np.asarray(light.direction, dtype=np.float64)
+            if d.shape != (3,) or not np.all(np.isfinite(d)) or np.linalg.norm(d) == 0:
+                raise InvalidValueError(f"point_lights[{k}].direction must be 3 finite numbers, not all 0, got {d.tolist()}")
+            if not math.isfinite(radius) or radius <= 0:
+                raise InvalidParameterError(f"scene_radius must be positive and finite with a directional light, got {scene_radius}")
+            kinds[k] = int(DELTA_DIRECTIONAL)
+            axes[k] = d / np.linalg.norm(d)
+            pi_[k] = _rgb(light.irradiance, f"point_lights[{k}].irradiance")
+            point_power[k] = math.pi * radius * radius * float(_lum(pi_[k]))  # E through the bounding sphere's disk
+            continue
+        if isinstance(light, Projector):
+            frame = rigid_frame(light.to_world, f"point_lights[{k}].to_world")
+            image = _light_image(light.irradiance, f"point_lights[{k}].irradiance")
+            scale = float(light.scale)
+            if not math.isfinite(scale) or scale < 0:
+                raise InvalidValueError(f"point_lights[{k}].scale must be finite and non-negative, got {light.scale}")
+            from grisx.scene.camera import tan_half_fov
+
+            h, w = _pixels(image).shape[:2]
+            tx, ty = tan_half_fov(float(light.fov), light.fov_axis, w, h)
+            kinds[k] = int(DELTA_PROJECTOR)
+            pp[k] = frame[:3, 3]
+            axes[k] = frame[:3, 2]
+            to_local[k] = frame[:3, :3].T
+            pi_[k] = math.pi * scale
+            uv_of[k] = (tx, ty)
+            tex_of[k] = len(light_images)
+            light_images.append(image)
+            # ∫ I dω = π·scale ∫ E dA over the image plane at z = 1 (dω = cos³θ dA), of area 4 t_x t_y
+            point_power[k] = math.pi * scale * 4.0 * tx * ty * float(_lum(_pixels(image)).mean())
+            continue
         if not isinstance(light, PointLight):
-            raise InvalidParameterError(f"point_lights[{k}] must be a PointLight, got {type(light).__name__}")
+            raise InvalidParameterError(f"point_lights[{k}] must be a PointLight, Projector or DirectionalLight, got {type(light).__name__}")
         position = np.asarray(light.position, dtype=np.float64)
         if position.shape != (3,) or not np.all(np.isfinite(position)):
             raise InvalidValueError(f"point_lights[{k}].position must be 3 finite numbers, got {position.tolist()}")
         pp[k] = position
         pi_[k] = _rgb(light.intensity, f"point_lights[{k}].intensity")
+        solid_angle = 4.0 * math.pi
         if light.direction is not None:
             axis = np.asarray(light.direction, dtype=np.float64)
             cutoff = float(light.cutoff_angle)
@@ -726,8 +920,22 @@ def build_light_set(
             axes[k] = axis / np.linalg.norm(axis)
             c, b = math.radians(cutoff), math.radians(beam)
             cones[k] = (math.cos(c), math.cos(b), c, 1.0 / (c - b) if c > b else 0.0)
-            cone_solid_angle[k] = 2.0 * math.pi * (1.0 - math.cos(c))  # an upper bound of its power / lum(I)
-    point_power = cone_solid_angle * _lum(pi_) if len(points) else np.zeros(0)
+            solid_angle = 2.0 * math.pi * (1.0 - math.cos(c))  # an upper bound of its power / lum(I)
+            if light.texture is not None:
+                if light.to_world is None:
+                    raise InvalidParameterError(f"point_lights[{k}]: a spot's texture needs its to_world frame")
+                frame = rigid_frame(light.to_world, f"point_lights[{k}].to_world")
+                if not np.allclose(frame[:3, 2], axes[k], atol=1e-5):
+                    raise InvalidParameterError(f"point_lights[{k}]: direction must be the +z axis of to_world")
+                image = _light_image(light.texture, f"point_lights[{k}].texture")
+                to_local[k] = frame[:3, :3].T
+                uv_of[k] = (math.tan(c), 0.0)
+                tex_of[k] = len(light_images)
+                light_images.append(image)
+                solid_angle *= float(_lum(_pixels(image)).mean())
+        elif light.texture is not None:
+            raise InvalidParameterError(f"point_lights[{k}]: a texture needs a spot light (a direction)")
+        point_power[k] = solid_angle * float(_lum(pi_[k]))
 
     # ---- environment ----
     ls = LightSet()
@@ -790,4 +998,13 @@ def build_light_set(
     ls.point_intensity = wp.array(pi_.astype(np.float32) if len(points) else np.zeros((1, 3), np.float32), dtype=wp.vec3, device=device)
     ls.point_axis = wp.array(axes.astype(np.float32) if len(points) else np.zeros((1, 3), np.float32), dtype=wp.vec3, device=device)
     ls.point_cone = wp.array(cones.astype(np.float32) if len(points) else np.zeros((1, 4), np.float32), dtype=wp.vec4, device=device)
+    ls.point_kind = wp.array(kinds if n_points else np.zeros(1, np.int32), dtype=wp.int32, device=device)
+    ls.point_to_local = wp.array(to_local.astype(np.float32) if n_points else np.eye(3, dtype=np.float32)[None], dtype=wp.mat33, device=device)
+    ls.point_texture = wp.array(tex_of if n_points else np.full(1, -1, np.int32), dtype=wp.int32, device=device)
+    ls.point_uv = wp.array(uv_of.astype(np.float32) if n_points else np.zeros((1, 2), np.float32), dtype=wp.vec2, device=device)
+    ls.textures = pack_textures(light_images, device)
+    center = np.zeros(3) if scene_center is None else np.asarray(scene_center, dtype=np.float64)
+    if center.shape != (3,) or not np.all(np.isfinite(center)):
+        raise InvalidValueError(f"scene_center must be 3 finite numbers, got {center.tolist()}")
+    ls.scene_center = wp.vec3(*center.astype(np.float32))
     return ls

@@ -49,8 +49,10 @@ Transforms ``<transform name="to_world">``
     ``perspective`` (``fov`` with ``fov_axis`` x [default] / y / diagonal /
     smaller / larger, or ``focal_length`` ["50mm" default, 35 mm film
     diagonal], ``near_clip`` [1e-2], ``far_clip`` [1e4], ``to_world``;
-    ``focus_distance`` accepted, no effect on a pinhole) and ``thinlens``
-    (plus ``aperture_radius``, ``focus_distance``, both required here).
+    ``focus_distance`` accepted, no effect on a pinhole), ``thinlens``
+    (plus ``aperture_radius``, ``focus_distance``, both required here) and
+    ``orthographic`` (``near_clip``, ``far_clip``, ``to_world``, whose scale
+    sizes the film: parallel rays over [−1, 1] × [−1/aspect, 1/aspect]).
     Nested ``film`` and ``sampler``. At most one sensor.
 ``film``
     ``hdrfilm``: ``width`` [768], ``height`` [576]; ``pixel_format``,
@@ -120,7 +122,12 @@ Transforms ``<transform name="to_world">``
     ``mis_compensation`` accepted, ignored), ``point`` (``position`` or
     ``to_world``, ``intensity`` [1]), ``spot`` (``to_world``: the cone points
     along its local +z; ``intensity`` [1], ``cutoff_angle`` [20°],
-    ``beam_width`` [¾ of the cutoff]). At most one environment.
+    ``beam_width`` [¾ of the cutoff], ``texture``: a bitmap spread over the
+    cone), ``projector`` (``to_world``, a rigid frame looking down its +z;
+    ``irradiance``: colour or bitmap [1]; ``scale`` [1]; ``fov``/``fov_axis``
+    or ``focal_length`` as a sensor's, the image's aspect), ``directional``
+    (``direction`` or ``to_world``'s +z; ``irradiance`` [1], not a texture).
+    At most one environment. (:mod:`grisx.scene.lights`)
 ``texture``
     ``bitmap``: ``filename`` (PNG/JPEG via pillow, 8-bit or 16-bit grey, sRGB-decoded
     to linear with the exact sRGB curve as Mitsuba does unless ``raw="true"``;
@@ -163,7 +170,7 @@ from grisx.scene.serialized import load_serialized
 from grisx.scene.sdfgrid import read_vol, sdfgrid_mesh
 from grisx.scene import transform as xf
 from grisx.scene.camera import Camera, lookat
-from grisx.scene.lights import ConstantEnvironment, EnvMap, load_envmap_image
+from grisx.scene.lights import ConstantEnvironment, DirectionalLight, EnvMap, Projector, load_envmap_image, rigid_frame
 from grisx.scene.texture import FILTER_TYPES, WRAP_MODES, Bitmap, Checkerboard, MeshAttribute
 from grisx.imageio import srgb_decode as srgb_to_linear
 from grisx.scene.material import (
@@ -334,7 +341,7 @@ _WHY_NOT = {
     **dict.fromkeys(("mitchell", "lanczos", "catmullrom"),
                     "grisx films filter with box, gaussian or tent only (a filter with negative lobes would need "
                     "signed camera-sample weights in every renderer)"),
-    "depth": "grisx integrators render radiance", "orthographic": "grisx cameras are perspective or thin-lens",
+    "depth": "grisx integrators render radiance",
     **dict.fromkeys(("linearcurve", "bsplinecurve"), "grisx intersects triangles (and Mitsuba's analytic shapes), not curves"),
 }
 
@@ -731,6 +738,31 @@ class _Props:
         v = _numbers(self.ctx, node, "value", counts)
         return tuple(v * 3 if len(v) == 1 else v)
 
+    def emission(self, name: str, default: float | None) -> Any:
+        """An emitter's colour (RGB, reduced as an emission spectrum) or its bitmap texture (an image or a :class:`Bitmap`)."""
+        node = self.values.get(name)
+        if node is not None and node.tag in ("texture", "ref"):
+            self.used.add(name)
+            tex = self.loader.texture_record(node)
+            if not isinstance(tex, (np.ndarray, Bitmap)):
+                raise self.ctx.error(node, f"parameter '{name}': an emitter's texture must be a bitmap", name)
+            return tex
+        return self.color(name, default, kind="emission")
+
+    def fov(self) -> tuple[float, str]:
+        """(fov in degrees, fov_axis) from ``fov``/``fov_axis`` or ``focal_length`` (Mitsuba's parse_fov)."""
+        if self.has("fov") and self.has("focal_length"):
+            raise self.ctx.error(self.node, "give either 'fov' or 'focal_length', not both", "focal_length")
+        if self.has("fov"):
+            return self.float("fov"), self.choice("fov_axis", "x", ("x", "y", "diagonal", "smaller", "larger"))
+        # Mitsuba: focal length of a 35 mm camera, measured along the film diagonal
+        f = self.string("focal_length", "50mm").strip()
+        try:
+            fl = float(f[:-2] if f.endswith("mm") else f)
+        except ValueError:
+            raise self.ctx.error(self.values.get("focal_length", self.node), f"cannot parse focal_length '{f}' (e.g. \"50mm\")", "focal_length") from None
+        return math.degrees(2 * math.atan(math.hypot(36.0, 24.0) / (2 * fl))), "diagonal"
+
     def _spectrum(self, name: str, node: _Node, kind: str) -> tuple[float, float, float]:
         """A ``<spectrum>`` as Mitsuba's RGB variants reduce it (:mod:`grisx.scene.spectrum`)."""
         emitter = kind == "emission"
@@ -828,6 +860,7 @@ class _Loader:
         self.records: dict[int, Any] = {}  # id(node) -> material record
         self.material_ids: dict[int, int] = {}  # id(node) -> scene material id
         self.texture_ids: dict[int, int] = {}  # id(node) -> scene texture id
+        self.texture_records: dict[int, tuple[Any, str]] = {}  # id(node) -> (texture record, name)
         self.texture_means: dict[int, float] = {}  # scene texture id -> mean value
         self.default_materials: dict[str, int] = {}  # "default" / "default_emitter" -> scene material id
         self.shape_count = 0
@@ -898,10 +931,12 @@ class _Loader:
                 raise self.ctx.error(child, f"unsupported element <{tag}> inside <scene>")
 
     # -- textures
-    def texture_id(self, node: _Node) -> int:
+    def texture_record(self, node: _Node) -> Any:
+        """The ``<texture>`` (nested or by reference) as a record: a linear image, a :class:`Bitmap`, a :class:`Checkerboard`
+        or a :class:`MeshAttribute`."""
         node = self._deref(node, "texture")
-        if id(node) in self.texture_ids:
-            return self.texture_ids[id(node)]
+        if id(node) in self.texture_records:
+            return self.texture_records[id(node)][0]
         t = self._require_type(node, ("bitmap", "checkerboard", "mesh_attribute"))
         p = _Props(self, node)
         if t == "mesh_attribute":  # the hit mesh's own values: no uv, no mean (Mitsuba's Texture::mean is undefined)
@@ -910,9 +945,8 @@ class _Loader:
             except GrisxError as exc:
                 raise self.ctx.error(p.values.get("name", node), str(exc), "name") from None
             p.finish()
-            tid = self.scene.add_texture(attribute, name=node.attrs.get("id") or attribute.name)
-            self.texture_ids[id(node)] = tid
-            return tid
+            self.texture_records[id(node)] = (attribute, node.attrs.get("id") or attribute.name)
+            return attribute
         to_uv = p.transform("to_uv")
         # Mitsuba's to_uv is a 2D affine map: of a 4x4 transform, rows and columns x, y and the translation
         uv_map = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0)) if to_uv is None else tuple(tuple(float(to_uv[r, c]) for c in (0, 1, 3)) for r in (0, 1))
@@ -921,18 +955,29 @@ class _Loader:
             name = node.attrs.get("id") or "checkerboard"
         else:
             filename = p.string("filename")
+            name = node.attrs.get("id") or filename
             raw = p.bool("raw", False)
             filter_type = p.choice("filter_type", "bilinear", tuple(FILTER_TYPES))
             wrap_mode = p.choice("wrap_mode", "repeat", tuple(WRAP_MODES))
             image = self.image(node, filename, raw)
             plain = to_uv is None and filter_type == "bilinear" and wrap_mode == "repeat"
             tex = image if plain else Bitmap(image, to_uv=uv_map, wrap_mode=wrap_mode, filter_type=filter_type)
-            name = node.attrs.get("id") or filename
         p.finish()
+        self.texture_records[id(node)] = (tex, name)
+        return tex
+
+    def texture_id(self, node: _Node) -> int:
+        node = self._deref(node, "texture")
+        if id(node) in self.texture_ids:
+            return self.texture_ids[id(node)]
+        tex = self.texture_record(node)
+        name = self.texture_records[id(node)][1]
         tid = self.scene.add_texture(tex, name=name)
         self.texture_ids[id(node)] = tid
+        if isinstance(tex, MeshAttribute):
+            return tid  # no mean: Mitsuba's Texture::mean is undefined for it
         # Mitsuba's texture.mean() (a plastic's lobe sampling weights)
-        self.texture_means[tid] = float(np.mean(np.asarray(tex.color0) + np.asarray(tex.color1)) / 2.0) if t == "checkerboard" \
+        self.texture_means[tid] = float(np.mean(np.asarray(tex.color0) + np.asarray(tex.color1)) / 2.0) if isinstance(tex, Checkerboard) \
             else float(np.mean(tex if isinstance(tex, np.ndarray) else tex.image))
         return tid
 
@@ -1246,20 +1291,51 @@ class _Loader:
             raise self.ctx.error(node, "an area emitter must be nested inside a <shape> or referenced by one", "type")
         if t == "area":
             return
-        t = self._require_type(node, ("constant", "envmap", "point", "spot"))
+        t = self._require_type(node, ("constant", "envmap", "point", "spot", "directional", "projector"))
         p = _Props(self, node)
         if t == "spot":  # a cone along the local +z of to_world (Mitsuba's spotlight)
             to_world = p.transform("to_world")
             m = np.eye(4) if to_world is None else to_world
             intensity = p.color("intensity", 1.0, kind="emission")
+            texture = p.emission("texture", None) if p.has("texture") else None
+            if texture is not None and not isinstance(texture, (np.ndarray, Bitmap)):
+                raise self.ctx.error(p.values["texture"], "a spot's 'texture' must be a bitmap (Mitsuba: spatially varying)", "texture")
             cutoff = p.float("cutoff_angle", 20.0)
             beam = p.float("beam_width", cutoff * 0.75)
             if not (0.0 < cutoff <= 90.0) or not (0.0 <= beam <= cutoff):
                 raise self.ctx.error(node, f"spot needs 0 < cutoff_angle <= 90 and 0 <= beam_width <= cutoff_angle, got {cutoff} and {beam}", "cutoff_angle")
             p.finish()
             try:
+                if texture is not None:
+                    rigid_frame(m, "a textured spot's to_world")
                 self.scene.add_point_light(tuple(float(x) for x in m[:3, 3]), intensity, direction=tuple(float(x) for x in m[:3, 2]),
-                                           cutoff_angle=cutoff, beam_width=beam)
+                                           cutoff_angle=cutoff, beam_width=beam, texture=texture, to_world=m)
+            except GrisxError as exc:
+                raise self.ctx.error(node, str(exc)) from None
+            return
+        if t == "directional":  # directional.cpp: along 'direction', or the local +z of to_world
+            to_world = p.transform("to_world")
+            if to_world is not None and p.has("direction"):
+                raise self.ctx.error(node, "give either 'direction' or 'to_world', not both", "direction")
+            direction = to_world[:3, 2] if to_world is not None else p.point("direction", (0.0, 0.0, 1.0))
+            if p.has("irradiance") and p.values["irradiance"].tag in ("texture", "ref"):
+                raise self.ctx.error(p.values["irradiance"], "a directional emitter's 'irradiance' cannot be a texture (as in Mitsuba)", "irradiance")
+            irradiance = p.color("irradiance", 1.0, kind="emission")
+            p.finish()
+            try:
+                self.scene.add_delta_light(DirectionalLight(direction=tuple(float(x) for x in direction), irradiance=irradiance))
+            except GrisxError as exc:
+                raise self.ctx.error(node, str(exc)) from None
+            return
+        if t == "projector":  # projector.cpp: a perspective camera run backwards
+            to_world = p.transform("to_world")
+            irradiance = p.emission("irradiance", 1.0)
+            scale = p.float("scale", 1.0)
+            fov, fov_axis = p.fov()
+            p.finish()
+            try:
+                frame = rigid_frame(np.eye(4) if to_world is None else to_world, "a projector's to_world")
+                self.scene.add_delta_light(Projector(to_world=frame, irradiance=irradiance, scale=scale, fov=fov, fov_axis=fov_axis))
             except GrisxError as exc:
                 raise self.ctx.error(node, str(exc)) from None
             return
@@ -1298,7 +1374,7 @@ class _Loader:
         if self.sensor_seen is not None:
             raise self.ctx.error(node, f"only one sensor is supported (first on line {self.sensor_seen.line})")
         self.sensor_seen = node
-        t = self._require_type(node, ("perspective", "thinlens"))
+        t = self._require_type(node, ("perspective", "thinlens", "orthographic"))
         p = _Props(self, node)
         films = p.take_objects(("film",))
         samplers = p.take_objects(("sampler",))
@@ -1310,19 +1386,7 @@ class _Loader:
         if samplers:
             self.sampler(samplers[0])
         to_world = p.transform("to_world")
-        if p.has("fov") and p.has("focal_length"):
-            raise self.ctx.error(node, "give either 'fov' or 'focal_length', not both", "focal_length")
-        if p.has("fov"):
-            fov = p.float("fov")
-            fov_axis = p.choice("fov_axis", "x", ("x", "y", "diagonal", "smaller", "larger"))
-        else:  # Mitsuba: focal length of a 35 mm camera, measured along the film diagonal
-            f = p.string("focal_length", "50mm").strip()
-            try:
-                fl = float(f[:-2] if f.endswith("mm") else f)
-            except ValueError:
-                raise self.ctx.error(p.values.get("focal_length", node), f"cannot parse focal_length '{f}' (e.g. \"50mm\")", "focal_length") from None
-            fov = math.degrees(2 * math.atan(math.hypot(36.0, 24.0) / (2 * fl)))
-            fov_axis = "diagonal"
+        fov, fov_axis = p.fov() if t != "orthographic" else (Camera.fov, "x")  # an orthographic film has no fov
         near = p.float("near_clip", 1e-2)
         far = p.float("far_clip", 1e4)
         if not (0 < near < far):
@@ -1330,13 +1394,16 @@ class _Loader:
         if t == "thinlens":
             aperture = p.float("aperture_radius")
             focus = p.float("focus_distance")
-        else:
+        elif t == "perspective":
             p.float("focus_distance", 0.0)  # no effect on a pinhole camera
+            aperture, focus = 0.0, 0.0
+        else:
             aperture, focus = 0.0, 0.0
         p.finish()
         try:
             cam = Camera(to_world=np.eye(4) if to_world is None else to_world, fov=fov, fov_axis=fov_axis,
-                         near_clip=near, far_clip=far, aperture_radius=aperture, focus_distance=focus)
+                         near_clip=near, far_clip=far, aperture_radius=aperture, focus_distance=focus,
+                         projection="orthographic" if t == "orthographic" else "perspective")
         except GrisxError as exc:
             raise self.ctx.error(node, str(exc)) from None
         self.scene.set_camera(cam)

@@ -52,7 +52,7 @@ from grisx.scene.analytic import (
     shapes_occluded,
 )
 from grisx.scene.camera import Camera, CameraData, CameraPath
-from grisx.scene.lights import ConstantEnvironment, EnvMap, LightSample, LightSet, PointLight, build_light_set
+from grisx.scene.lights import ConstantEnvironment, DirectionalLight, EnvMap, LightSample, LightSet, PointLight, Projector, build_light_set
 from grisx.scene.material import (
     MATERIAL_CONDUCTOR,
     MATERIAL_DIELECTRIC,
@@ -768,11 +768,21 @@ class Scene:
         return len(self.objects) - 1
 
     def add_point_light(self, position: Sequence[float], intensity: Any, direction: Sequence[float] | None = None,
-                        cutoff_angle: float = 20.0, beam_width: float | None = None) -> None:
-        """A point light; with ``direction`` a spot light (Mitsuba's ``spot``: cone half-angle and beam width in degrees)."""
+                        cutoff_angle: float = 20.0, beam_width: float | None = None, texture: Any = None,
+                        to_world: Any = None) -> None:
+        """A point light; with ``direction`` a spot light (Mitsuba's ``spot``: cone half-angle and beam width in degrees,
+        an optional ``texture`` image over the cone, laid out in the spot's frame ``to_world``)."""
         self.point_lights.append(PointLight(position=tuple(float(x) for x in position), intensity=tuple(_rgb("point light intensity", intensity)),
                                             direction=None if direction is None else tuple(float(x) for x in direction),
-                                            cutoff_angle=float(cutoff_angle), beam_width=None if beam_width is None else float(beam_width)))
+                                            cutoff_angle=float(cutoff_angle), beam_width=None if beam_width is None else float(beam_width),
+                                            texture=texture, to_world=to_world))
+
+    def add_delta_light(self, light: PointLight | Projector | DirectionalLight) -> None:
+        """A light that is a delta in position or direction: a :class:`~grisx.scene.lights.PointLight`,
+        :class:`~grisx.scene.lights.Projector` or :class:`~grisx.scene.lights.DirectionalLight` record."""
+        if not isinstance(light, (PointLight, Projector, DirectionalLight)):
+            raise InvalidParameterError(f"add_delta_light takes a PointLight, Projector or DirectionalLight, got {type(light).__name__}")
+        self.point_lights.append(light)
 
     def set_environment(self, env: ConstantEnvironment | EnvMap | None) -> None:
         self.environment = env
@@ -964,6 +974,7 @@ class BuiltScene:
             environment=scene.environment,
             scene_radius=radius,
             num_primitives=tri_base + len(shape_objs),
+            scene_center=0.5 * (lo + hi),
         )
 
         mats = list(scene.materials)

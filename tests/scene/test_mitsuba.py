@@ -10,7 +10,7 @@ import pytest
 
 from grisx.errors import SceneFileError
 from grisx.scene import shapes
-from grisx.scene.lights import ConstantEnvironment, EnvMap
+from grisx.scene.lights import ConstantEnvironment, DirectionalLight, EnvMap, Projector
 from grisx.scene.material import (
     CONDUCTOR_PRESETS,
     Conductor,
@@ -484,7 +484,15 @@ ERRORS = [
      3, "float", "radius", "radius must be in (0, 64]"),
     (doc('<integrator type="stokes"><integrator type="path"/></integrator>'), 2, "integrator", "type", "polarization"),
     (doc('<integrator type="moment"/>'), 2, "integrator", None, "exactly one nested integrator"),
-    (doc('<sensor type="orthographic"/>'), 2, "sensor", "type", "orthographic"),
+    (doc('<sensor type="radiancemeter"/>'), 2, "sensor", "type", "radiancemeter"),
+    (doc('<emitter type="directional">\n<vector name="direction" value="0, 0, 1"/><transform name="to_world"/></emitter>'),
+     2, "emitter", "direction", "either 'direction' or 'to_world'"),
+    (doc('<emitter type="directional">\n<texture type="bitmap" name="irradiance"><string name="filename" value="t.png"/></texture></emitter>'),
+     3, "texture", "irradiance", "cannot be a texture"),
+    (doc('<emitter type="spot">\n<texture type="checkerboard" name="texture"/></emitter>'), 3, "texture", "texture", "must be a bitmap"),
+    (doc('<emitter type="projector"><float name="fov" value="30"/>\n<string name="focal_length" value="50mm"/></emitter>'),
+     2, "emitter", "focal_length", "either 'fov' or 'focal_length'"),
+    (doc('<emitter type="projector"><transform name="to_world">\n<scale value="2"/></transform></emitter>'), 2, "emitter", None, "rigid frame"),
     (doc('<emitter type="area"><rgb name="radiance" value="1"/></emitter>'), 2, "emitter", "type", "nested inside a <shape>"),
     (doc('<emitter type="constant"/>\n<emitter type="constant"/>'), 3, "emitter", None, "only one environment"),
     (doc('<sensor type="perspective"/>\n<sensor type="perspective"/>'), 3, "sensor", None, "only one sensor"),
@@ -568,6 +576,44 @@ def test_spot_lights_point_along_local_z_with_mitsubas_cone_defaults():
     assert a.cutoff_angle == 20.0 and a.beam_width == 15.0  # Mitsuba: cutoff 20°, beam ¾ of it
     np.testing.assert_allclose(b.direction, [0, 0, 1])
     assert (b.cutoff_angle, b.beam_width) == (40.0, 5.0)
+
+
+def test_directional_projector_textured_spot_and_orthographic_sensor(tmp_path):
+    from PIL import Image
+
+    Image.fromarray(np.array([[[255, 0, 0], [0, 255, 0], [0, 0, 255]]] * 2, dtype=np.uint8)).save(tmp_path / "t.png")
+    (tmp_path / "s.xml").write_text(doc(
+        '<shape type="rectangle"/>\n'
+        '<emitter type="directional"><vector name="direction" value="0, 0, -2"/><rgb name="irradiance" value="1 2 3"/></emitter>\n'
+        '<emitter type="directional"><transform name="to_world"><lookat origin="0, 0, 0" target="1, 0, 0"/></transform></emitter>\n'
+        '<emitter type="projector"><float name="fov" value="30"/><float name="scale" value="2"/>'
+        '<transform name="to_world"><lookat origin="0, 0, 3" target="0, 0, 0" up="0, 1, 0"/></transform>'
+        '<texture type="bitmap" name="irradiance"><string name="filename" value="t.png"/></texture></emitter>\n'
+        '<emitter type="projector"/>\n'
+        '<emitter type="spot"><texture type="bitmap" name="texture"><string name="filename" value="t.png"/></texture>'
+        '<transform name="to_world"><lookat origin="0, 2, 0" target="0, 0, 0" up="0, 0, 1"/></transform></emitter>\n'
+        '<sensor type="orthographic"><float name="near_clip" value="0.5"/>'
+        '<transform name="to_world"><scale x="2" y="2"/><lookat origin="0, 0, 5" target="0, 0, 0" up="0, 1, 0"/></transform></sensor>'))
+    s = load_mitsuba(tmp_path / "s.xml")
+    d0, d1, p0, p1, spot = s.point_lights
+    assert isinstance(d0, DirectionalLight) and isinstance(d1, DirectionalLight)
+    np.testing.assert_allclose(d0.direction, [0, 0, -2])
+    np.testing.assert_allclose(d0.irradiance, [1, 2, 3])
+    np.testing.assert_allclose(d1.direction, [1, 0, 0], atol=1e-12)  # to_world's +z (Mitsuba's directional)
+    np.testing.assert_allclose(d1.irradiance, [1, 1, 1])
+    assert isinstance(p0, Projector) and (p0.fov, p0.fov_axis, p0.scale) == (30.0, "x", 2.0)
+    assert np.asarray(p0.irradiance).shape == (2, 3, 3)
+    np.testing.assert_allclose(np.asarray(p0.irradiance)[0, 0], [1, 0, 0])  # sRGB-decoded texels
+    np.testing.assert_allclose(np.asarray(p0.to_world)[:3, 3], [0, 0, 3])
+    # no fov: Mitsuba's 50 mm focal length along the diagonal; irradiance 1
+    assert p1.fov_axis == "diagonal" and p1.fov == pytest.approx(46.7930, abs=1e-3)
+    np.testing.assert_allclose(p1.irradiance, [1, 1, 1])
+    assert np.asarray(spot.texture).shape == (2, 3, 3)
+    np.testing.assert_allclose(np.asarray(spot.to_world)[:3, 2], [0, -1, 0], atol=1e-12)
+    cam = s.camera
+    assert cam.projection == "orthographic" and cam.near_clip == 0.5
+    np.testing.assert_allclose(cam.to_world[:3, 0], [-2, 0, 0], atol=1e-12)  # the film scaled by 2
+    s.build("cpu")
 
 
 # ---- <path>, <include>, <default> and params across files ----------------------------------------------

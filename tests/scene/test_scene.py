@@ -19,6 +19,7 @@ from grisx.scene.material import Diffuse
 from grisx.scene.scene import RigidMotion, Scene, SceneData, intersect
 from grisx.scene.shapes import rectangle
 from grisx.scene.texture import Bitmap, Checkerboard, TextureSet, pack_textures, texture_lookup
+from grisx.scene.transform import scale
 
 # ---- cameras ---------------------------------------------------------------------------
 
@@ -77,8 +78,24 @@ def test_fov_axis_conventions(axis, width, height, tx, ty):
     np.testing.assert_allclose(cam.tan_half_fov(width, height), (tx, ty), rtol=1e-12)
 
 
-def test_project_inverts_camera_ray():
-    cam = Camera(to_world=lookat((0.3, 1, 4), (0, 0, 0), (0, 1, 0)), fov=50).data(64, 48)
+def test_orthographic_rays_against_hand_computed_rays():
+    # Mitsuba's orthographic.cpp: film (sx, sy) → camera-space (1 − 2sx, (1 − 2sy)/aspect, near), along +z; to_world scales the film
+    m = lookat((0, 0, 0), (0, 0, 1), (0, 1, 0)) @ scale((1.5, 1.5, 1.0))
+    cam = Camera(to_world=m, near_clip=0.5, projection="orthographic").data(4, 2)
+    o, d = _cast(cam, np.array([[0.5, 0.5], [2.0, 1.0], [4.0, 0.0]]))
+    np.testing.assert_allclose(o, 1.5 * np.array([[0.75, 0.25, 0.0], [0.0, 0.0, 0.0], [-1.0, 0.5, 0.0]]) + [0, 0, 0.5], atol=1e-6)
+    np.testing.assert_allclose(d, np.tile([0.0, 0.0, 1.0], (3, 1)), atol=1e-7)
+    with pytest.raises(InvalidParameterError, match="projection"):
+        Camera(projection="fisheye")
+    with pytest.raises(InvalidParameterError, match="lens"):
+        Camera(projection="orthographic", aperture_radius=0.1, focus_distance=1.0)
+
+
+@pytest.mark.parametrize("projection", ["perspective", "orthographic"])
+def test_project_inverts_camera_ray(projection):
+    """Reprojection (motion vectors, temporal reuse) maps a camera ray's points back to its pixel, in either projection."""
+    to_world = lookat((0.3, 1, 4), (0, 0, 0), (0, 1, 0)) @ (scale((1.5, 1.5, 1.0)) if projection == "orthographic" else np.eye(4))
+    cam = Camera(to_world=to_world, fov=50, projection=projection).data(64, 48)
     rng = np.random.default_rng(1)
     pixels = rng.uniform([0, 0], [64, 48], size=(50, 2))
     o, d = _cast(cam, pixels)

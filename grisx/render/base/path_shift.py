@@ -112,7 +112,7 @@ from grisx.errors import InvalidParameterError
 from grisx.scene.bsdf import make_bsdf
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.material import Material
-from grisx.scene.lights import emitter_radiance, environment_eval, environment_pdf, light_pdf_emitter, luminance, point_light_intensity, sample_light
+from grisx.scene.lights import DeltaArrival, delta_light_arrival, emitter_radiance, environment_eval, environment_pdf, light_pdf_emitter, luminance, sample_light
 from grisx.scene.scene import (
     SceneData,
     SurfaceInteraction,
@@ -488,7 +488,16 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                     return res
                 d = x.rc_p
                 dist = float(_FAR)
-                if x.rc_kind != VERTEX_ENV:
+                rc_p = x.rc_p
+                arrival = DeltaArrival()
+                if x.rc_kind == VERTEX_POINT_LIGHT:
+                    arrival = delta_light_arrival(scene.lights, x.rc_tri, v.p)  # from the new x'_{k−1}
+                    if arrival.dist <= 0.0:
+                        return res
+                    rc_p = arrival.p
+                    dist = arrival.dist
+                    d = arrival.wi
+                elif x.rc_kind != VERTEX_ENV:
                     dd = x.rc_p - v.p
                     dist = wp.length(dd)
                     if dist <= 0.0:
@@ -506,7 +515,7 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                     n_k = x.rc_ng  # both ends lifted off their surfaces; a point light is no surface
                     if x.rc_kind == VERTEX_POINT_LIGHT:
                         n_k = wp.vec3(0.0, 0.0, 0.0)
-                    if segment_occluded(scene, v.p, v.ng, x.rc_p, n_k):
+                    if segment_occluded(scene, v.p, v.ng, rc_p, n_k):
                         return res
                 if x.rc_kind != VERTEX_POINT_LIGHT:
                     fo = fo * MEASURE_SCALE  # the segment x'_{k−1} → x_k is a direction (a point light's is a delta)
@@ -532,9 +541,9 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                     cos_dst = wp.dot(x.rc_ng, -d)
                     jac_rc = reconnection_jacobian(x.rc_cos, cos_dst, x.rc_dist, dist, 3)
                 elif x.rc_kind == VERTEX_POINT_LIGHT:
-                    # I(−d) / d², the intensity toward the *new* x'_{k−1} (a spot's falloff); a delta position: |J| = 1, m_t = 1
-                    f = f * (1.0 / (dist * dist))
-                    f = wp.cw_mul(f, point_light_intensity(scene.lights, x.rc_tri, -d))
+                    # I(−d) / d² toward the *new* x'_{k−1} (a spot's falloff, a projector's image), or a directional
+                    # light's E along its one direction; a delta position or direction: |J| = 1, m_t = 1
+                    f = wp.cw_mul(f, arrival.radiance)
                     cos_dst = 1.0
                 else:
                     f = wp.cw_mul(f, environment_eval(scene.lights, d))  # same direction: |J| = 1
