@@ -269,7 +269,7 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
             cos_light = -wp.dot(lp.n, wi)
             if cos_light <= 0.0:
                 return e
-            le = emitter_radiance(scene.lights, lp.index, lp.n, -wi)
+            le = emitter_radiance(scene.lights, lp.index, lp.p, lp.n, -wi)
             e.cos_light = cos_light
             g = cos_light / dist_sq  # area measure: dω = |cos θ_y| dA / d²
         m = surface_material(scene, si)
@@ -382,7 +382,7 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
             res_out[y, x] = r
             lp_out[y, x] = sel
             return
-        b = emitter_radiance(ls, si.tri, si.ng, wo)  # emission seen at x
+        b = emitter_radiance(ls, si.tri, si.p, si.ng, wo)  # emission seen at x
         m = surface_material(scene, si)
         frame_x = frame_from_normal(si.ns)
         wo_l = to_local(frame_x, wo)
@@ -395,7 +395,7 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
                 hit = intersect(scene, spawn_origin(scene, si.p, si.ng, d), d, 1.0e30)
                 le = environment_eval(ls, d)
                 if hit.valid != 0:
-                    le = emitter_radiance(ls, hit.tri, hit.ng, -d)
+                    le = emitter_radiance(ls, hit.tri, hit.p, hit.ng, -d)
                 b += wp.cw_mul(bs.weight, le)
             if bsdf.is_delta(m) != 0:
                 base[y, x] = b

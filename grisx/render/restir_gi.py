@@ -577,7 +577,7 @@ def make_restir_gi_kernels(kinds: frozenset[int], moving: bool = False) -> Any:
             else:
                 prefix_depth = 2  # L_1 and L_full from one path
         r = trace_path(scene, o, d, key, depth, rr_depth, _STRATEGY_MIS, prefix_depth, exact_bsdf, hit)
-        le = emitter_radiance(scene.lights, hit.tri, hit.ng, -d)
+        le = emitter_radiance(scene.lights, hit.tri, hit.p, hit.ng, -d)
         out = SampleRadiance()
         out.lo = r.total - le
         out.bs_li = r.bs_li

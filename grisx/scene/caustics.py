@@ -508,7 +508,7 @@ def _make_caustics(kinds: frozenset[int]) -> CausticFuncs:
             if occluded(spec.scene, spawn_origin(spec.scene, ch.last, ch.last_ng, xn), xn, 1.0e30):
                 return zero
         else:
-            le = emitter_radiance(spec.scene.lights, spec.light_tri[view], nn, -ch.d_out)
+            le = emitter_radiance(spec.scene.lights, spec.light_tri[view], xn, nn, -ch.d_out)
             if wp.length_sq(le) <= 0.0:
                 return zero
             if segment_occluded(spec.scene, ch.last, ch.last_ng, xn, nn):

@@ -114,7 +114,7 @@ def gbuffer_kernel(
     g.depth[y, x] = wp.transform_point(cam.to_camera, si.p)[2]
     g.tri[y, x] = si.tri
     g.bary[y, x] = si.bary
-    g.emission[y, x] = emitter_radiance(scene.lights, si.tri, si.ng, -ray.d)
+    g.emission[y, x] = emitter_radiance(scene.lights, si.tri, si.p, si.ng, -ray.d)
     g.hit[y, x] = 1
     # ---- motion vector: back through the object's motion, then the previous camera ----
     p_base = wp.transform_point(wp.inverse(transforms[si.object]), si.p)

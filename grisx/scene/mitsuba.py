@@ -117,7 +117,8 @@ Transforms ``<transform name="to_world">``
     one non-transmissive BSDF.
 ``emitter``
     ``area`` (inside a shape, or top-level with an ``id`` that one shape
-    references; ``radiance``, required), ``constant``
+    references; ``radiance``, required: a colour or a bitmap looked up at the
+    shape's uv), ``constant``
     (``radiance`` [1]), ``envmap`` (``filename``, ``scale`` [1], ``to_world``;
     ``mis_compensation`` accepted, ignored), ``point`` (``position`` or
     ``to_world``, ``intensity`` [1]), ``spot`` (``to_world``: the cone points
@@ -129,7 +130,7 @@ Transforms ``<transform name="to_world">``
     (``direction`` or ``to_world``'s +z; ``irradiance`` [1], not a texture).
     At most one environment. (:mod:`grisx.scene.lights`)
 ``texture``
-    ``bitmap``: ``filename`` (PNG/JPEG via pillow, 8-bit or 16-bit grey, sRGB-decoded
+    ``bitmap``: ``filename`` (PNG/JPEG/BMP via pillow, 8-bit or 16-bit grey, sRGB-decoded
     to linear with the exact sRGB curve as Mitsuba does unless ``raw="true"``;
     EXR via :func:`grisx.imageio.read_exr`, linear), ``filter_type`` bilinear
     [default] / nearest, ``wrap_mode`` repeat [default] / mirror / clamp (:mod:`grisx.scene.texture`).
@@ -141,6 +142,8 @@ Transforms ``<transform name="to_world">``
     have it (:mod:`grisx.scene.texture`). Textures are supported as diffuse ``reflectance`` and
     a plastic's ``diffuse_reflectance`` only (not a mesh attribute there: a plastic
     needs its texture's mean, as in Mitsuba).
+    Area emitters take a bitmap ``radiance``, spots a bitmap ``texture``, projectors a
+    bitmap ``irradiance``.
 
 File names are looked up in the ``<path>`` folders, then the XML file's directory (the current directory
 for XML given as a string). Elements not listed (``medium``, other plugin types ...) are errors.
@@ -575,7 +578,7 @@ def _parse_transform(ctx: _Ctx, node: _Node) -> np.ndarray:
 def load_image(path: str | os.PathLike, raw: bool = False) -> np.ndarray:
     """Read an image as linear float32 (H, W, 3), row 0 at the top.
 
-    EXR is linear already; PNG/JPEG are sRGB-decoded unless ``raw``. Grey
+    EXR is linear already; PNG/JPEG/BMP are sRGB-decoded unless ``raw``. Grey
     images are broadcast to RGB and alpha is dropped.
     """
     path = Path(path)
@@ -586,7 +589,7 @@ def load_image(path: str | os.PathLike, raw: bool = False) -> np.ndarray:
         from grisx.imageio import read_exr
 
         img = read_exr(path).astype(np.float64)
-    elif suffix in (".png", ".jpg", ".jpeg"):
+    elif suffix in (".png", ".jpg", ".jpeg", ".bmp"):
         from PIL import Image
 
         try:
@@ -599,7 +602,7 @@ def load_image(path: str | os.PathLike, raw: bool = False) -> np.ndarray:
             raise GrisxError(f"cannot read image '{path}': {exc}") from None
         img = arr if raw else srgb_to_linear(arr)
     else:
-        raise GrisxError(f"cannot read image '{path}': unsupported format '{suffix}' (use .exr, .png or .jpg)")
+        raise GrisxError(f"cannot read image '{path}': unsupported format '{suffix}' (use .exr, .png, .jpg or .bmp)")
     if img.ndim == 2:
         img = img[:, :, None]
     if img.shape[2] in (2, 4):  # grey+alpha or RGBA: drop alpha
@@ -1257,7 +1260,7 @@ class _Loader:
             self.area_emitters_used.add(id(em))
             self._require_type(em, ("area",))
             ep = _Props(self, em)
-            emission = ep.color("radiance", None, kind="emission")
+            emission = ep.emission("radiance", None)  # a colour, or a bitmap looked up at the shape's uv
             ep.finish()
         if bsdfs:
             mid = self.material_id(bsdfs[0])

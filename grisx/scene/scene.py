@@ -694,7 +694,10 @@ class Scene:
         name: str | None = None,
         attributes: dict[str, Any] | None = None,
     ) -> int:
-        """Add a triangle mesh (object-space ``vertices``, ``faces`` as vertex index triples).
+        """Add a triangle mesh (object-space ``vertices``, ``faces`` as vertex index triples); ``emission``
+        makes it an area light: an RGB radiance, or a radiance image ((H, W, 3) linear RGB or a
+        :class:`~grisx.scene.texture.Bitmap`) looked up at the mesh's uv (its own, else each triangle's
+        (0, 0), (1, 0), (0, 1), as ray hits see them).
 
         ``attributes``: Mitsuba's mesh attributes, name → (rows, dim) values with one row per vertex
         (``vertex_*``) or per face (``face_*``), read by :class:`~grisx.scene.texture.MeshAttribute` textures."""
@@ -722,7 +725,11 @@ class Scene:
             uv = _as_float_array(f"mesh '{name}' uvs", uvs, (2,))
             if len(uv) != len(v):
                 raise InvalidValueError(f"mesh '{name}': {len(uv)} uvs for {len(v)} vertices")
-        e = None if emission is None else _rgb(f"mesh '{name}' emission", emission)
+        e = None
+        if isinstance(emission, Bitmap) or (emission is not None and np.ndim(emission) >= 2):
+            e = emission  # a radiance image, looked up at the mesh's uv (Mitsuba's area emitter with a bitmap 'radiance')
+        elif emission is not None:
+            e = _rgb(f"mesh '{name}' emission", emission)
         attrs = {}
         for key, values in (attributes or {}).items():
             a = np.asarray(values, dtype=np.float64)
@@ -910,6 +917,8 @@ class BuiltScene:
         verts, faces, norms, uvs = [], [], [], []
         vobj, tri_mat, tri_obj, tri_flags = [], [], [], []
         emitter_tris, emitter_radiance = [], []
+        emitter_images, emitter_texture, emitter_uvs = [], [], []  # textured emitters' images, per-triangle index and corner uvs
+        emitter_group = []  # per emissive triangle: its object (one light to the light selection)
         base = 0
         tri_base = 0
         for oid, o in enumerate(objs):
@@ -925,7 +934,14 @@ class BuiltScene:
             tri_flags.append(np.full(nf, flags))
             if o.emission is not None:
                 emitter_tris.append(np.arange(tri_base, tri_base + nf))
-                emitter_radiance.append(np.repeat(o.emission[None, :], nf, axis=0))
+                textured = isinstance(o.emission, Bitmap) or np.ndim(o.emission) >= 2
+                emitter_radiance.append(np.ones((nf, 3)) if textured else np.repeat(o.emission[None, :], nf, axis=0))
+                if textured:
+                    emitter_images.append(o.emission)
+                emitter_texture.append(np.full(nf, len(emitter_images) - 1 if textured else -1))
+                corner_uvs = o.uvs[o.faces] if o.uvs is not None else np.tile([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]], (nf, 1, 1))
+                emitter_uvs.append(corner_uvs)
+                emitter_group.append(np.full(nf, oid))
             base += nv
             tri_base += nf
         if tri_base == 0:  # analytic shapes only: the triangle BVH still needs a triangle (zero area: never hit)
@@ -975,6 +991,10 @@ class BuiltScene:
             scene_radius=radius,
             num_primitives=tri_base + len(shape_objs),
             scene_center=0.5 * (lo + hi),
+            emitter_textures=emitter_images,
+            emitter_texture=np.concatenate(emitter_texture).astype(np.int32) if emitter_texture else None,
+            emitter_uvs=np.concatenate(emitter_uvs) if emitter_uvs else None,
+            emitter_group=np.concatenate(emitter_group) if emitter_group else None,
         )
 
         mats = list(scene.materials)

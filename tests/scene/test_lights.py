@@ -68,7 +68,7 @@ def _direction_pdf_kernel(ls: L.LightSet, mesh: wp.uint64, ref: wp.vec3, dirs: w
     q = wp.mesh_query_ray(mesh, ref, d, 1.0e6)
     if q.result:
         p = p + L.light_pdf_emitter(ls, q.face, ref, ref + d * q.t, q.normal)
-        rad = L.emitter_radiance(ls, q.face, q.normal, -d)
+        rad = L.emitter_radiance(ls, q.face, ref + d * q.t, q.normal, -d)
     pdf[i] = p
     radiance[i] = rad
 
@@ -410,15 +410,27 @@ def test_constant_environment_gives_pi_l(device):
 # ---- selection and bad input ------------------------------------------------------------
 
 
-def test_selection_is_power_proportional(device):
+def _selection_oracle(power, lights):
+    """P(k) = ¼ Φ_k / ΣΦ + ¾ (1/G) Φ_k / Φ_light(k) (the module docstring's mixture), for parts k of lights ``lights``."""
+    power = np.asarray(power, dtype=np.float64)
+    light_power = {g: power[np.asarray(lights) == g].sum() for g in set(lights)}
+    return np.array([0.25 * p / power.sum() + 0.75 / len(light_power) * p / light_power[g] for p, g in zip(power, lights)])
+
+
+def test_selection_mixes_power_and_lights(device):
+    """Two triangles of one square light, a point light and an environment: a quarter of the picks ∝ power, three
+    quarters uniform over the three lights (the square's share split between its triangles ∝ power); a table ∝ power
+    alone, which gives the dim point light 4% instead of 28%, is caught by the same χ²."""
     ls, _ = _irradiance_case(device)
     light = _sample(ls, 100_000, device)["light"]
     lum = np.array(L.LUMINANCE_WEIGHTS)
     power = np.array([math.pi * 2.0 * (L_SQUARE @ lum)] * 2 + [4 * math.pi * (POINT_I @ lum), math.pi * 1.5**2 * 4 * math.pi * (L_ENV @ lum)])
     assert ls.num_lights == 4 and ls.env_light == 3
     jitter = np.random.default_rng(0).random(light.size)
-    result = chi2_test(light + jitter, _step_pdf(power / power.sum()), 0.0, 4.0, bins=4)
+    result = chi2_test(light + jitter, _step_pdf(_selection_oracle(power, [0, 0, 1, 2])), 0.0, 4.0, bins=4)
     assert result.passed, str(result)
+    result = chi2_test(light + jitter, _step_pdf(power / power.sum()), 0.0, 4.0, bins=4)  # BIASED: power alone
+    assert not result.passed, str(result)
 
 
 def test_no_lights_gives_invalid_samples(device):
@@ -578,9 +590,9 @@ def test_projector_power_is_the_integral_of_its_intensity(device):
     assert not result.passed, str(result)
 
 
-def test_delta_light_selection_is_power_proportional(device):
+def test_delta_light_selection_follows_their_powers(device):
     """Directional (π R² lum E), projector (π·scale·4 t_x t_y·mean lum E) and textured spot (cone solid angle × lum I ×
-    the texture's mean lum) are picked in proportion to those powers (χ² over the light index)."""
+    the texture's mean lum): their powers enter the selection mixture (χ² over the light index)."""
     lights = [_delta_light("directional"), _delta_light("projector"), _delta_light("spot")]
     ls = L.build_light_set(device, PLANE6, PLANE6_FACES, point_lights=lights, scene_radius=math.sqrt(18.0))
     lum = np.array(L.LUMINANCE_WEIGHTS)
@@ -591,7 +603,7 @@ def test_delta_light_selection_is_power_proportional(device):
                       2 * math.pi * (1 - math.cos(math.radians(40.0))) * (np.array([3.0, 2.0, 1.0]) @ lum) * tex])
     light = _sample(ls, 100_000, device)["light"]
     jitter = np.random.default_rng(0).random(light.size)
-    result = chi2_test(light + jitter, _step_pdf(power / power.sum()), 0.0, 3.0, bins=3)
+    result = chi2_test(light + jitter, _step_pdf(_selection_oracle(power, [0, 1, 2])), 0.0, 3.0, bins=3)
     assert result.passed, str(result)
 
 
@@ -617,3 +629,78 @@ def test_projector_irradiance_on_a_facing_plane_is_pi_scale_e_over_depth_squared
         c = _sample(ls, 20_000, device, ref=tuple(r))["contrib"].astype(np.float64)
         result = z_test(c.mean(axis=0), c.std(axis=0, ddof=1) / math.sqrt(len(c)), e, k=DEFAULT_K)
         assert result.passed, f"{r}: {result}"
+
+
+# ---- textured area emitters (Mitsuba's area light with a bitmap radiance) ----------------------------------
+
+TEX_ROW = np.array([[[1.0, 0.2, 0.1], [0.1, 0.5, 1.0]]])  # 1×2 texels: bilinear with wrap-around is a triangle wave in u
+SQUARE_UV = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])  # u = (x + 1)/2, v = (y + 1)/2 on SQUARE
+
+
+def _textured_square(device):
+    return L.build_light_set(device, SQUARE, SQUARE_FACES, [0, 1], [1.0, 1.0, 1.0], emitter_textures=[TEX_ROW],
+                             emitter_texture=[0, 0], emitter_uvs=SQUARE_UV[SQUARE_FACES])
+
+
+def _tex_row(u):
+    """Oracle: the 1×2 image bilinearly interpolated at u (texel centres at ¼ and ¾, wrapping)."""
+    x = u * 2 - 0.5
+    x0 = np.floor(x)
+    f = (x - x0)[:, None]
+    i0 = x0.astype(int) % 2
+    return TEX_ROW[0][i0] * (1 - f) + TEX_ROW[0][(i0 + 1) % 2] * f
+
+
+def _textured_square_irradiance(ref, mirror=False, n=1500):
+    """Oracle: E = ∫ L(x, y) cos θ cos θ' / d² dA over SQUARE (z = 1) at ``ref`` with normal +z, by the midpoint rule."""
+    t = (np.arange(n) + 0.5) / n * 2 - 1
+    x, y = np.meshgrid(t, t, indexing="ij")
+    h = 1.0 - ref[2]
+    d2 = (x - ref[0]) ** 2 + (y - ref[1]) ** 2 + h * h
+    w = (h * h / d2**2).ravel() * (2.0 / n) ** 2
+    u = (x.ravel() + 1) / 2
+    return (_tex_row(1 - u if mirror else u) * w[:, None]).sum(axis=0)
+
+
+@wp.kernel
+def _textured_sample_kernel(ls: L.LightSet, mesh: wp.uint64, ref: wp.vec3, seed: int, sampled: wp.array(dtype=wp.vec3), hit: wp.array(dtype=wp.vec3)):
+    i = wp.tid()
+    k = random_key(seed, i)
+    s = L.sample_light(ls, ref, random_uniform(k, 0), wp.vec2(random_uniform(k, 1), random_uniform(k, 2)))
+    sampled[i] = s.radiance
+    q = wp.mesh_query_ray(mesh, ref, s.wi, 1.0e6)
+    if q.result:
+        hit[i] = L.emitter_radiance(ls, q.face, ref + s.wi * q.t, q.normal, -s.wi)
+
+
+def test_textured_emitter_radiance_is_its_image_at_the_uv(device):
+    """The radiance a sample carries equals what a ray reaching the same point sees (barycentrics from the sample and
+    from the hit point), and at texel centres it is the texel."""
+    ls = _textured_square(device)
+    mesh = wp.Mesh(points=wp.array(SQUARE.astype(np.float32), dtype=wp.vec3, device=device),
+                   indices=wp.array(SQUARE_FACES.astype(np.int32).ravel(), dtype=wp.int32, device=device))
+    n = 2000
+    sampled, hit = wp.zeros(n, dtype=wp.vec3, device=device), wp.zeros(n, dtype=wp.vec3, device=device)
+    wp.launch(_textured_sample_kernel, n, inputs=[ls, mesh.id, wp.vec3(0.3, -0.2, 0.0), SEED, sampled, hit], device=device)
+    np.testing.assert_allclose(sampled.numpy(), hit.numpy(), rtol=1e-3, atol=1e-4)
+    assert np.ptp(sampled.numpy()[:, 0]) > 0.5  # the image varies over the light
+    # texel centres u = ¼, ¾ lie at x = −½, ½: straight above the reference points
+    pdf, rad = wp.zeros(2, dtype=float, device=device), wp.zeros(2, dtype=wp.vec3, device=device)
+    for x, texel in ((-0.5, TEX_ROW[0, 0]), (0.5, TEX_ROW[0, 1])):
+        wp.launch(_direction_pdf_kernel, 1, inputs=[ls, mesh.id, wp.vec3(x, 0.3, 0.0), wp.array(np.array([[0, 0, 1]], np.float32), dtype=wp.vec3, device=device), pdf, rad],
+                  device=device)
+        np.testing.assert_allclose(rad.numpy()[0], texel, rtol=1e-5)
+
+
+def test_textured_emitter_irradiance_matches_quadrature(device):
+    """Light sampling of a textured square light: the irradiance estimate at an off-centre point is within 4σ of the
+    midpoint-rule integral of the bilinear image; the same light with its image mirrored in u (an orientation bug)
+    is beyond 6σ."""
+    ls = _textured_square(device)
+    ref = (0.6, 0.2, 0.0)
+    c = _sample(ls, 100_000, device, ref=ref)["contrib"].astype(np.float64)
+    mean, se = c.mean(axis=0), c.std(axis=0, ddof=1) / math.sqrt(len(c))
+    result = z_test(mean, se, _textured_square_irradiance(ref), k=DEFAULT_K)
+    assert result.passed, str(result)
+    result = z_test(mean, se, _textured_square_irradiance(ref, mirror=True), k=BIASED_K)
+    assert not result.passed, str(result)

@@ -490,6 +490,7 @@ ERRORS = [
     (doc('<emitter type="directional">\n<texture type="bitmap" name="irradiance"><string name="filename" value="t.png"/></texture></emitter>'),
      3, "texture", "irradiance", "cannot be a texture"),
     (doc('<emitter type="spot">\n<texture type="checkerboard" name="texture"/></emitter>'), 3, "texture", "texture", "must be a bitmap"),
+    (doc('<shape type="cube"><emitter type="area">\n<texture type="checkerboard" name="radiance"/></emitter></shape>'), 3, "texture", "radiance", "must be a bitmap"),
     (doc('<emitter type="projector"><float name="fov" value="30"/>\n<string name="focal_length" value="50mm"/></emitter>'),
      2, "emitter", "focal_length", "either 'fov' or 'focal_length'"),
     (doc('<emitter type="projector"><transform name="to_world">\n<scale value="2"/></transform></emitter>'), 2, "emitter", None, "rigid frame"),
@@ -593,7 +594,9 @@ def test_directional_projector_textured_spot_and_orthographic_sensor(tmp_path):
         '<emitter type="spot"><texture type="bitmap" name="texture"><string name="filename" value="t.png"/></texture>'
         '<transform name="to_world"><lookat origin="0, 2, 0" target="0, 0, 0" up="0, 0, 1"/></transform></emitter>\n'
         '<sensor type="orthographic"><float name="near_clip" value="0.5"/>'
-        '<transform name="to_world"><scale x="2" y="2"/><lookat origin="0, 0, 5" target="0, 0, 0" up="0, 1, 0"/></transform></sensor>'))
+        '<transform name="to_world"><scale x="2" y="2"/><lookat origin="0, 0, 5" target="0, 0, 0" up="0, 1, 0"/></transform></sensor>\n'
+        '<shape type="rectangle" id="glow"><emitter type="area"><texture type="bitmap" name="radiance">'
+        '<string name="filename" value="t.png"/></texture></emitter></shape>'))
     s = load_mitsuba(tmp_path / "s.xml")
     d0, d1, p0, p1, spot = s.point_lights
     assert isinstance(d0, DirectionalLight) and isinstance(d1, DirectionalLight)
@@ -613,6 +616,8 @@ def test_directional_projector_textured_spot_and_orthographic_sensor(tmp_path):
     cam = s.camera
     assert cam.projection == "orthographic" and cam.near_clip == 0.5
     np.testing.assert_allclose(cam.to_world[:3, 0], [-2, 0, 0], atol=1e-12)  # the film scaled by 2
+    glow = objects(s)["glow"]
+    assert np.asarray(glow.emission).shape == (2, 3, 3) and glow.uvs is not None  # a radiance image, looked up at the uv
     s.build("cpu")
 
 

@@ -184,28 +184,33 @@ def test_bvh_hits_match_brute_force():
 # ---- motion, refit and motion vectors ----------------------------------------------------
 
 
-def _plane_scene(path: CameraPath | None, motion: RigidMotion | None = None) -> Scene:
+def _plane_scene(path: CameraPath | None, motion: RigidMotion | None = None, projection: str = "perspective") -> Scene:
     s = Scene("plane")
     white = s.add_material(Diffuse(0.5))
     mesh = rectangle()
     s.add_mesh(mesh.vertices, mesh.faces, material=white, normals=mesh.normals, uvs=mesh.uvs,
                to_world=np.diag([5.0, 5.0, 1.0, 1.0]), motion=motion, emission=(1, 1, 1))
-    s.set_camera(Camera(to_world=lookat((0, 0, 4), (0, 0, 0), (0, 1, 0)), fov=40), path)
+    s.set_camera(Camera(to_world=lookat((0, 0, 4), (0, 0, 0), (0, 1, 0)), fov=40, projection=projection), path)
     return s
 
 
 def _project_numpy(cam: Camera, width: int, height: int, p: np.ndarray) -> np.ndarray:
     q = (np.linalg.inv(cam.to_world) @ np.c_[p, np.ones(len(p))].T).T
+    if cam.projection == "orthographic":  # Mitsuba's orthographic film: x ∈ [−1, 1], y ∈ [−1/aspect, 1/aspect]
+        sx = 0.5 * (1 - q[:, 0])
+        sy = 0.5 * (1 - q[:, 1] * width / height)
+        return np.c_[sx * width, sy * height]
     tx, ty = cam.tan_half_fov(width, height)
     sx = 0.5 * (1 - q[:, 0] / (q[:, 2] * tx))
     sy = 0.5 * (1 - q[:, 1] / (q[:, 2] * ty))
     return np.c_[sx * width, sy * height]
 
 
-@pytest.mark.parametrize("jitter", [False, True])
-def test_motion_vectors_match_analytic_reprojection_for_a_moving_camera(jitter):
+@pytest.mark.parametrize("jitter, projection", [(False, "perspective"), (True, "perspective"), (True, "orthographic")])
+def test_motion_vectors_match_analytic_reprojection_for_a_moving_camera(jitter, projection):
+    """Motion vectors (what temporal reuse reprojects with) against the camera's projection in numpy, either projection."""
     path = CameraPath(keys=[((0, 0, 4), (0, 0, 0), (0, 1, 0)), ((1.0, 0.5, 3.5), (0.2, 0, 0), (0, 1, 0))], frames_per_key=8)
-    built = _plane_scene(path).build("cpu")
+    built = _plane_scene(path, projection=projection).build("cpu")
     built.animate_camera = True
     w, h = 48, 32
     g = GBuffer(w, h, built.device)

@@ -108,7 +108,7 @@ def area_domain(scene: SceneData, cam: CameraData, x: int, y: int, s: FilmSample
     if si.valid == 0:
         out.emission = environment_eval(scene.lights, ray.d) * weight
     else:
-        out.emission = emitter_radiance(scene.lights, si.tri, si.ng, -ray.d) * weight
+        out.emission = emitter_radiance(scene.lights, si.tri, si.p, si.ng, -ray.d) * weight
     return out
 
 

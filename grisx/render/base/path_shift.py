@@ -337,7 +337,7 @@ def emitter_hit(scene: SceneData, p: wp.vec3, d: wp.vec3, si: SurfaceInteraction
         e.radiance = environment_eval(scene.lights, d)
         e.light_pdf = environment_pdf(scene.lights, d)
     else:
-        e.radiance = emitter_radiance(scene.lights, si.tri, si.ng, -d)
+        e.radiance = emitter_radiance(scene.lights, si.tri, si.p, si.ng, -d)
         e.light_pdf = light_pdf_emitter(scene.lights, si.tri, p, si.p, si.ng)
         e.dist = wp.length(si.p - p)
     return e
@@ -536,7 +536,7 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                     cos_dst = wp.dot(x.rc_ng, -d)
                     jac_rc = reconnection_jacobian(x.rc_cos, cos_dst, x.rc_dist, dist, 3)
                 elif x.rc_kind == VERTEX_AREA_LIGHT:
-                    f = wp.cw_mul(f, emitter_radiance(scene.lights, x.rc_tri, x.rc_ng, -d))
+                    f = wp.cw_mul(f, emitter_radiance(scene.lights, x.rc_tri, x.rc_p, x.rc_ng, -d))
                     f = f * technique_mis(x.end_nee, 0, 0, light_pdf_emitter(scene.lights, x.rc_tri, v.p, x.rc_p, x.rc_ng), pdf_bsdf)
                     cos_dst = wp.dot(x.rc_ng, -d)
                     jac_rc = reconnection_jacobian(x.rc_cos, cos_dst, x.rc_dist, dist, 3)

@@ -148,7 +148,7 @@ def _make_trace_path(kinds: frozenset[int], caustic_chain: int, bounds: bool) ->
             if si.valid == 0:
                 le = environment_eval(scene.lights, d)
             else:
-                le = emitter_radiance(scene.lights, si.tri, si.ng, -d)
+                le = emitter_radiance(scene.lights, si.tri, si.p, si.ng, -d)
             if wp.length_sq(le) > 0.0:
                 w = float(1.0)
                 if prev_delta == 0:
