@@ -91,6 +91,7 @@ CASES: dict[str, Case] = {
     "directional": Case(32, 16),
     "area_texture": Case(32, 16),
     "delta_lights": Case(32, 16),
+    "delta_lights_direct": Case(32, 16),
     "thinlens": Case(32, 16),
     "orthographic": Case(32, 16),
     "fov_axis_x": Case(16, 16),
@@ -265,3 +266,37 @@ def test_a_mirrored_mesh_shown_from_its_winding_side_is_caught():
         scene.objects[i] = dataclasses.replace(o, faces=o.faces[:, [0, 2, 1]].copy())
     result = agreement(scene, "mirrored_meshes")
     assert not result.passed, f"mirrored meshes seen from their winding's side went unnoticed: {result}"
+
+
+def test_a_projector_image_upside_down_is_caught():
+    """A projector whose film rows run bottom to top (v flipped: the orientation bug a camera run backwards invites)."""
+    scene = load_mitsuba(SCENES / "projector.xml")
+    scene.point_lights[:] = [dataclasses.replace(p, irradiance=np.asarray(p.irradiance)[::-1]) if hasattr(p, "fov") else p for p in scene.point_lights]
+    result = agreement(scene, "projector")
+    assert not result.passed, f"a projector image upside down went unnoticed: {result}"
+
+
+def test_a_spot_texture_mirrored_is_caught():
+    """A spot texture laid out with u running the other way across the cone (its columns mirrored)."""
+    scene = load_mitsuba(SCENES / "spot_texture.xml")
+    scene.point_lights[:] = [p if p.texture is None else dataclasses.replace(p, texture=np.asarray(p.texture)[:, ::-1]) for p in scene.point_lights]
+    result = agreement(scene, "spot_texture")
+    assert not result.passed, f"a mirrored spot texture went unnoticed: {result}"
+
+
+def test_an_area_light_image_mirrored_is_caught():
+    """A textured area light whose image is looked up with u mirrored."""
+    scene = load_mitsuba(SCENES / "area_texture.xml")
+    scene.objects[:] = [o if o.emission is None or np.ndim(getattr(o.emission, "image", o.emission)) < 2
+                        else dataclasses.replace(o, emission=dataclasses.replace(o.emission, image=np.asarray(o.emission.image)[:, ::-1]))
+                        for o in scene.objects]
+    result = agreement(scene, "area_texture")
+    assert not result.passed, f"a mirrored emission image went unnoticed: {result}"
+
+
+def test_an_orthographic_film_of_the_wrong_height_is_caught():
+    """An orthographic film spanning [−1, 1]² (aspect ignored) instead of Mitsuba's [−1, 1] × [−1/aspect, 1/aspect]: stretched vertically."""
+    scene = load_mitsuba(SCENES / "orthographic.xml")
+    scene.camera = dataclasses.replace(scene.camera, to_world=scene.camera.to_world @ np.diag([1.0, 32 / 24, 1.0, 1.0]))
+    result = agreement(scene, "orthographic")
+    assert not result.passed, f"an orthographic film of the wrong height went unnoticed: {result}"

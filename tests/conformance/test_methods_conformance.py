@@ -10,11 +10,12 @@ z-tested per image and per 8×8 block against the image **Mitsuba 3 rendered**
 
 A method estimating the full image renders the features its shifts and reservoirs treat
 apart (``FULL_IMAGE_CASES``): depth limits (``max_depth_4_rr_1``: Russian roulette from the
-first bounce; ``max_depth_1``: emitters only), every light type (spot, point, environment
-map, sphere and area lights), a rough conductor (glossy vertices the hybrid shift does not
-reconnect at), textures, two-sided BSDFs and Mitsuba's gaussian pixel filter (2×2-pixel blocks
-there). A method estimating emitted + direct light
-(``reference_max_depth == 2``) renders ``max_depth_2``. A method registered later joins by
+first bounce; ``max_depth_1``: emitters only), every light type (``delta_lights``: a plain and a
+textured spot, a projector, a directional light and a textured area light, each re-evaluated by
+index where a sample is reused; point, environment map, sphere and area lights), a rough
+conductor (glossy vertices the hybrid shift does not reconnect at), textures, two-sided BSDFs
+and Mitsuba's gaussian pixel filter (2×2-pixel blocks there). A method estimating emitted +
+direct light (``reference_max_depth == 2``) renders ``max_depth_2`` and ``delta_lights_direct``. A method registered later joins by
 itself; the skip list says why a method is left out.
 
 What these cases have caught: ReSTIR DI skipped a smooth plastic's delta coat, which its
@@ -47,9 +48,9 @@ from grisx.testing import BIASED_K, DEFAULT_K, reuse_unbiasedness_test
 
 HERE = Path(__file__).resolve().parent
 #: the cases a method renders, by the path tracer depth whose image it estimates (None: the file's)
-FULL_IMAGE_CASES = ("max_depth_4_rr_1", "max_depth_1", "spot", "point", "envmap", "sphere_light", "roughconductor", "texture_exr", "twosided",
-                    "filter_gaussian_wide")
-CASES_BY_DEPTH = {None: FULL_IMAGE_CASES, 2: ("max_depth_2",)}
+FULL_IMAGE_CASES = ("max_depth_4_rr_1", "max_depth_1", "delta_lights", "point", "envmap", "sphere_light", "roughconductor", "texture_exr",
+                    "twosided", "filter_gaussian_wide")
+CASES_BY_DEPTH = {None: FULL_IMAGE_CASES, 2: ("max_depth_2", "delta_lights_direct")}
 #: z-test block size per case (default 8): a pixel filter moves energy between neighbouring pixels, so small blocks
 BLOCK = {"filter_gaussian_wide": 2}
 RUNS = 64
