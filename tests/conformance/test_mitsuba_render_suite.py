@@ -63,7 +63,6 @@ NOT_YET: dict[str, str] = {
     "projector/test_projector_textured_direct": "loader: emitter 'projector'",
     "spot_light/test_spot_direct": "loader: a spot emitter's 'texture'",
     "various_emitters/test_various_emitters_ptracer": "loader: textured area emitter 'radiance'",
-    "various_shapes/test_various_shapes_path": "loader: shape 'sdfgrid' (refused: grisx intersects no signed distance fields)",
 }
 
 SCENES = sorted(str(p.relative_to(SUITE).with_suffix("")) for p in SUITE.glob("*/*.xml"))
