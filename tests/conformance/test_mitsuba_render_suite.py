@@ -54,15 +54,7 @@ NOT_YET: dict[str, str] = {
     "bsdf_spheres/test_texturedprincipled1_path": "loader: bsdf 'principled'",
     "bsdf_spheres/test_texturedprincipled2_path": "loader: bsdf 'principled'",
     "bsdf_spheres/test_texturedprincipledthin_path": "loader: bsdf 'principledthin'",
-    "floating_sphere/test_directional_direct": "loader: emitter 'directional'",
     "mesh_attributes/test_mesh_attributes_1_face_direct": "loader: bsdf 'blendbsdf'",
-    "mesh_attributes/test_mesh_attributes_3_face_direct": "loader: emitter 'directional'",
-    "mesh_attributes/test_mesh_attributes_3_vertex_direct": "loader: emitter 'directional'",
-    "orthographic_sensor/test_orthographic_path": "loader: sensor 'orthographic'",
-    "projector/test_projector_constant_direct": "loader: emitter 'projector'",
-    "projector/test_projector_textured_direct": "loader: emitter 'projector'",
-    "spot_light/test_spot_direct": "loader: a spot emitter's 'texture'",
-    "various_emitters/test_various_emitters_ptracer": "loader: textured area emitter 'radiance'",
 }
 
 SCENES = sorted(str(p.relative_to(SUITE).with_suffix("")) for p in SUITE.glob("*/*.xml"))
