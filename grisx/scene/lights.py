@@ -34,7 +34,11 @@ Light selection
     allowed, ¾ uniform 1.20 and 1, all uniform 1.02 and 0). The power
     quarter keeps a scene of many unequal lights within 4× of power
     sampling, the uniform part within 4/3 of Mitsuba's. A scene of one
-    light (of any number of triangles) is sampled ∝ power, as before.
+    light (of any number of triangles) is sampled ∝ power, as before. On the
+    built-in scenes of several lights, ``pt``'s per-pixel relative variance
+    against power alone (48×36, 2 spp, 24 frames, CPU): red-green-lights
+    0.63×, caustic-slab-plane 0.87×, metal-rack 0.89×, many-lights 1.00×,
+    checker-grid 1.08×, swimming-pool 1.18×.
     Selection indices: emissive triangles first (emitter order), then delta
     lights, then the environment.
 
