@@ -412,7 +412,7 @@ def make_restir_gi_kernels(kinds: frozenset[int], moving: bool = False) -> Any:
             if wp.dot(toward, -s.ray_d) >= 1.0 - 1.0e-6:
                 return s.lo
             return wp.vec3(0.0)
-        m = surface_material_at(scene, s.mat_s, s.uv_s, s.tri_s, s.xs)
+        m = surface_material_at(scene, s.mat_s, s.uv_s, s.tri_s, s.xs, s.ns_s, s.ns)
         frame = frame_from_normal(s.ns_s)
         wo_s = to_local(frame, toward)
         f_nee = bsdf.eval(m, wo_s, to_local(frame, s.nee_wi))

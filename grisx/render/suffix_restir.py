@@ -313,7 +313,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         out.valid = False
         if x1.valid == 0 or z.dom.valid == 0 or z.delta != 0:
             return out
-        m = vertex_material(scene, x1.material, x1.uv, x1.tri, x1.p)
+        m = vertex_material(scene, x1.material, x1.uv, x1.tri, x1.p, x1.ns, x1.ng)
         if bsdf.is_delta(m) != 0:
             return out
         dd = z.dom.p - x1.p
@@ -358,7 +358,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         pdf = float(1.0)
         i = int(1)
         while spec.max_bounces < 0 or i <= spec.max_bounces:
-            m = vertex_material(spec.scene, v.material, v.uv, v.tri, v.p)
+            m = vertex_material(spec.scene, v.material, v.uv, v.tri, v.p, v.ns, v.ng)
             frame = frame_from_normal(v.ns)
             c = path_dim(i, DIM_BSDF)
             bs = bsdf.sample(m, to_local(frame, v.wo), random_uniform(key, c), wp.vec2(random_uniform(key, c + 1), random_uniform(key, c + 2)))

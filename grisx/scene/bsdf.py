@@ -59,6 +59,22 @@ Lobes (equations in ``grisx.scene.microfacet``):
   as the rough conductor's, the diffuse lobe by cosine; pdf is the mixture and
   weight = eval/pdf (Mitsuba 3's ``RoughPlastic``).
 
+* **Null** (``null``): the ray goes on, wi = −wo, weight 1 (delta, pdf 1).
+
+**Wrappers** (applied outside in: mask, then the perturbed frame, then two-sided):
+
+* **Mask** (``mask``, opacity α at the hit): the nested BSDF with probability α
+  (its pdf times α, its weight unchanged), else the null lobe with pdf 1 − α;
+  eval and pdf are α times the nested ones (Mitsuba 3's ``MaskBSDF``).
+* **Normal and bump maps** (``normalmap``, ``bumpmap``): the nested BSDF in the
+  frame of the perturbed normal n' (``Material.perturbed_n``, local), mirrored
+  to (−n'_x, −n'_y, n'_z) where wo cannot see it (cos θ_o · wo·n' ≤ 0,
+  ``flip_invalid_normals``); a direction on different sides of the two frames
+  is black; eval and the sample weight carry the shadowing term
+  G = 2/(1 + √(1 + α_n² tan² θ_i)), α_n² = min(tan² θ_n'/8, 1) (Estevez et al.
+  2019, Mitsuba's ``eval_shadow_terminator``), the pdf does not. The tangent of
+  the perturbed frame is arbitrary: the nested BSDFs are isotropic.
+
 **Two-sided.** Reflection-only kinds are one-sided, as Mitsuba's: seen from
 the back (cos θ_o ≤ 0) they are black and sample nothing. With
 ``two_sided = 1`` (Mitsuba's ``twosided`` wrapper) the frame is mirrored —
@@ -86,7 +102,9 @@ dielectrics (from outside), F̄ specular_reflectance + (1 − F̄) ρ for plasti
 through its delta lobe cannot be reconnected), α for rough kinds and 1 for diffuse.
 
 References: W. Jakob et al., Mitsuba 3 ``src/bsdfs/{diffuse,conductor,
-roughconductor,dielectric,roughdielectric,twosided,plastic,roughplastic}.cpp``; B. Walter et al.,
+roughconductor,dielectric,roughdielectric,twosided,plastic,roughplastic,null,mask,normalmap,bumpmap}.cpp``;
+A. Estevez, P. Lecocq, C. Hellmuth, "A microfacet-based shadowing function to solve the bump
+terminator problem", Ray Tracing Gems (2019), ch. 12; B. Walter et al.,
 "Microfacet models for refraction through rough surfaces", EGSR 2007;
 E. Heitz, "Sampling the GGX distribution of visible normals", JCGT 7(4) 2018;
 E. Veach, PhD thesis (1997), §5.2; P. Shirley, K. Chiu, "A low distortion map
@@ -107,14 +125,20 @@ from grisx.scene.material import (
     MATERIAL_DIELECTRIC,
     MATERIAL_DIFFUSE,
     MATERIAL_KIND_NAMES,
+    MATERIAL_BUMPMAP,
     MATERIAL_KINDS,
+    MATERIAL_MASK,
+    MATERIAL_NORMALMAP,
+    MATERIAL_NULL,
     MATERIAL_PLASTIC,
     MATERIAL_ROUGH_CONDUCTOR,
     MATERIAL_ROUGH_PLASTIC,
     MATERIAL_ROUGH_DIELECTRIC,
     MATERIAL_THIN_DIELECTRIC,
+    PERTURB_NONE,
     Material,
 )
+from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.microfacet import (
     fresnel_conductor,
     fresnel_dielectric,
@@ -167,6 +191,8 @@ __all__ = [
     "rough_plastic_sample",
     "rough_plastic_eval",
     "rough_plastic_pdf",
+    "null_sample",
+    "shadow_terminator",
 ]
 
 _INV_PI = wp.constant(1.0 / math.pi)
@@ -625,6 +651,54 @@ def rough_plastic_sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2) ->
     return _weighted_sample(wi, rough_plastic_pdf(m, wo, wi), rough_plastic_eval(m, wo, wi))
 
 
+# ---- null, and the wrappers' pieces (null.cpp, mask.cpp, normalmap.cpp, bumpmap.cpp) ----
+
+
+@wp.func
+def null_sample(wo: wp.vec3, pdf: float) -> BsdfSample:
+    """The null lobe: the ray goes on (wi = −wo) with weight 1; ``pdf``: the lobe's probability (delta)."""
+    s = _no_sample()
+    s.wi = -wo
+    s.weight = wp.vec3(1.0, 1.0, 1.0)
+    s.pdf = pdf
+    s.delta = 1
+    s.valid = 1
+    return s
+
+
+@wp.func
+def _tan2(w: wp.vec3) -> float:
+    z2 = w[2] * w[2]
+    if z2 <= 0.0:
+        return 1.0e30
+    return wp.max(1.0 - z2, 0.0) / z2
+
+
+@wp.func
+def shadow_terminator(n: wp.vec3, w: wp.vec3) -> float:
+    """Estevez et al.'s shadowing of a perturbed normal ``n`` toward ``w`` (both local to the unperturbed frame):
+    2/(1 + √(1 + α² tan² θ_w)), α² = min(tan² θ_n / 8, 1)."""
+    alpha2 = wp.min(0.125 * _tan2(n), 1.0)
+    return 2.0 / (1.0 + wp.sqrt(1.0 + alpha2 * _tan2(w)))
+
+
+@wp.func
+def _masked(m: Material) -> bool:
+    """Whether a mask may pass light here: a property of the material, whether or not its opacity texture was
+    resolved at a hit (so that every renderer, at a hit or at a stored vertex, sees the same lobes)."""
+    return m.opacity < 1.0 or m.opacity_texture >= 0
+
+
+@wp.func
+def _perturbed_normal(m: Material, wo: wp.vec3) -> wp.vec3:
+    """The hit's perturbed normal, mirrored about the normal's axis where ``wo`` cannot see it (flip_invalid_normals)."""
+    n = m.perturbed_n
+    if (m.perturb_flags & 1) != 0:
+        if wo[2] * wp.dot(wo, n) <= 0.0:
+            n = wp.vec3(-n[0], -n[1], n[2])
+    return n
+
+
 # ---- albedo (average reflectance) ----
 
 
@@ -689,11 +763,17 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
     has_thin_dielectric = MATERIAL_THIN_DIELECTRIC in key
     has_plastic = MATERIAL_PLASTIC in key
     has_rough_plastic = MATERIAL_ROUGH_PLASTIC in key
+    has_null = MATERIAL_NULL in key
+    has_mask = MATERIAL_MASK in key
+    has_perturb = MATERIAL_NORMALMAP in key or MATERIAL_BUMPMAP in key
     has_reflective = has_diffuse or has_conductor or has_rough_conductor or has_plastic or has_rough_plastic
     has_evaluable = has_diffuse or has_rough_conductor or has_plastic or has_rough_plastic
 
     @wp.func
-    def sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2) -> BsdfSample:
+    def kind_sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2) -> BsdfSample:
+        if wp.static(has_null):
+            if m.kind == MATERIAL_NULL:
+                return null_sample(wo, 1.0)
         if wp.static(has_dielectric):
             if m.kind == MATERIAL_DIELECTRIC:
                 return dielectric_sample(m, wo, u_lobe, u)
@@ -730,7 +810,7 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
         return s
 
     @wp.func
-    def eval(m: Material, wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
+    def kind_eval(m: Material, wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
         if wp.static(has_rough_dielectric):
             if m.kind == MATERIAL_ROUGH_DIELECTRIC:
                 return rough_dielectric_eval(m, wo, wi)
@@ -756,7 +836,7 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
         return r  # delta kinds: 0
 
     @wp.func
-    def pdf(m: Material, wo: wp.vec3, wi: wp.vec3) -> float:
+    def kind_pdf(m: Material, wo: wp.vec3, wi: wp.vec3) -> float:
         if wp.static(has_rough_dielectric):
             if m.kind == MATERIAL_ROUGH_DIELECTRIC:
                 return rough_dielectric_pdf(m, wo, wi)
@@ -781,8 +861,72 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
                     p = rough_plastic_pdf(m, a, b)
         return p  # delta kinds: 0
 
+    # ---- wrappers: the perturbed frame (normalmap, bumpmap), then the mask ----
+
     @wp.func
-    def albedo(m: Material) -> wp.vec3:
+    def frame_sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2) -> BsdfSample:
+        if wp.static(has_perturb):
+            if m.perturb != PERTURB_NONE:
+                n = _perturbed_normal(m, wo)
+                f = frame_from_normal(n)
+                s = kind_sample(m, to_local(f, wo), u_lobe, u)
+                wi = to_world(f, s.wi)
+                if s.valid == 0 or s.wi[2] * wi[2] <= 0.0:
+                    return _no_sample()
+                s.wi = wi
+                if (m.perturb_flags & 2) != 0:
+                    s.weight = s.weight * shadow_terminator(n, wi)
+                return s
+        return kind_sample(m, wo, u_lobe, u)
+
+    @wp.func
+    def frame_eval(m: Material, wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
+        if wp.static(has_perturb):
+            if m.perturb != PERTURB_NONE:
+                f = frame_from_normal(_perturbed_normal(m, wo))
+                if wi[2] * wp.dot(wi, f.n) <= 0.0:
+                    return wp.vec3(0.0, 0.0, 0.0)
+                v = kind_eval(m, to_local(f, wo), to_local(f, wi))
+                if (m.perturb_flags & 2) != 0:
+                    v = v * shadow_terminator(f.n, wi)
+                return v
+        return kind_eval(m, wo, wi)
+
+    @wp.func
+    def frame_pdf(m: Material, wo: wp.vec3, wi: wp.vec3) -> float:
+        if wp.static(has_perturb):
+            if m.perturb != PERTURB_NONE:
+                f = frame_from_normal(_perturbed_normal(m, wo))
+                if wi[2] * wp.dot(wi, f.n) <= 0.0:
+                    return 0.0
+                return kind_pdf(m, to_local(f, wo), to_local(f, wi))
+        return kind_pdf(m, wo, wi)
+
+    @wp.func
+    def sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2) -> BsdfSample:
+        if wp.static(has_mask):
+            if m.opacity < 1.0:
+                if u_lobe >= m.opacity:
+                    return null_sample(wo, 1.0 - m.opacity)
+                s = frame_sample(m, wo, u_lobe / m.opacity, u)
+                s.pdf = s.pdf * m.opacity
+                return s
+        return frame_sample(m, wo, u_lobe, u)
+
+    @wp.func
+    def eval(m: Material, wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
+        if wp.static(has_mask):
+            return frame_eval(m, wo, wi) * m.opacity
+        return frame_eval(m, wo, wi)
+
+    @wp.func
+    def pdf(m: Material, wo: wp.vec3, wi: wp.vec3) -> float:
+        if wp.static(has_mask):
+            return frame_pdf(m, wo, wi) * m.opacity
+        return frame_pdf(m, wo, wi)
+
+    @wp.func
+    def kind_albedo(m: Material) -> wp.vec3:
         if wp.static(has_diffuse):
             if m.kind == MATERIAL_DIFFUSE:
                 return m.reflectance
@@ -805,7 +949,16 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
         return wp.vec3(0.0, 0.0, 0.0)
 
     @wp.func
+    def albedo(m: Material) -> wp.vec3:
+        if wp.static(has_mask):
+            return kind_albedo(m) * m.opacity  # what passes through is not reflected
+        return kind_albedo(m)
+
+    @wp.func
     def roughness(m: Material) -> float:
+        if wp.static(has_mask):
+            if _masked(m):
+                return 0.0  # the null lobe beside the nested ones: as a plastic's coat, unreconnectable
         if m.kind == MATERIAL_DIFFUSE:
             return 1.0
         if m.kind == MATERIAL_ROUGH_CONDUCTOR or m.kind == MATERIAL_ROUGH_DIELECTRIC or m.kind == MATERIAL_ROUGH_PLASTIC:
@@ -814,16 +967,19 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
 
     @wp.func
     def is_delta(m: Material) -> int:
-        if m.kind == MATERIAL_CONDUCTOR or m.kind == MATERIAL_DIELECTRIC or m.kind == MATERIAL_THIN_DIELECTRIC:
+        if m.kind == MATERIAL_CONDUCTOR or m.kind == MATERIAL_DIELECTRIC or m.kind == MATERIAL_THIN_DIELECTRIC or m.kind == MATERIAL_NULL:
             return 1
         return 0
 
     @wp.func
     def has_delta_lobe(m: Material) -> int:
-        """1 where some lobe is a delta (all-delta kinds, and a smooth plastic's coat beside its diffuse base):
-        eval and pdf miss that lobe, so only BSDF sampling reaches what it reflects."""
+        """1 where some lobe is a delta (all-delta kinds, a smooth plastic's coat beside its diffuse base, a mask's
+        null lobe): eval and pdf miss that lobe, so only BSDF sampling reaches what it reflects."""
         if is_delta(m) != 0 or m.kind == MATERIAL_PLASTIC:
             return 1
+        if wp.static(has_mask):
+            if _masked(m):
+                return 1
         return 0
 
     funcs = BsdfFuncs(kinds=key, sample=sample, eval=eval, pdf=pdf, albedo=albedo, roughness=roughness, is_delta=is_delta,

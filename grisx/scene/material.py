@@ -14,7 +14,28 @@ record                 Mitsuba plugin              lobes (see ``grisx.scene.bsdf
 ``RoughDielectric``    ``roughdielectric`` (GGX)   microfacet reflection + refraction
 ``Plastic``            ``plastic``                 delta coating reflection + diffuse base
 ``RoughPlastic``       ``roughplastic``            microfacet coating reflection + diffuse base
+``Null``               ``null``                    none: the ray passes through (a delta lobe)
 =====================  ==========================  =========================================
+
+Three **wrappers** hold one of those records, as Mitsuba's plugins nest one BSDF:
+
+* ``Mask(bsdf, opacity)`` (``mask``): the nested BSDF with probability
+  ``opacity`` (a number or a texture's luminance), otherwise the ray passes
+  straight through (Mitsuba's *null* lobe: wi = −wo, weight 1, pdf 1 − opacity);
+  eval and pdf are the nested ones times the opacity. A null transmission is a
+  path vertex as in Mitsuba's ``path`` integrator (it counts toward
+  ``max_depth``, and shadow rays stop at the surface: light behind it arrives
+  through BSDF sampling only).
+* ``NormalMap(bsdf, normalmap)`` (``normalmap``) and ``BumpMap(bsdf, texture,
+  scale)`` (``bumpmap``): the nested BSDF in a shading frame perturbed by a
+  texture (a tangent-space normal 2·rgb − 1, or the gradient of a height field),
+  resolved at each hit into the struct's ``perturbed_n``; see
+  :mod:`grisx.scene.bsdf` for the wrapper's lobes.
+
+A wrapper may hold another wrapper of a different type (``Mask(NormalMap(...))``);
+``material_kinds`` reports each wrapper present as a pseudo-kind
+(``MATERIAL_MASK``, ``MATERIAL_NORMALMAP``, ``MATERIAL_BUMPMAP``) beside the
+nested kinds, so a dispatch compiles the wrapper code only for scenes that use it.
 
 Every record carries ``two_sided`` (set by the loader for Mitsuba's
 ``twosided`` wrapper): a one-sided reflecting BSDF is black seen from the back,
@@ -69,6 +90,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Iterable, Sequence
+from typing import Any
 
 import numpy as np
 import warp as wp
@@ -87,6 +109,14 @@ __all__ = [
     "MATERIAL_THIN_DIELECTRIC",
     "MATERIAL_PLASTIC",
     "MATERIAL_ROUGH_PLASTIC",
+    "MATERIAL_NULL",
+    "MATERIAL_MASK",
+    "MATERIAL_NORMALMAP",
+    "MATERIAL_BUMPMAP",
+    "MATERIAL_WRAPPERS",
+    "PERTURB_NONE",
+    "PERTURB_NORMALMAP",
+    "PERTURB_BUMPMAP",
     "MATERIAL_KINDS",
     "MATERIAL_KIND_NAMES",
     "TextureRef",
@@ -98,6 +128,11 @@ __all__ = [
     "ThinDielectric",
     "Plastic",
     "RoughPlastic",
+    "Null",
+    "Mask",
+    "NormalMap",
+    "BumpMap",
+    "unwrap",
     "MaterialDesc",
     "CONDUCTOR_PRESETS",
     "conductor_material",
@@ -116,6 +151,17 @@ MATERIAL_ROUGH_DIELECTRIC = wp.constant(4)
 MATERIAL_THIN_DIELECTRIC = wp.constant(5)
 MATERIAL_PLASTIC = wp.constant(6)
 MATERIAL_ROUGH_PLASTIC = wp.constant(7)
+MATERIAL_NULL = wp.constant(8)
+# wrappers: pseudo-kinds in a kinds set (a material's ``kind`` is its nested BSDF's)
+MATERIAL_MASK = wp.constant(9)
+MATERIAL_NORMALMAP = wp.constant(10)
+MATERIAL_BUMPMAP = wp.constant(11)
+#: the wrapper pseudo-kinds
+MATERIAL_WRAPPERS: tuple[int, ...] = (MATERIAL_MASK, MATERIAL_NORMALMAP, MATERIAL_BUMPMAP)
+#: Material.perturb values: no perturbation, a normal map, a bump map
+PERTURB_NONE = wp.constant(0)
+PERTURB_NORMALMAP = wp.constant(1)
+PERTURB_BUMPMAP = wp.constant(2)
 
 #: every kind, in id order
 MATERIAL_KINDS: tuple[int, ...] = (
@@ -127,6 +173,10 @@ MATERIAL_KINDS: tuple[int, ...] = (
     MATERIAL_THIN_DIELECTRIC,
     MATERIAL_PLASTIC,
     MATERIAL_ROUGH_PLASTIC,
+    MATERIAL_NULL,
+    MATERIAL_MASK,
+    MATERIAL_NORMALMAP,
+    MATERIAL_BUMPMAP,
 )
 #: Mitsuba plugin name of each kind
 #: microfacet distributions of the rough records → grisx.scene.microfacet's MICROFACET_* ids
@@ -141,6 +191,10 @@ MATERIAL_KIND_NAMES: dict[int, str] = {
     MATERIAL_THIN_DIELECTRIC: "thindielectric",
     MATERIAL_PLASTIC: "plastic",
     MATERIAL_ROUGH_PLASTIC: "roughplastic",
+    MATERIAL_NULL: "null",
+    MATERIAL_MASK: "mask",
+    MATERIAL_NORMALMAP: "normalmap",
+    MATERIAL_BUMPMAP: "bumpmap",
 }
 
 RGB = tuple[float, float, float]
@@ -366,7 +420,69 @@ class RoughPlastic(Plastic):
     distribution: str = "ggx"
 
 
-MaterialDesc = Diffuse | Conductor | RoughConductor | Dielectric | RoughDielectric | ThinDielectric | Plastic | RoughPlastic
+@dataclasses.dataclass(frozen=True)
+class Null:
+    """Mitsuba ``null``: no interaction — the ray goes on unchanged (a delta lobe wi = −wo of weight 1).
+
+    Used for surfaces that only bound something (a medium, an emitter's shape); as in Mitsuba's
+    ``path`` integrator, passing one is a path vertex (it counts toward ``max_depth``) and
+    shadow rays stop at it."""
+
+    two_sided: bool = False  # ignored: nothing to mirror
+    bump_amplitude: float = 0.0
+    bump_frequency: float = 0.0
+
+
+@dataclasses.dataclass(frozen=True)
+class Mask:
+    """Mitsuba ``mask``: ``bsdf`` where the surface is opaque, a null interaction elsewhere.
+
+    ``opacity`` (a number in [0, 1] or a :class:`TextureRef`, whose luminance is used, clamped to
+    [0, 1]; Mitsuba's default 0.5): the nested BSDF is chosen with that probability and its eval and
+    pdf scaled by it; otherwise the ray passes straight through (weight 1, pdf 1 − opacity)."""
+
+    bsdf: Any
+    opacity: float | TextureRef = 0.5
+
+
+@dataclasses.dataclass(frozen=True)
+class NormalMap:
+    """Mitsuba ``normalmap``: ``bsdf`` in the shading frame whose normal is 2·``normalmap`` − 1 in the
+    unperturbed shading frame (s along ∂p/∂u, t = n × s, n); ``flip_invalid_normals`` mirrors a normal
+    the outgoing direction cannot see, ``use_shadowing_function`` applies Estevez et al.'s shadowing
+    term (both Mitsuba's defaults: true). The texture should be read ``raw``."""
+
+    bsdf: Any
+    normalmap: TextureRef
+    flip_invalid_normals: bool = True
+    use_shadowing_function: bool = True
+
+
+@dataclasses.dataclass(frozen=True)
+class BumpMap:
+    """Mitsuba ``bumpmap``: ``bsdf`` in the shading frame of the height field ``scale`` · ``texture``
+    (its luminance) over the surface: ∂p/∂u += n (scale ∂h/∂u − n·∂p/∂u), likewise for v, and the
+    normal (∂p/∂u × ∂p/∂v) turned to the geometric normal's side; flags as :class:`NormalMap`."""
+
+    bsdf: Any
+    texture: TextureRef
+    scale: float = 1.0
+    flip_invalid_normals: bool = True
+    use_shadowing_function: bool = True
+
+
+_WRAPPER_KIND: dict[type, int] = {Mask: MATERIAL_MASK, NormalMap: MATERIAL_NORMALMAP, BumpMap: MATERIAL_BUMPMAP}
+
+MaterialDesc = Diffuse | Conductor | RoughConductor | Dielectric | RoughDielectric | ThinDielectric | Plastic | RoughPlastic | Null | Mask | NormalMap | BumpMap
+
+
+def unwrap(desc: Any) -> tuple[Any, list[Any]]:
+    """The BSDF record inside ``desc``'s wrappers, and the wrappers from the outermost in."""
+    wrappers = []
+    while type(desc) in _WRAPPER_KIND:
+        wrappers.append(desc)
+        desc = desc.bsdf
+    return desc, wrappers
 
 _KIND_OF: dict[type, int] = {
     Diffuse: MATERIAL_DIFFUSE,
@@ -377,6 +493,7 @@ _KIND_OF: dict[type, int] = {
     ThinDielectric: MATERIAL_THIN_DIELECTRIC,
     Plastic: MATERIAL_PLASTIC,
     RoughPlastic: MATERIAL_ROUGH_PLASTIC,
+    Null: MATERIAL_NULL,
 }
 
 
@@ -397,6 +514,11 @@ class Material:
     ``specular_reflectance``, ``specular_weight``, ``internal_reflectance``,
     ``nonlinear`` and (rough) ``external_transmittance``, a table of
     ``ROUGH_TABLE_SIZE`` values (an empty array for every other kind).
+    Wrappers: ``opacity`` (1 unless masked) and ``opacity_texture`` (texture id or −1; the
+    hit's value replaces ``opacity``); ``perturb`` (PERTURB_*), ``perturb_texture``,
+    ``bump_scale``, ``perturb_flags`` (bit 0: flip invalid normals, bit 1: shadowing
+    function) and ``perturbed_n``, the perturbed normal in the local frame of the hit's
+    shading normal (resolved at the hit by ``grisx.scene.scene.surface_material``).
     """
 
     kind: int
@@ -415,19 +537,33 @@ class Material:
     internal_reflectance: float
     nonlinear: int
     external_transmittance: wp.array(dtype=float)
+    opacity: float
+    opacity_texture: int
+    perturb: int
+    perturb_texture: int
+    bump_scale: float
+    perturb_flags: int
+    perturbed_n: wp.vec3
 
 
 def material_kind(desc: MaterialDesc) -> int:
-    """MATERIAL_* kind of one record."""
-    kind = _KIND_OF.get(type(desc))
+    """MATERIAL_* kind of one record (of the BSDF inside a wrapper)."""
+    inner, _ = unwrap(desc)
+    kind = _KIND_OF.get(type(inner))
     if kind is None:
-        raise InvalidParameterError(f"not a material record: {desc!r} (expected one of {', '.join(t.__name__ for t in _KIND_OF)})")
+        names = ', '.join(t.__name__ for t in [*_KIND_OF, *_WRAPPER_KIND])
+        raise InvalidParameterError(f"not a material record: {inner!r} (expected one of {names})")
     return kind
 
 
 def material_kinds(descs: Iterable[MaterialDesc]) -> set[int]:
-    """The set of MATERIAL_* kinds used by ``descs`` (for ``make_bsdf`` specialization)."""
-    return {material_kind(d) for d in descs}
+    """The set of MATERIAL_* kinds used by ``descs``, with a wrapper pseudo-kind for each wrapper
+    present (for ``make_bsdf`` specialization)."""
+    kinds = set()
+    for d in descs:
+        kinds.add(material_kind(d))
+        kinds.update(_WRAPPER_KIND[type(w)] for w in unwrap(d)[1])
+    return kinds
 
 
 def _rgb(value: RGB | float, what: str, *, nonneg: bool = True) -> RGB:
@@ -502,10 +638,50 @@ def _pack_plastic(desc: Plastic, m: Material, where: str, device: str | wp.conte
     m.external_transmittance = wp.array(table.astype(np.float32), dtype=float, device=device)
 
 
+def _pack_wrappers(wrappers: list[Any], m: Material, where: str) -> None:
+    # mask.cpp, normalmap.cpp, bumpmap.cpp: the wrappers' parameters beside the nested BSDF's
+    seen: set[type] = set()
+    for i, w in enumerate(wrappers):
+        name = MATERIAL_KIND_NAMES[_WRAPPER_KIND[type(w)]]
+        if type(w) in seen or (type(w) is not Mask and {NormalMap, BumpMap} & seen):
+            raise InvalidParameterError(f"{where}: a {name} inside another {name if type(w) in seen else 'normalmap or bumpmap'} "
+                                        f"is not supported (one mask and one normalmap or bumpmap per material)")
+        if isinstance(w, Mask) and i > 0:
+            raise InvalidParameterError(f"{where}: a mask inside a normalmap or bumpmap is not supported (put the mask outside)")
+        seen.add(type(w))
+        if isinstance(w, Mask):
+            if isinstance(w.opacity, TextureRef):
+                m.opacity_texture = _texture_id(w.opacity, where, "opacity")
+            else:
+                v = float(w.opacity)
+                if not math.isfinite(v):
+                    raise InvalidParameterError(f"{where}: mask opacity must be finite, got {w.opacity!r}")
+                m.opacity = min(max(v, 0.0), 1.0)  # clamped, as Mitsuba's eval_opacity
+            continue
+        if not isinstance(w.normalmap if isinstance(w, NormalMap) else w.texture, TextureRef):
+            raise InvalidParameterError(f"{where}: {name} needs a texture, got {w!r}")
+        m.perturb = PERTURB_NORMALMAP if isinstance(w, NormalMap) else PERTURB_BUMPMAP
+        m.perturb_texture = _texture_id(w.normalmap if isinstance(w, NormalMap) else w.texture, where, "texture")
+        if isinstance(w, BumpMap):
+            m.bump_scale = float(w.scale)
+            if not math.isfinite(m.bump_scale):
+                raise InvalidParameterError(f"{where}: bumpmap scale must be finite, got {w.scale!r}")
+        m.perturb_flags = (1 if w.flip_invalid_normals else 0) | (2 if w.use_shadowing_function else 0)
+
+
 def _pack_one(desc: MaterialDesc, index: int, device: str | wp.context.Device | None = None) -> Material:
     kind = material_kind(desc)
     where = f"material {index} ({MATERIAL_KIND_NAMES[kind]})"
+    desc, wrappers = unwrap(desc)
     m = Material()
+    m.opacity = 1.0
+    m.opacity_texture = -1
+    m.perturb = PERTURB_NONE
+    m.perturb_texture = -1
+    m.bump_scale = 0.0
+    m.perturb_flags = 0
+    m.perturbed_n = wp.vec3(0.0, 0.0, 1.0)
+    _pack_wrappers(wrappers, m, where)
     m.kind = kind
     m.texture = -1
     m.alpha = 0.0
@@ -537,6 +713,8 @@ def _pack_one(desc: MaterialDesc, index: int, device: str | wp.context.Device | 
         return m
     if isinstance(desc, Plastic):  # and RoughPlastic
         _pack_plastic(desc, m, where, device)
+        return m
+    if isinstance(desc, Null):
         return m
     m.reflectance = wp.vec3(*_rgb(desc.specular_reflectance, f"{where}: specular_reflectance"))
     if isinstance(desc, (Conductor, RoughConductor)):

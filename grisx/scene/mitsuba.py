@@ -114,7 +114,12 @@ Transforms ``<transform name="to_world">``
     ``specular_transmittance``; rough: ``alpha``, ``distribution``,
     ``sample_visible``); ``thindielectric`` (``int_ior``, ``ext_ior``,
     ``specular_reflectance``, ``specular_transmittance``); ``twosided`` around
-    one non-transmissive BSDF.
+    one non-transmissive BSDF; ``null``; the wrappers ``mask`` (``opacity``
+    [0.5]: a number or a texture, its luminance), ``normalmap`` (``normalmap``:
+    a texture, read it ``raw``) and ``bumpmap`` (its one nested texture, any name;
+    ``scale`` [1]), both with ``flip_invalid_normals`` and
+    ``use_shadowing_function`` [true], around one BSDF (at most one mask, outermost,
+    and one normalmap or bumpmap; a twosided goes inside a normalmap or bumpmap).
 ``emitter``
     ``area`` (inside a shape, or top-level with an ``id`` that one shape
     references; ``radiance``, required: a colour or a bitmap looked up at the
@@ -139,9 +144,10 @@ Transforms ``<transform name="to_world">``
     Mitsuba's 2D affine map). ``mesh_attribute``: ``name`` (``vertex_*``: blended
     with the hit's barycentrics; ``face_*``: the face's value), ``scale`` [1]; a
     1-channel attribute is grey, a 3-channel one RGB; every mesh that uses it must
-    have it (:mod:`grisx.scene.texture`). Textures are supported as diffuse ``reflectance`` and
-    a plastic's ``diffuse_reflectance`` only (not a mesh attribute there: a plastic
-    needs its texture's mean, as in Mitsuba).
+    have it (:mod:`grisx.scene.texture`). Textures are supported as diffuse ``reflectance``,
+    a plastic's ``diffuse_reflectance`` (not a mesh attribute there: a plastic
+    needs its texture's mean, as in Mitsuba), a mask's ``opacity`` and the maps of
+    ``normalmap`` and ``bumpmap`` (not mesh attributes there).
     Area emitters take a bitmap ``radiance``, spots a bitmap ``texture``, projectors a
     bitmap ``irradiance``.
 
@@ -177,8 +183,12 @@ from grisx.scene.lights import ConstantEnvironment, DirectionalLight, EnvMap, Pr
 from grisx.scene.texture import FILTER_TYPES, WRAP_MODES, Bitmap, Checkerboard, MeshAttribute
 from grisx.imageio import srgb_decode as srgb_to_linear
 from grisx.scene.material import (
+    BumpMap,
     Conductor,
     Dielectric,
+    Mask,
+    NormalMap,
+    Null,
     MICROFACET_DISTRIBUTIONS,
     Diffuse,
     Plastic,
@@ -189,6 +199,7 @@ from grisx.scene.material import (
     TextureRef,
     conductor_material,
     pack_materials,
+    unwrap,
 )
 from grisx.scene.scene import Film, Scene
 
@@ -1000,17 +1011,42 @@ class _Loader:
         if id(node) in self.records:
             return self.records[id(node)]
         t = self._require_type(node, ("diffuse", "conductor", "roughconductor", "dielectric", "roughdielectric", "thindielectric",
-                                      "plastic", "roughplastic", "twosided"))
+                                      "plastic", "roughplastic", "twosided", "null", "mask", "normalmap", "bumpmap"))
         p = _Props(self, node)
         if t == "twosided":
             inner = p.take_objects(("bsdf",))
             if len(inner) != 1:
                 raise self.ctx.error(node, f"twosided needs exactly one nested BSDF, got {len(inner)} "
                                            f"(different front and back BSDFs are not supported)")
-            rec = self.bsdf_record(inner[0])
-            if isinstance(rec, (Dielectric, RoughDielectric, ThinDielectric)):
-                raise self.ctx.error(node, "twosided cannot wrap a transmissive BSDF (as in Mitsuba)")
-            rec = dataclasses.replace(rec, two_sided=True)
+            rec = self._two_sided(node, self.bsdf_record(inner[0]))
+        elif t in ("mask", "normalmap", "bumpmap"):
+            inner = p.take_objects(("bsdf",))
+            if len(inner) != 1:
+                raise self.ctx.error(node, f"{t} needs exactly one nested BSDF, got {len(inner)}")
+            nested = self.bsdf_record(inner[0])
+            if t == "mask":
+                opacity = p.values.get("opacity")
+                if opacity is not None and opacity.tag in ("texture", "ref"):
+                    p.used.add("opacity")
+                    rec = Mask(nested, self._uv_texture(p, "opacity"))
+                else:
+                    rec = Mask(nested, p.float("opacity", 0.5))
+            else:
+                flags = {"flip_invalid_normals": p.bool("flip_invalid_normals", True),
+                         "use_shadowing_function": p.bool("use_shadowing_function", True)}
+                if t == "normalmap":
+                    if "normalmap" not in p.values or p.values["normalmap"].tag not in ("texture", "ref"):
+                        raise self.ctx.error(node, "normalmap needs a texture named 'normalmap'")
+                    p.used.add("normalmap")
+                    rec = NormalMap(nested, self._uv_texture(p, "normalmap"), **flags)
+                else:  # the one nested texture, whatever its name (bumpmap.cpp)
+                    textures = [n for n, v in p.values.items() if v.tag in ("texture", "ref")]
+                    if len(textures) != 1:
+                        raise self.ctx.error(node, f"bumpmap needs exactly one nested texture, got {len(textures)}")
+                    p.used.add(textures[0])
+                    rec = BumpMap(nested, self._uv_texture(p, textures[0]), scale=p.float("scale", 1.0), **flags)
+        elif t == "null":
+            rec = Null()
         elif t == "diffuse":
             rec = Diffuse(reflectance=p.color("reflectance", 0.5, texture=True))
         elif t in ("conductor", "roughconductor"):
@@ -1070,6 +1106,24 @@ class _Loader:
             raise self.ctx.error(p.values[name], f"parameter '{name}': this BSDF needs its texture's mean, which a "
                                                  f"mesh_attribute texture does not have (Mitsuba refuses it too)", name)
         return self.texture_means[value.texture_id]
+
+    def _uv_texture(self, p: _Props, name: str) -> TextureRef:
+        """Texture parameter ``name`` of a mask, normalmap or bumpmap: looked up over uv (not a mesh attribute)."""
+        ref = self.texture_ref(p.values[name])
+        if ref.texture_id not in self.texture_means:
+            raise self.ctx.error(p.values[name], f"parameter '{name}': a mesh_attribute texture is not supported here "
+                                                 f"(only as a diffuse reflectance)", name)
+        return ref
+
+    def _two_sided(self, node: _Node, rec: Any) -> Any:
+        """``rec`` with its front BSDF on both sides (through a mask, which is the same from either side)."""
+        if isinstance(rec, Mask):
+            return dataclasses.replace(rec, bsdf=self._two_sided(node, rec.bsdf))
+        if isinstance(rec, (NormalMap, BumpMap)):
+            raise self.ctx.error(node, "twosided around a normalmap or bumpmap is not supported (put the twosided inside it)")
+        if isinstance(rec, (Dielectric, RoughDielectric, ThinDielectric)):
+            raise self.ctx.error(node, "twosided cannot wrap a transmissive BSDF (as in Mitsuba)")
+        return dataclasses.replace(rec, two_sided=True)
 
     def _smooth_or_rough(self, p: _Props, rough: bool, kw: dict[str, Any], smooth: type, rough_cls: type) -> Any:
         if not rough:
@@ -1264,6 +1318,10 @@ class _Loader:
             ep.finish()
         if bsdfs:
             mid = self.material_id(bsdfs[0])
+            if t in ("sphere", "disk", "cylinder") and emission is None \
+                    and any(isinstance(w, (NormalMap, BumpMap)) for w in unwrap(self.scene.materials[mid])[1]):
+                raise self.ctx.error(bsdfs[0], f"a normalmap or bumpmap on an analytic {t} is not supported "
+                                               f"(its shading frame needs a mesh's uv parametrization: use an obj, ply or serialized mesh)")
         else:  # Mitsuba's default: diffuse 0.5, but black on an emitter (an emitting shape reflects nothing)
             mid = self.default_material("default_emitter" if emission is not None else "default")
         p.finish()

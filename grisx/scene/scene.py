@@ -53,14 +53,20 @@ from grisx.scene.analytic import (
 )
 from grisx.scene.camera import Camera, CameraData, CameraPath
 from grisx.scene.lights import ConstantEnvironment, DirectionalLight, EnvMap, LightSample, LightSet, PointLight, Projector, build_light_set
+from grisx.scene.frame import frame_from_normal, to_local
 from grisx.scene.material import (
     MATERIAL_CONDUCTOR,
     MATERIAL_DIELECTRIC,
+    MATERIAL_MASK,
+    MATERIAL_NULL,
+    PERTURB_NONE,
+    PERTURB_NORMALMAP,
     MATERIAL_ROUGH_DIELECTRIC,
     MATERIAL_THIN_DIELECTRIC,
     Material,
     material_kinds,
     pack_materials,
+    unwrap,
 )
 from grisx.scene.texture import (
     TEXTURE_MESH_ATTRIBUTE,
@@ -71,8 +77,10 @@ from grisx.scene.texture import (
     TextureSet,
     attribute_lookup,
     pack_textures,
+    texture_gradient,
     texture_lookup,
 )
+from grisx.theory.gris import luminance
 from grisx.scene.transform import rotate, translate
 
 wp.set_module_options({"enable_backward": False})
@@ -549,16 +557,18 @@ def surface_texture(scene: SceneData, texture: int, si: SurfaceInteraction) -> w
 
 
 @wp.func
-def stored_surface(scene: SceneData, material: int, uv: wp.vec2, tri: int, p: wp.vec3) -> SurfaceInteraction:
-    """A surface point kept by a renderer (material id, uv, primitive, position ``p`` on it) as the record
-    :func:`surface_material` reads: its barycentrics recomputed from ``p`` on a triangle (mesh attributes need
-    them), as :func:`intersect` gave them at the hit."""
+def stored_surface(scene: SceneData, material: int, uv: wp.vec2, tri: int, p: wp.vec3, ns: wp.vec3, ng: wp.vec3) -> SurfaceInteraction:
+    """A surface point kept by a renderer (material id, uv, primitive, position ``p`` on it, its shading and geometric
+    normals) as the record :func:`surface_material` reads: its barycentrics recomputed from ``p`` on a triangle (mesh
+    attributes need them), as :func:`intersect` gave them at the hit; the normals are a normal or bump map's frame."""
     si = SurfaceInteraction()
     si.valid = 1
     si.material = material
     si.uv = uv
     si.tri = tri
     si.p = p
+    si.ns = ns
+    si.ng = ng
     si.bary = wp.vec2(1.0, 0.0)
     if tri >= 0 and tri < scene.shapes.prim_base:
         b = triangle_barycentrics(scene, tri, p)
@@ -567,18 +577,79 @@ def stored_surface(scene: SceneData, material: int, uv: wp.vec2, tri: int, p: wp
 
 
 @wp.func
-def surface_material(scene: SceneData, si: SurfaceInteraction) -> Material:
-    """The material at ``si`` with its texture (if any) resolved into ``reflectance`` (:func:`surface_texture`)."""
-    m = scene.materials[si.material]
-    if m.texture >= 0:
-        m.reflectance = surface_texture(scene, m.texture, si)
+def _perturbed_normal(scene: SceneData, si: SurfaceInteraction, m: Material) -> wp.vec3:
+    """A normal or bump map's normal at ``si`` in the local frame of ``si.ns`` (Mitsuba 3's ``normalmap``
+    and ``bumpmap`` frames over a mesh's ∂p/∂u, ∂p/∂v, and its shading frame s ∥ ∂p/∂u); unperturbed on an
+    analytic shape (the loader refuses the maps there)."""
+    if si.tri < 0 or si.tri >= scene.shapes.prim_base:
+        return wp.vec3(0.0, 0.0, 1.0)
+    i0 = scene.indices[3 * si.tri + 0]
+    i1 = scene.indices[3 * si.tri + 1]
+    i2 = scene.indices[3 * si.tri + 2]
+    e1 = scene.positions[i1] - scene.positions[i0]
+    e2 = scene.positions[i2] - scene.positions[i0]
+    dp_du = e1  # without uvs the parametrization is barycentric
+    dp_dv = e2
+    if (scene.tri_flags[si.tri] & TRI_HAS_UVS) != 0:
+        duv0 = scene.uvs[i1] - scene.uvs[i0]
+        duv1 = scene.uvs[i2] - scene.uvs[i0]
+        det = duv0[0] * duv1[1] - duv0[1] * duv1[0]
+        if det != 0.0:
+            dp_du = (e1 * duv1[1] - e2 * duv0[1]) / det
+            dp_dv = (e2 * duv0[0] - e1 * duv1[0]) / det
+        else:  # a degenerate parametrization: an arbitrary basis, as Mitsuba
+            g = frame_from_normal(si.ng)
+            dp_du = g.s
+            dp_dv = g.t
+    ns = si.ns
+    local = frame_from_normal(ns)
+    n = wp.vec3(0.0, 0.0, 1.0)
+    if m.perturb == PERTURB_NORMALMAP:
+        s = dp_du - ns * wp.dot(ns, dp_du)
+        if wp.length_sq(s) > 0.0:
+            s = wp.normalize(s)
+        else:
+            s = local.s
+        t = wp.cross(ns, s)
+        c = surface_texture(scene, m.perturb_texture, si) * 2.0 - wp.vec3(1.0, 1.0, 1.0)
+        n = s * c[0] + t * c[1] + ns * c[2]
+    else:
+        grad = texture_gradient(scene.textures, m.perturb_texture, si.uv) * m.bump_scale
+        du = dp_du + ns * (grad[0] - wp.dot(ns, dp_du))
+        dv = dp_dv + ns * (grad[1] - wp.dot(ns, dp_dv))
+        n = wp.cross(du, dv)
+        if wp.dot(si.ng, n) < 0.0:
+            n = -n
+    if wp.length_sq(n) <= 0.0:
+        return wp.vec3(0.0, 0.0, 1.0)
+    return wp.normalize(to_local(local, n))
+
+
+@wp.func
+def _resolve_wrappers(scene: SceneData, m: Material, si: SurfaceInteraction) -> Material:
+    """A mask's ``opacity`` (the luminance of its texture at ``si.uv``, clamped to [0, 1]) and a normal or bump map's
+    ``perturbed_n`` at ``si``."""
+    if m.opacity_texture >= 0:
+        m.opacity = wp.clamp(luminance(surface_texture(scene, m.opacity_texture, si)), 0.0, 1.0)
+    if m.perturb != PERTURB_NONE:
+        m.perturbed_n = _perturbed_normal(scene, si, m)
     return m
 
 
 @wp.func
-def surface_material_at(scene: SceneData, material: int, uv: wp.vec2, tri: int, p: wp.vec3) -> Material:
-    """The material of a stored surface point (:func:`stored_surface`) with its texture resolved, as at the hit."""
-    return surface_material(scene, stored_surface(scene, material, uv, tri, p))
+def surface_material(scene: SceneData, si: SurfaceInteraction) -> Material:
+    """The material at ``si`` with its texture (if any) resolved into ``reflectance`` (:func:`surface_texture`), and
+    its wrappers' textures (:func:`_resolve_wrappers`)."""
+    m = scene.materials[si.material]
+    if m.texture >= 0:
+        m.reflectance = surface_texture(scene, m.texture, si)
+    return _resolve_wrappers(scene, m, si)
+
+
+@wp.func
+def surface_material_at(scene: SceneData, material: int, uv: wp.vec2, tri: int, p: wp.vec3, ns: wp.vec3, ng: wp.vec3) -> Material:
+    """The material of a stored surface point (:func:`stored_surface`) with its textures resolved, as at the hit."""
+    return surface_material(scene, stored_surface(scene, material, uv, tri, p, ns, ng))
 
 
 @wp.kernel
@@ -815,11 +886,11 @@ class Scene:
         return allv.min(axis=0), allv.max(axis=0)
 
     def _bumpy(self, material: int) -> bool:
-        return getattr(self.materials[material], "bump_amplitude", 0.0) > 0.0
+        return getattr(unwrap(self.materials[material])[0], "bump_amplitude", 0.0) > 0.0
 
     def features(self) -> SceneFeatures:
         kinds = frozenset(material_kinds(self.materials)) if self.materials else frozenset()
-        delta = {MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, MATERIAL_THIN_DIELECTRIC}
+        delta = {MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, MATERIAL_THIN_DIELECTRIC, MATERIAL_NULL, MATERIAL_MASK}
         used = {o.material for o in self.objects}
         used_kinds = frozenset(material_kinds([self.materials[i] for i in sorted(used)])) if used else frozenset()
         env = "none" if self.environment is None else ("constant" if isinstance(self.environment, ConstantEnvironment) else "envmap")

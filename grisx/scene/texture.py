@@ -32,6 +32,11 @@ a 1-channel attribute is grey (its value in all three channels), a 3-channel one
 :meth:`~grisx.scene.scene.Scene.build` gathers each such texture's values over the whole scene
 (one row per scene vertex or triangle: :class:`AttributeTexels`) so that :func:`attribute_lookup`
 indexes them by the hit's triangle and vertices.
+
+Scalar uses (a mask's opacity, a bump map's height) read the luminance of the
+RGB value, as Mitsuba's ``eval_1`` of a 3-channel bitmap; ``texture_gradient``
+is the exact uv gradient of that luminance under the bilinear filter (Mitsuba's
+``eval_1_grad``; 0 for a checkerboard or a nearest lookup, constant almost everywhere).
 """
 
 from __future__ import annotations
@@ -42,10 +47,11 @@ import numpy as np
 import warp as wp
 
 from grisx.errors import InvalidValueError
+from grisx.theory.gris import luminance
 
 wp.set_module_options({"enable_backward": False})
 
-__all__ = ["Bitmap", "Checkerboard", "MeshAttribute", "AttributeTexels", "TextureInfo", "TextureSet", "texture_lookup",
+__all__ = ["Bitmap", "Checkerboard", "MeshAttribute", "AttributeTexels", "TextureInfo", "TextureSet", "texture_lookup", "texture_gradient",
            "attribute_lookup", "pack_textures", "TEXTURE_BITMAP", "TEXTURE_CHECKERBOARD", "TEXTURE_MESH_ATTRIBUTE",
            "WRAP_MODES", "FILTER_TYPES"]
 
@@ -143,6 +149,28 @@ def _texel(ts: TextureSet, info: TextureInfo, x: int, y: int) -> wp.vec3:
     return ts.texels[info.offset + ym * info.width + xm]
 
 
+@wp.struct
+class _Patch:
+    """The bilinear filter's texel (ix, iy) below and left of a point and the point's fractions (fx, fy) past it."""
+
+    ix: int
+    iy: int
+    fx: float
+    fy: float
+
+
+@wp.func
+def _patch(info: TextureInfo, uv: wp.vec2) -> _Patch:
+    x = uv[0] * float(info.width) - 0.5
+    y = uv[1] * float(info.height) - 0.5
+    q = _Patch()
+    q.ix = int(wp.floor(x))
+    q.iy = int(wp.floor(y))
+    q.fx = x - wp.floor(x)
+    q.fy = y - wp.floor(y)
+    return q
+
+
 @wp.func
 def texture_lookup(ts: TextureSet, texture: int, uv_in: wp.vec2) -> wp.vec3:
     """Texture ``texture`` at ``to_uv · uv``: a checkerboard's colour, or a bitmap's bilinear (or nearest), wrapped value."""
@@ -157,17 +185,30 @@ def texture_lookup(ts: TextureSet, texture: int, uv_in: wp.vec2) -> wp.vec3:
         return info.color1
     if info.nearest != 0:
         return _texel(ts, info, int(wp.floor(uv[0] * float(info.width))), int(wp.floor(uv[1] * float(info.height))))
-    x = uv[0] * float(info.width) - 0.5
-    y = uv[1] * float(info.height) - 0.5
-    x0 = wp.floor(x)
-    y0 = wp.floor(y)
-    fx = x - x0
-    fy = y - y0
-    ix = int(x0)
-    iy = int(y0)
-    a = _texel(ts, info, ix, iy) * (1.0 - fx) + _texel(ts, info, ix + 1, iy) * fx
-    b = _texel(ts, info, ix, iy + 1) * (1.0 - fx) + _texel(ts, info, ix + 1, iy + 1) * fx
-    return a * (1.0 - fy) + b * fy
+    q = _patch(info, uv)
+    a = _texel(ts, info, q.ix, q.iy) * (1.0 - q.fx) + _texel(ts, info, q.ix + 1, q.iy) * q.fx
+    b = _texel(ts, info, q.ix, q.iy + 1) * (1.0 - q.fx) + _texel(ts, info, q.ix + 1, q.iy + 1) * q.fx
+    return a * (1.0 - q.fy) + b * q.fy
+
+
+@wp.func
+def texture_gradient(ts: TextureSet, texture: int, uv_in: wp.vec2) -> wp.vec2:
+    """(∂/∂u, ∂/∂v) of the luminance of ``texture_lookup(ts, texture, uv)``: the bilinear patch's slopes in
+    texels through the transpose of ``to_uv``'s linear part, times the resolution (Mitsuba's ``eval_1_grad``,
+    formula for formula: exact for a ``to_uv`` that scales and shifts, as Mitsuba's is)."""
+    info = ts.info[texture]
+    if info.kind != TEXTURE_BITMAP or info.nearest != 0:
+        return wp.vec2(0.0, 0.0)  # piecewise constant (a checkerboard, a nearest lookup) or not over uv
+    h = wp.vec3(uv_in[0], uv_in[1], 1.0)
+    q = _patch(info, wp.vec2(wp.dot(info.uv_row0, h), wp.dot(info.uv_row1, h)))
+    f00 = luminance(_texel(ts, info, q.ix, q.iy))
+    f10 = luminance(_texel(ts, info, q.ix + 1, q.iy))
+    f01 = luminance(_texel(ts, info, q.ix, q.iy + 1))
+    f11 = luminance(_texel(ts, info, q.ix + 1, q.iy + 1))
+    dx = (1.0 - q.fy) * (f10 - f00) + q.fy * (f11 - f01)
+    dy = (1.0 - q.fx) * (f01 - f00) + q.fx * (f11 - f10)
+    return wp.vec2((info.uv_row0[0] * dx + info.uv_row1[0] * dy) * float(info.width),
+                   (info.uv_row0[1] * dx + info.uv_row1[1] * dy) * float(info.height))
 
 
 @wp.func

@@ -27,7 +27,7 @@ import pytest
 
 from grisx.imageio import read_exr
 from grisx.render import render
-from grisx.scene.material import Diffuse
+from grisx.scene.material import Diffuse, Mask, NormalMap, BumpMap, Null
 from grisx.scene.mitsuba import load_mitsuba
 from grisx.scene.texture import Bitmap, Checkerboard
 from grisx.scene.transform import rotate
@@ -78,6 +78,10 @@ CASES: dict[str, Case] = {
     "thindielectric": Case(32, 16),
     "plastic": Case(32, 16),
     "roughplastic": Case(32, 16),
+    "mask": Case(32, 16),
+    "null": Case(32, 16),
+    "normalmap": Case(32, 16),
+    "bumpmap": Case(32, 16),
     "texture_srgb": Case(32, 16),
     "texture_raw": Case(32, 16),
     "texture_exr": Case(32, 16),
@@ -300,3 +304,34 @@ def test_an_orthographic_film_of_the_wrong_height_is_caught():
     scene.camera = dataclasses.replace(scene.camera, to_world=scene.camera.to_world @ np.diag([1.0, 32 / 24, 1.0, 1.0]))
     result = agreement(scene, "orthographic")
     assert not result.passed, f"an orthographic film of the wrong height went unnoticed: {result}"
+
+
+def test_a_mask_with_a_constant_opacity_is_caught():
+    """The checker's opacity replaced by its mean-ish 0.5: the see-through squares must show."""
+    scene = load_mitsuba(SCENES / "mask.xml")
+    scene.materials[:] = [dataclasses.replace(m, opacity=0.5) if isinstance(m, Mask) else m for m in scene.materials]
+    result = agreement(scene, "mask")
+    assert not result.passed, f"a mask without its opacity texture went unnoticed: {result}"
+
+
+def test_null_surfaces_that_are_no_path_vertex_are_caught():
+    """Without the null rectangles (as if passing one were no bounce): at max_depth 4 what is seen through them
+    gets a bounce more than in Mitsuba."""
+    scene = load_mitsuba(SCENES / "null.xml")
+    scene.objects[:] = [o for o in scene.objects if not isinstance(scene.materials[o.material], Null)]
+    result = agreement(scene, "null")
+    assert not result.passed, f"null surfaces that do not count toward max_depth went unnoticed: {result}"
+
+
+def test_a_normal_map_without_its_shadowing_term_is_caught():
+    scene = load_mitsuba(SCENES / "normalmap.xml")
+    scene.materials[:] = [dataclasses.replace(m, use_shadowing_function=False) if isinstance(m, NormalMap) else m for m in scene.materials]
+    result = agreement(scene, "normalmap")
+    assert not result.passed, f"a normal map without Estevez et al.'s shadowing went unnoticed: {result}"
+
+
+def test_a_bump_map_of_half_the_scale_is_caught():
+    scene = load_mitsuba(SCENES / "bumpmap.xml")
+    scene.materials[:] = [dataclasses.replace(m, scale=0.5 * m.scale) if isinstance(m, BumpMap) else m for m in scene.materials]
+    result = agreement(scene, "bumpmap")
+    assert not result.passed, f"a bump map at half its scale went unnoticed: {result}"

@@ -59,6 +59,14 @@ from grisx.scene.material import (
     RoughPlastic,
     ThinDielectric,
     TextureRef,
+    BumpMap,
+    Mask,
+    NormalMap,
+    Null,
+    MATERIAL_MASK,
+    MATERIAL_NORMALMAP,
+    MATERIAL_NULL,
+    _pack_one,
     conductor_material,
     fresnel_diffuse_reflectance,
     material_kinds,
@@ -189,9 +197,14 @@ def direction(theta_deg: float, phi_deg: float = 30.0) -> np.ndarray:
     return np.array([math.sin(t) * math.cos(p), math.sin(t) * math.sin(p), math.cos(t)])
 
 
+def _packed(desc, device):
+    """``desc`` packed, or ``desc`` itself where it is already a packed material array."""
+    return desc if isinstance(desc, wp.array) else pack_materials([desc], device)
+
+
 def sample(desc, wo, n: int, device, seed: int) -> dict:
     """``bsdf_sample`` of ``desc`` at ``wo`` (one or n directions) with n uniform triples."""
-    mats = pack_materials([desc], device)
+    mats = _packed(desc, device)
     wo = np.broadcast_to(np.asarray(wo, dtype=np.float32), (n, 3))
     u = np.random.default_rng(seed).random((n, 3), dtype=np.float32)
     out = {
@@ -218,7 +231,7 @@ def evaluate(desc, wo, wi, device) -> tuple[np.ndarray, np.ndarray]:
     n = len(wo)
     f = wp.zeros(n, dtype=wp.vec3, device=device)
     p = wp.zeros(n, dtype=float, device=device)
-    wp.launch(_eval_kernel, n, inputs=[pack_materials([desc], device), _arr(wo, wp.vec3, device), _arr(wi, wp.vec3, device), f, p], device=device)
+    wp.launch(_eval_kernel, n, inputs=[_packed(desc, device), _arr(wo, wp.vec3, device), _arr(wi, wp.vec3, device), f, p], device=device)
     return f.numpy().astype(np.float64), p.numpy().astype(np.float64)
 
 
@@ -972,3 +985,156 @@ def test_plastic_kinds_flags_and_packing(device):
         pack_materials([RoughPlastic(alpha=-1.0)])
     with pytest.raises(InvalidParameterError, match="both black"):
         pack_materials([Plastic(diffuse_reflectance=0.0, specular_reflectance=0.0)])
+
+
+# ---------------------------------------------------------------- wrappers: null, mask, normalmap, bumpmap
+
+
+def perturbed(desc, n, device):
+    """``desc`` (a normal or bump map) packed as ``surface_material`` leaves it at a hit whose perturbed normal is ``n``
+    (local to the unperturbed frame)."""
+    m = _pack_one(desc, 0, device)
+    n = np.asarray(n, dtype=np.float64)
+    m.perturbed_n = wp.vec3(*(n / np.linalg.norm(n)))
+    return wp.array([m], dtype=Material, device=device)
+
+
+def _shadowing_oracle(n, w):
+    """Estevez et al. 2019: 2/(1 + sqrt(1 + a² tan² θ_w)), a² = min(tan² θ_n / 8, 1)."""
+    tan2 = lambda v: (1 - v[..., 2] ** 2) / v[..., 2] ** 2  # noqa: E731
+    a2 = np.minimum(0.125 * tan2(np.asarray(n)), 1.0)
+    return 2 / (1 + np.sqrt(1 + a2 * tan2(w)))
+
+
+TILT = (0.35, -0.2, 0.9)  # a perturbed normal some 25° off the shading normal
+STEEP = (0.8, 0.3, 0.5)  # 60° off: seen from behind by wo at 75°/40° (the flip mirrors it)
+WRAPPER_CASES = [
+    ("mask-diffuse-0.6", lambda d: Mask(Diffuse(reflectance=(0.3, 0.6, 0.9)), 0.6), 30.0),
+    ("mask-roughconductor-0.3", lambda d: Mask(RoughConductor(alpha=0.3, eta=GOLD[0], k=GOLD[1]), 0.3), 60.0),
+    ("mask-twosided-back", lambda d: Mask(RoughPlastic(alpha=0.2, two_sided=True), 0.7), 120.0),
+    ("normalmap-diffuse", lambda d: perturbed(NormalMap(Diffuse(0.8), TextureRef(0)), TILT, d), 40.0),
+    ("normalmap-roughconductor", lambda d: perturbed(NormalMap(RoughConductor(alpha=0.2, eta=GOLD[0], k=GOLD[1]), TextureRef(0)), TILT, d), 20.0),
+    ("normalmap-flipped", lambda d: perturbed(NormalMap(Diffuse(0.8), TextureRef(0)), STEEP, d), 75.0),
+    ("bumpmap-roughplastic", lambda d: perturbed(BumpMap(RoughPlastic(alpha=0.3), TextureRef(0), 0.1), TILT, d), 50.0),
+    ("bumpmap-roughdielectric-inside", lambda d: perturbed(BumpMap(RoughDielectric(alpha=0.4), TextureRef(0)), TILT, d), 150.0),
+    ("mask-normalmap-diffuse", lambda d: perturbed(Mask(NormalMap(Diffuse(0.8), TextureRef(0)), 0.5), TILT, d), 40.0),
+]
+
+
+@pytest.mark.parametrize("index", range(len(WRAPPER_CASES)), ids=[c[0] for c in WRAPPER_CASES])
+def test_chi2_wrappers_sample_their_pdf(index, device):
+    """The non-delta samples of a wrapped BSDF follow its pdf; a mask's null samples (delta) are the mass the pdf
+    does not hold, 1 − opacity (they fall outside the grid)."""
+    name, make, theta = WRAPPER_CASES[index]
+    desc = make(device)
+    wo = direction(theta, 40.0)
+    s = sample(desc, wo, N_CHI2, device, seed=2000 + index)
+    masses = _cell_masses(lambda d: evaluate(desc, wo, d, device)[1])
+    result = _chi2(s["wi"], s["valid"] & (s["delta"] == 0), masses, tests=len(WRAPPER_CASES))
+    print(f"{name}: {result}")
+    assert result.passed, f"{name}: {result}"
+
+
+def test_chi2_rejects_a_mask_whose_pdf_ignores_the_opacity(device):
+    """The same check against the nested BSDF's pdf (not scaled by the opacity) sees the null samples' mass."""
+    desc, wo = Mask(Diffuse(reflectance=(0.3, 0.6, 0.9)), 0.6), direction(30.0, 40.0)
+    s = sample(desc, wo, N_CHI2, device, seed=2000)
+    masses = _cell_masses(lambda d: evaluate(Diffuse(), wo, d, device)[1])
+    result = _chi2(s["wi"], s["valid"] & (s["delta"] == 0), masses, tests=len(WRAPPER_CASES))
+    print(f"unscaled pdf: {result}")
+    assert not result.passed and result.p_value < 1e-12, result
+
+
+@pytest.mark.parametrize("case", WRAPPER_CASES, ids=[c[0] for c in WRAPPER_CASES])
+def test_wrapper_weight_is_eval_over_pdf(case, device):
+    name, make, theta = case
+    desc, wo = make(device), direction(theta, 40.0)
+    s = sample(desc, wo, 20_000, device, seed=5)
+    smooth = s["valid"] & (s["delta"] == 0)
+    null = s["valid"] & (s["delta"] == 1)
+    assert smooth.mean() > 0.2 and np.all(np.isfinite(s["weight"])) and np.all(s["weight"][~s["valid"]] == 0)
+    np.testing.assert_allclose(s["pdf_at"][smooth], s["pdf"][smooth], rtol=2e-3, err_msg=name)
+    np.testing.assert_allclose(s["weight"][smooth], s["eval"][smooth] / s["pdf_at"][smooth, None], rtol=2e-3, err_msg=name)
+    # the null lobe: straight on, weight 1
+    np.testing.assert_allclose(s["wi"][null], -s["wo"][null], atol=1e-6)
+    np.testing.assert_allclose(s["weight"][null], 1.0)
+
+
+@pytest.mark.parametrize("opacity", [0.0, 0.25, 0.9, 1.0])
+def test_mask_scales_eval_and_pdf_and_passes_the_rest(opacity, device):
+    nested = RoughConductor(alpha=0.4)
+    wo = direction(35.0, 10.0)
+    dirs = sphere_dirs(np.random.default_rng(3).random((500, 2)))
+    f, p = evaluate(Mask(nested, opacity), wo, dirs, device)
+    f0, p0 = evaluate(nested, wo, dirs, device)
+    np.testing.assert_allclose(f, opacity * f0, rtol=1e-6, atol=1e-12)
+    np.testing.assert_allclose(p, opacity * p0, rtol=1e-6, atol=1e-12)
+    n = 40_000
+    s = sample(Mask(nested, opacity), wo, n, device, seed=9)
+    null = s["delta"] == 1
+    np.testing.assert_allclose(s["pdf"][null], 1.0 - opacity, rtol=1e-6)
+    frac = null.mean()
+    se = max(math.sqrt(opacity * (1 - opacity) / n), 1e-9)
+    assert z_test(frac, se, 1.0 - opacity).passed or frac == 1.0 - opacity, (frac, opacity)
+
+
+def test_null_passes_every_ray_straight_on(device):
+    wos = np.array([direction(t, 40.0) for t in (0.0, 30.0, 89.0, 120.0, 180.0)])
+    s = sample(Null(), wos, len(wos), device, seed=1)
+    assert np.all(s["valid"]) and np.all(s["delta"] == 1)
+    np.testing.assert_allclose(s["wi"], -wos, atol=1e-6)
+    np.testing.assert_allclose(s["weight"], 1.0)
+    np.testing.assert_allclose(s["pdf"], 1.0)
+    f, p = evaluate(Null(), wos, -wos, device)
+    assert np.all(f == 0) and np.all(p == 0)
+
+
+def test_normalmap_is_the_nested_bsdf_about_the_perturbed_normal(device):
+    """Exact values: an unperturbed normal changes nothing; a tilted one turns Lambert's cosine to wi·n' and
+    multiplies the shadowing term (and is black where wi lies on different sides of the two frames)."""
+    rho = 0.8
+    wo = direction(40.0, 40.0)
+    dirs = sphere_dirs(np.random.default_rng(4).random((2000, 2)))
+    f_id, p_id = evaluate(perturbed(NormalMap(Diffuse(rho), TextureRef(0)), (0, 0, 1), device), wo, dirs, device)
+    f0, p0 = evaluate(Diffuse(rho), wo, dirs, device)
+    np.testing.assert_allclose(f_id, f0, rtol=1e-5, atol=1e-7)
+    np.testing.assert_allclose(p_id, p0, rtol=1e-5, atol=1e-7)
+    n = np.asarray(TILT) / np.linalg.norm(TILT)
+    f, p = evaluate(perturbed(NormalMap(Diffuse(rho), TextureRef(0)), n, device), wo, dirs, device)
+    cos_n = dirs @ n
+    ok = (cos_n > 0) & (dirs[:, 2] > 0)
+    expect = np.where(ok, rho / np.pi * cos_n * _shadowing_oracle(n, dirs), 0.0)
+    np.testing.assert_allclose(f[:, 0], expect, rtol=1e-4, atol=1e-7)
+    np.testing.assert_allclose(p, np.where(ok, cos_n / np.pi, 0.0), rtol=1e-4, atol=1e-7)
+    # hand value: tan² θ_n = 8 saturates α² at 1; toward tan² θ = 1 the shadowing is 2/(1 + √2)
+    n8 = np.array([math.sqrt(8.0), 0.0, 1.0]) / 3.0
+    w45 = np.array([0.0, math.sqrt(0.5), math.sqrt(0.5)])
+    f45, _ = evaluate(perturbed(NormalMap(Diffuse(rho), TextureRef(0)), n8, device), direction(10.0, 0.0), w45, device)
+    np.testing.assert_allclose(f45[0, 0], rho / np.pi * (w45 @ n8) * 2 / (1 + math.sqrt(2)), rtol=1e-5)
+    # use_shadowing_function=false: no shadowing term
+    f_ns, _ = evaluate(perturbed(NormalMap(Diffuse(rho), TextureRef(0), use_shadowing_function=False), n8, device),
+                       direction(10.0, 0.0), w45, device)
+    np.testing.assert_allclose(f_ns[0, 0], rho / np.pi * (w45 @ n8), rtol=1e-5)
+
+
+def test_wrapper_kinds_packing_and_refusals():
+    descs = [Mask(Diffuse(), TextureRef(2)), NormalMap(RoughConductor(), TextureRef(1)), Null(),
+             Mask(BumpMap(Plastic(), TextureRef(0), scale=0.5), 0.3)]
+    assert material_kinds(descs) == {MATERIAL_DIFFUSE, MATERIAL_ROUGH_CONDUCTOR, MATERIAL_NULL, MATERIAL_PLASTIC,
+                                     MATERIAL_MASK, MATERIAL_NORMALMAP, 11}
+    assert material_kinds([Diffuse(), Null()]) == {MATERIAL_DIFFUSE, MATERIAL_NULL}  # no wrapper: none compiled in
+    packed = pack_materials(descs, "cpu").numpy()
+    assert packed["opacity_texture"].tolist() == [2, -1, -1, -1]
+    np.testing.assert_allclose(packed["opacity"], [1.0, 1.0, 1.0, 0.3])
+    assert packed["perturb"].tolist() == [0, 1, 0, 2] and packed["perturb_texture"].tolist() == [-1, 1, -1, 0]
+    assert packed["perturb_flags"].tolist() == [0, 3, 0, 3] and packed["kind"].tolist() == [0, 2, 8, 6]
+    np.testing.assert_allclose(packed["bump_scale"][3], 0.5)
+    np.testing.assert_allclose(pack_materials([Mask(Diffuse(), 1.7)], "cpu").numpy()["opacity"], [1.0])  # clamped, as Mitsuba
+    with pytest.raises(InvalidParameterError, match="a mask inside a normalmap"):
+        pack_materials([NormalMap(Mask(Diffuse(), 0.5), TextureRef(0))])
+    with pytest.raises(InvalidParameterError, match="a mask inside another mask"):
+        pack_materials([Mask(Mask(Diffuse(), 0.5), 0.5)])
+    with pytest.raises(InvalidParameterError, match="inside another normalmap or bumpmap"):
+        pack_materials([BumpMap(NormalMap(Diffuse(), TextureRef(0)), TextureRef(0))])
+    with pytest.raises(InvalidParameterError, match="needs a texture"):
+        pack_materials([NormalMap(Diffuse(), 0.5)])

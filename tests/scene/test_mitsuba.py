@@ -13,7 +13,11 @@ from grisx.scene import shapes
 from grisx.scene.lights import ConstantEnvironment, DirectionalLight, EnvMap, Projector
 from grisx.scene.material import (
     CONDUCTOR_PRESETS,
+    BumpMap,
     Conductor,
+    Mask,
+    NormalMap,
+    Null,
     Dielectric,
     Diffuse,
     Plastic,
@@ -330,6 +334,40 @@ def test_twosided_and_shared_references():
     assert a.material == b.material != c.material
     assert s.materials[a.material] == Diffuse(reflectance=(0.1, 0.2, 0.3), two_sided=True)
     assert s.materials[c.material] == Diffuse(reflectance=(0.1, 0.2, 0.3))
+
+
+def test_null_mask_normalmap_bumpmap():
+    assert bsdf('<bsdf type="null"/>') == Null()
+    # mask: Mitsuba's default opacity 0.5; a twosided around it goes to the nested BSDF (a mask is the same from both sides)
+    assert bsdf('<bsdf type="mask"><bsdf type="diffuse"/></bsdf>') == Mask(Diffuse(), 0.5)
+    assert bsdf('<bsdf type="twosided"><bsdf type="mask"><float name="opacity" value="0.3"/><bsdf type="roughconductor"/></bsdf></bsdf>') \
+        == Mask(RoughConductor(distribution="beckmann", two_sided=True), 0.3)
+    m = bsdf('<bsdf type="mask"><texture type="checkerboard" name="opacity"/><bsdf type="twosided"><bsdf type="diffuse"/></bsdf></bsdf>')
+    assert m == Mask(Diffuse(two_sided=True), TextureRef(0))
+    nm = bsdf('<bsdf type="normalmap"><texture type="checkerboard" name="normalmap"/>'
+              '<boolean name="flip_invalid_normals" value="false"/><bsdf type="plastic"/></bsdf>')
+    assert nm == NormalMap(Plastic(int_ior=1.49, ext_ior=1.000277), TextureRef(0), flip_invalid_normals=False)
+    # bumpmap: its one nested texture, whatever its name (bumpmap.cpp), and scale [1]
+    bm = bsdf('<bsdf type="mask"><float name="opacity" value="0.9"/><bsdf type="bumpmap"><float name="scale" value="0.02"/>'
+              '<texture type="checkerboard" name="floor_tiles_bumpmap"/><bsdf type="diffuse"/></bsdf></bsdf>')
+    assert bm == Mask(BumpMap(Diffuse(), TextureRef(0), scale=0.02), 0.9)
+    assert bsdf('<bsdf type="bumpmap"><texture type="checkerboard" name="h"/><bsdf type="diffuse"/></bsdf>').scale == 1.0
+    for xml, message in [
+        ('<bsdf type="mask"/>', "mask needs exactly one nested BSDF, got 0"),
+        ('<bsdf type="normalmap"><bsdf type="diffuse"/></bsdf>', "normalmap needs a texture named 'normalmap'"),
+        ('<bsdf type="bumpmap"><bsdf type="diffuse"/></bsdf>', "bumpmap needs exactly one nested texture, got 0"),
+        ('<bsdf type="twosided"><bsdf type="normalmap"><texture type="checkerboard" name="normalmap"/><bsdf type="diffuse"/></bsdf></bsdf>',
+         "twosided around a normalmap or bumpmap is not supported"),
+        ('<bsdf type="normalmap"><texture type="checkerboard" name="normalmap"/><bsdf type="mask"><bsdf type="diffuse"/></bsdf></bsdf>',
+         "a mask inside a normalmap or bumpmap is not supported"),
+        ('<bsdf type="twosided"><bsdf type="mask"><bsdf type="dielectric"/></bsdf></bsdf>', "twosided cannot wrap a transmissive BSDF"),
+        ('<bsdf type="blendbsdf"/>', "unsupported bsdf type 'blendbsdf'"),
+    ]:
+        with pytest.raises(SceneFileError, match=message):
+            bsdf(xml)
+    with pytest.raises(SceneFileError, match="a normalmap or bumpmap on an analytic sphere is not supported"):
+        load_mitsuba(doc('<shape type="sphere"><bsdf type="normalmap"><texture type="checkerboard" name="normalmap"/>'
+                         '<bsdf type="diffuse"/></bsdf></shape>'))
 
 
 # ---- textures and emitters ---------------------------------------------------------------------------

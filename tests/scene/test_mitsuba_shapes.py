@@ -302,7 +302,7 @@ def _materials_at_hits(scene: SceneData, o: wp.array(dtype=wp.vec3), d: wp.array
         p[i] = si.p
         tri[i] = si.tri
         at_hit[i] = surface_material(scene, si).reflectance
-        at_point[i] = surface_material_at(scene, si.material, si.uv, si.tri, si.p).reflectance
+        at_point[i] = surface_material_at(scene, si.material, si.uv, si.tri, si.p, si.ns, si.ng).reflectance
 
 
 @pytest.mark.parametrize("name", ["vertex_color", "face_color_color", "face_weight"])

@@ -18,7 +18,7 @@ from grisx.scene.lights import PointLight  # noqa: F401  (records used by the bu
 from grisx.scene.material import Diffuse
 from grisx.scene.scene import RigidMotion, Scene, SceneData, intersect
 from grisx.scene.shapes import rectangle
-from grisx.scene.texture import Bitmap, Checkerboard, TextureSet, pack_textures, texture_lookup
+from grisx.scene.texture import Bitmap, Checkerboard, TextureSet, pack_textures, texture_gradient, texture_lookup
 from grisx.scene.transform import scale
 
 # ---- cameras ---------------------------------------------------------------------------
@@ -356,6 +356,35 @@ def test_checkerboard_is_mitsubas_and_to_uv_is_affine():
     img = np.arange(4 * 3 * 3, dtype=np.float32).reshape(3, 4, 3)
     res = _lookup_all(Bitmap(img, to_uv=((0.5, 0.0, 0.125), (0.0, 1.0, 0.0))), [[0.0, 1 / 6], [0.25, 1 / 6]])
     np.testing.assert_allclose(res, [img[0, 0], 0.5 * (img[0, 0] + img[0, 1])], atol=1e-4)
+
+
+@wp.kernel
+def _gradient(ts: TextureSet, uv: wp.array(dtype=wp.vec2), out: wp.array(dtype=wp.vec2)):
+    i = wp.tid()
+    out[i] = texture_gradient(ts, 0, uv[i])
+
+
+def test_texture_gradient_is_the_uv_derivative_of_the_lookups_luminance():
+    """A bump map's slope (Mitsuba's ``eval_1_grad``) against central differences of the bilinear lookup, through a
+    scaling and shifting ``to_uv`` (Mitsuba's formula scales by the resolution after the transposed map, exact
+    for such maps); a checkerboard has none."""
+    rng = np.random.default_rng(5)
+    img = rng.random((5, 7, 3)).astype(np.float32)
+    tex = Bitmap(img, to_uv=((2.0, 0.0, 0.1), (0.0, -1.5, 0.2)))
+    uv = rng.random((64, 2))
+    ts = pack_textures([tex], "cpu")
+    out = wp.zeros(len(uv), dtype=wp.vec2, device="cpu")
+    wp.launch(_gradient, dim=len(uv), inputs=[ts, wp.array(uv.astype(np.float32), dtype=wp.vec2, device="cpu"), out], device="cpu")
+    lum = np.array([0.212671, 0.715160, 0.072169])
+    h = 1e-3
+    fd = np.stack([(_lookup_all(tex, uv + d) - _lookup_all(tex, uv - d)) @ lum / (2 * h) for d in ([h, 0.0], [0.0, h])], axis=1)
+    # central differences straddle a texel edge for a few points: compare where both sides lie in one bilinear patch
+    np.testing.assert_allclose(np.median(np.abs(out.numpy() - fd)), 0.0, atol=1e-3)
+    inside = np.abs(out.numpy() - fd).max(axis=1) < 0.05 * np.abs(fd).max()
+    assert inside.mean() > 0.8
+    ts = pack_textures([Checkerboard()], "cpu")
+    wp.launch(_gradient, dim=len(uv), inputs=[ts, wp.array(uv.astype(np.float32), dtype=wp.vec2, device="cpu"), out], device="cpu")
+    assert np.all(out.numpy() == 0)
 
 
 # ---- built-in scenes ---------------------------------------------------------------------

@@ -392,9 +392,10 @@ def _shift_failed(x: PathSample) -> PathShiftResult:
 
 
 @wp.func
-def vertex_material(scene: SceneData, material: int, uv: wp.vec2, tri: int, p: wp.vec3) -> Material:
-    """The material of a stored vertex (material id, uv, triangle, position) with its texture resolved, as at the hit."""
-    return surface_material_at(scene, material, uv, tri, p)
+def vertex_material(scene: SceneData, material: int, uv: wp.vec2, tri: int, p: wp.vec3, ns: wp.vec3, ng: wp.vec3) -> Material:
+    """The material of a stored vertex (material id, uv, triangle, position, normals) with its textures resolved, as at
+    the hit."""
+    return surface_material_at(scene, material, uv, tri, p, ns, ng)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -478,7 +479,7 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
         done = bool(False)
         i = int(1)
         while i < n and not done:
-            m = vertex_material(scene, v.material, v.uv, v.tri, v.p)
+            m = vertex_material(scene, v.material, v.uv, v.tri, v.p, v.ns, v.ng)
             frame = frame_from_normal(v.ns)
             wo_l = to_local(frame, v.wo)
             rough = bsdf.roughness(m)
@@ -522,7 +523,7 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                 f = wp.cw_mul(f, fo)
                 pdf_bsdf = bsdf.pdf(m, wo_l, to_local(frame, d))  # for m_t when x_k is the end vertex
                 if x.rc_kind == VERTEX_SURFACE:
-                    mk = vertex_material(scene, x.rc_material, x.rc_uv, x.rc_tri, x.rc_p)
+                    mk = vertex_material(scene, x.rc_material, x.rc_uv, x.rc_tri, x.rc_p, x.rc_ns, x.rc_ng)
                     frame_k = frame_from_normal(x.rc_ns)
                     wo_k = to_local(frame_k, -d)
                     wi_k = to_local(frame_k, x.rc_wi)
@@ -654,7 +655,7 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                 ls = sample_light(scene.lights, v.p, random_uniform(key, c), wp.vec2(random_uniform(key, c + 1), random_uniform(key, c + 2)))
                 return motion_on_segment(scene, v.p, ls.wi, ls.dist)
             if i > k:
-                m = vertex_material(scene, v.material, v.uv, v.tri, v.p)
+                m = vertex_material(scene, v.material, v.uv, v.tri, v.p, v.ns, v.ng)
                 frame = frame_from_normal(v.ns)
                 c = path_dim(i, DIM_BSDF)
                 bs = bsdf.sample(m, to_local(frame, v.wo), random_uniform(key, c), wp.vec2(random_uniform(key, c + 1), random_uniform(key, c + 2)))
@@ -715,7 +716,7 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
         suffix_thru = wp.vec3(1.0, 1.0, 1.0)  # f factors after x_k's BSDF
         i = int(1)
         while max_bounces < 0 or i <= max_bounces:
-            m = vertex_material(scene, v.material, v.uv, v.tri, v.p)
+            m = vertex_material(scene, v.material, v.uv, v.tri, v.p, v.ns, v.ng)
             frame_l = frame_from_normal(v.ns)
             wo_l = to_local(frame_l, v.wo)
             rough = bsdf.roughness(m)
