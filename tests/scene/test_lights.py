@@ -260,11 +260,14 @@ def test_emission_is_one_sided():
 # ---- statistics: χ² of sampled directions, ∫ pdf dω = 1 ------------------------------
 
 
-@pytest.mark.parametrize("lights", ["triangles", "envmap", "triangles+envmap"])
+@pytest.mark.parametrize("lights", ["triangles", "envmap", "triangles+envmap", "textured triangles+envmap"])
 def test_sampled_directions_follow_the_pdf(device, lights):
+    """... and with two triangles of one light textured (their selection weighted by the image over each, the
+    light's share split between them) beside a plain triangle and the environment."""
     tris = [0, 1, 2] if "triangles" in lights else []
     env = L.EnvMap(_envmap_image(), scale=0.5, to_world=_rot_y(30) @ np.diag([1.0, 1.0, 1.0, 1.0])) if "envmap" in lights else None
-    ls = L.build_light_set(device, TRI_POSITIONS, TRI_INDICES, tris, TRI_RADIANCE[tris] if tris else (), environment=env, scene_radius=2.0)
+    textured = {"emitter_textures": [np.random.default_rng(8).random((4, 5, 3))], "emitter_texture": [0, 0, -1], "emitter_group": [0, 0, 1]} if "textured" in lights else {}
+    ls = L.build_light_set(device, TRI_POSITIONS, TRI_INDICES, tris, TRI_RADIANCE[tris] if tris else (), environment=env, scene_radius=2.0, **textured)
     s = _sample(ls, 200_000, device)
     assert np.all(s["pdf"] > 0)
     np.testing.assert_allclose(s["pdf_query"], s["pdf"], rtol=2e-3)  # the pdf a BSDF-sampled hit would ask for
