@@ -129,6 +129,7 @@ __all__ = [
     "Plastic",
     "RoughPlastic",
     "Null",
+    "BlendBSDF",
     "Mask",
     "NormalMap",
     "BumpMap",
@@ -471,9 +472,29 @@ class BumpMap:
     use_shadowing_function: bool = True
 
 
+@dataclasses.dataclass(frozen=True)
+class BlendBSDF:
+    """Mitsuba ``blendbsdf`` of two diffuse BSDFs: (1 − w) f₀ + w f₁ with w = ``weight`` (a number, or a texture's
+    luminance, clamped to [0, 1]). Two Lambertian lobes blend into one of reflectance (1 − w) ρ₀ + w ρ₁, sampled
+    and evaluated exactly as Mitsuba's mixture (the lobes share their density), so that is how it is packed;
+    ``bsdf0``'s reflectance may be a texture, ``bsdf1``'s is a colour. Blends of other BSDFs are not supported."""
+
+    bsdf0: Diffuse
+    bsdf1: Diffuse
+    weight: float | TextureRef = 0.5
+
+    @property
+    def two_sided(self) -> bool:
+        return self.bsdf0.two_sided
+
+    bump_amplitude = 0.0
+    bump_frequency = 0.0
+
+
 _WRAPPER_KIND: dict[type, int] = {Mask: MATERIAL_MASK, NormalMap: MATERIAL_NORMALMAP, BumpMap: MATERIAL_BUMPMAP}
 
-MaterialDesc = Diffuse | Conductor | RoughConductor | Dielectric | RoughDielectric | ThinDielectric | Plastic | RoughPlastic | Null | Mask | NormalMap | BumpMap
+MaterialDesc = (Diffuse | Conductor | RoughConductor | Dielectric | RoughDielectric | ThinDielectric | Plastic | RoughPlastic | Null
+                | BlendBSDF | Mask | NormalMap | BumpMap)
 
 
 def unwrap(desc: Any) -> tuple[Any, list[Any]]:
@@ -494,6 +515,7 @@ _KIND_OF: dict[type, int] = {
     Plastic: MATERIAL_PLASTIC,
     RoughPlastic: MATERIAL_ROUGH_PLASTIC,
     Null: MATERIAL_NULL,
+    BlendBSDF: MATERIAL_DIFFUSE,
 }
 
 
@@ -518,7 +540,10 @@ class Material:
     hit's value replaces ``opacity``); ``perturb`` (PERTURB_*), ``perturb_texture``,
     ``bump_scale``, ``perturb_flags`` (bit 0: flip invalid normals, bit 1: shadowing
     function) and ``perturbed_n``, the perturbed normal in the local frame of the hit's
-    shading normal (resolved at the hit by ``grisx.scene.scene.surface_material``).
+    shading normal (resolved at the hit by ``grisx.scene.scene.surface_material``). A blend of
+    two diffuse BSDFs whose weight or first reflectance is a texture: ``blend_weight`` (or
+    ``blend_texture``, its texture id or −1) and ``blend_reflectance`` (ρ₁); the hit's
+    reflectance is (1 − w) ρ₀ + w ρ₁ (a constant blend is packed as a diffuse of that reflectance).
     """
 
     kind: int
@@ -544,6 +569,9 @@ class Material:
     bump_scale: float
     perturb_flags: int
     perturbed_n: wp.vec3
+    blend_weight: float
+    blend_texture: int
+    blend_reflectance: wp.vec3
 
 
 def material_kind(desc: MaterialDesc) -> int:
@@ -669,11 +697,41 @@ def _pack_wrappers(wrappers: list[Any], m: Material, where: str) -> None:
         m.perturb_flags = (1 if w.flip_invalid_normals else 0) | (2 if w.use_shadowing_function else 0)
 
 
+def _pack_blend(blend: BlendBSDF, m: Material, where: str) -> None:
+    # blendbsdf.cpp of two Lambertian lobes: one lobe of the blended reflectance, folded now where nothing varies
+    rho1 = wp.vec3(*_rgb(blend.bsdf1.reflectance, f"{where}: the second BSDF's reflectance"))
+    if isinstance(blend.weight, TextureRef):
+        m.blend_texture = _texture_id(blend.weight, where, "weight")
+        m.blend_reflectance = rho1
+        return
+    w = float(blend.weight)
+    if not math.isfinite(w):
+        raise InvalidParameterError(f"{where}: blendbsdf weight must be finite, got {blend.weight!r}")
+    w = min(max(w, 0.0), 1.0)  # clamped, as Mitsuba's eval_weight
+    if m.texture >= 0:
+        m.blend_weight = w
+        m.blend_reflectance = rho1
+    else:
+        m.reflectance = wp.vec3(*((1.0 - w) * np.asarray(m.reflectance, dtype=np.float64) + w * np.asarray(rho1, dtype=np.float64)))
+
+
 def _pack_one(desc: MaterialDesc, index: int, device: str | wp.context.Device | None = None) -> Material:
     kind = material_kind(desc)
     where = f"material {index} ({MATERIAL_KIND_NAMES[kind]})"
     desc, wrappers = unwrap(desc)
+    blend = None
+    if isinstance(desc, BlendBSDF):
+        blend, desc = desc, desc.bsdf0
+        if not (isinstance(blend.bsdf0, Diffuse) and isinstance(blend.bsdf1, Diffuse)):
+            raise InvalidParameterError(f"{where}: blendbsdf is supported between two diffuse BSDFs only, got "
+                                        f"{type(blend.bsdf0).__name__} and {type(blend.bsdf1).__name__}")
+        if blend.bsdf0.two_sided != blend.bsdf1.two_sided or isinstance(blend.bsdf1.reflectance, TextureRef):
+            raise InvalidParameterError(f"{where}: blendbsdf needs both diffuse BSDFs one- or two-sided alike and the "
+                                        f"second one's reflectance a colour")
     m = Material()
+    m.blend_weight = 0.0
+    m.blend_texture = -1
+    m.blend_reflectance = wp.vec3(0.0, 0.0, 0.0)
     m.opacity = 1.0
     m.opacity_texture = -1
     m.perturb = PERTURB_NONE
@@ -710,6 +768,8 @@ def _pack_one(desc: MaterialDesc, index: int, device: str | wp.context.Device | 
             m.reflectance = wp.vec3(1.0, 1.0, 1.0)  # replaced by the texture's value at the hit
         else:
             m.reflectance = wp.vec3(*_rgb(desc.reflectance, f"{where}: reflectance"))
+        if blend is not None:
+            _pack_blend(blend, m, where)
         return m
     if isinstance(desc, Plastic):  # and RoughPlastic
         _pack_plastic(desc, m, where, device)

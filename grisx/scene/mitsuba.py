@@ -120,7 +120,10 @@ Transforms ``<transform name="to_world">``
     a texture, read it ``raw``) and ``bumpmap`` (its one nested texture, any name;
     ``scale`` [1]), both with ``flip_invalid_normals`` and
     ``use_shadowing_function`` [true], around one BSDF (at most one mask, outermost,
-    and one normalmap or bumpmap; a twosided goes inside a normalmap or bumpmap).
+    and one normalmap or bumpmap; a twosided goes inside a normalmap or bumpmap);
+    ``blendbsdf`` of two ``diffuse`` BSDFs (``weight``: a number or a texture, mesh
+    attributes included; the first reflectance may be a texture). ``principled`` and
+    ``principledthin`` are refused.
 ``emitter``
     ``area`` (inside a shape, or top-level with an ``id`` that one shape
     references; ``radiance``, required: a colour or a bitmap looked up at the
@@ -185,6 +188,7 @@ from grisx.scene.lights import ConstantEnvironment, DirectionalLight, EnvMap, Pr
 from grisx.scene.texture import FILTER_TYPES, WRAP_MODES, Bitmap, Checkerboard, MeshAttribute
 from grisx.imageio import srgb_decode as srgb_to_linear
 from grisx.scene.material import (
+    BlendBSDF,
     BumpMap,
     Conductor,
     Dielectric,
@@ -358,6 +362,9 @@ _WHY_NOT = {
                     "grisx films filter with box, gaussian or tent only (a filter with negative lobes would need "
                     "signed camera-sample weights in every renderer)"),
     "depth": "grisx integrators render radiance",
+    **dict.fromkeys(("principled", "principledthin"),
+                    "the Disney principled BSDF (metallic, sheen, clearcoat, anisotropic and transmission lobes mixed per "
+                    "texel) is not implemented by grisx; roughplastic or roughconductor come closest"),
     "bsplinecurve": "grisx intersects triangles (and Mitsuba's analytic shapes), not B-spline curves",
 }
 
@@ -1014,7 +1021,8 @@ class _Loader:
         if id(node) in self.records:
             return self.records[id(node)]
         t = self._require_type(node, ("diffuse", "conductor", "roughconductor", "dielectric", "roughdielectric", "thindielectric",
-                                      "plastic", "roughplastic", "twosided", "null", "mask", "normalmap", "bumpmap"))
+                                      "plastic", "roughplastic", "twosided", "null", "mask", "normalmap", "bumpmap",
+                                      "blendbsdf"))
         p = _Props(self, node)
         if t == "twosided":
             inner = p.take_objects(("bsdf",))
@@ -1030,7 +1038,6 @@ class _Loader:
             if t == "mask":
                 opacity = p.values.get("opacity")
                 if opacity is not None and opacity.tag in ("texture", "ref"):
-                    p.used.add("opacity")
                     rec = Mask(nested, self._uv_texture(p, "opacity"))
                 else:
                     rec = Mask(nested, p.float("opacity", 0.5))
@@ -1040,14 +1047,25 @@ class _Loader:
                 if t == "normalmap":
                     if "normalmap" not in p.values or p.values["normalmap"].tag not in ("texture", "ref"):
                         raise self.ctx.error(node, "normalmap needs a texture named 'normalmap'")
-                    p.used.add("normalmap")
                     rec = NormalMap(nested, self._uv_texture(p, "normalmap"), **flags)
                 else:  # the one nested texture, whatever its name (bumpmap.cpp)
                     textures = [n for n, v in p.values.items() if v.tag in ("texture", "ref")]
                     if len(textures) != 1:
                         raise self.ctx.error(node, f"bumpmap needs exactly one nested texture, got {len(textures)}")
-                    p.used.add(textures[0])
                     rec = BumpMap(nested, self._uv_texture(p, textures[0]), scale=p.float("scale", 1.0), **flags)
+        elif t == "blendbsdf":
+            inner = p.take_objects(("bsdf",))
+            if len(inner) != 2:
+                raise self.ctx.error(node, f"blendbsdf needs exactly two nested BSDFs, got {len(inner)}")
+            first, second = (self.bsdf_record(n) for n in inner)
+            if not (isinstance(first, Diffuse) and isinstance(second, Diffuse)):
+                raise self.ctx.error(node, f"blendbsdf is supported between two diffuse BSDFs only (their blend is one "
+                                           f"Lambertian lobe), got {type(first).__name__} and {type(second).__name__}")
+            if "weight" not in p.values:
+                raise self.ctx.error(node, "missing required parameter 'weight'", "weight")
+            weight = self._uv_texture(p, "weight", attributes=True) if p.values["weight"].tag in ("texture", "ref") \
+                else p.float("weight")
+            rec = BlendBSDF(first, second, weight)
         elif t == "null":
             rec = Null()
         elif t == "diffuse":
@@ -1110,10 +1128,12 @@ class _Loader:
                                                  f"mesh_attribute texture does not have (Mitsuba refuses it too)", name)
         return self.texture_means[value.texture_id]
 
-    def _uv_texture(self, p: _Props, name: str) -> TextureRef:
-        """Texture parameter ``name`` of a mask, normalmap or bumpmap: looked up over uv (not a mesh attribute)."""
+    def _uv_texture(self, p: _Props, name: str, attributes: bool = False) -> TextureRef:
+        """Texture parameter ``name`` of a mask, normalmap, bumpmap (looked up over uv, not a mesh attribute) or
+        blendbsdf (``attributes``: a mesh attribute too)."""
+        p.used.add(name)
         ref = self.texture_ref(p.values[name])
-        if ref.texture_id not in self.texture_means:
+        if not attributes and ref.texture_id not in self.texture_means:
             raise self.ctx.error(p.values[name], f"parameter '{name}': a mesh_attribute texture is not supported here "
                                                  f"(only as a diffuse reflectance)", name)
         return ref

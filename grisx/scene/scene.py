@@ -627,12 +627,17 @@ def _perturbed_normal(scene: SceneData, si: SurfaceInteraction, m: Material) -> 
 
 @wp.func
 def _resolve_wrappers(scene: SceneData, m: Material, si: SurfaceInteraction) -> Material:
-    """A mask's ``opacity`` (the luminance of its texture at ``si.uv``, clamped to [0, 1]) and a normal or bump map's
-    ``perturbed_n`` at ``si``."""
+    """A mask's ``opacity`` (the luminance of its texture at ``si.uv``, clamped to [0, 1]), a normal or bump map's
+    ``perturbed_n`` at ``si``, and a diffuse blend's reflectance (1 − w) ρ₀ + w ρ₁."""
     if m.opacity_texture >= 0:
         m.opacity = wp.clamp(luminance(surface_texture(scene, m.opacity_texture, si)), 0.0, 1.0)
     if m.perturb != PERTURB_NONE:
         m.perturbed_n = _perturbed_normal(scene, si, m)
+    if m.blend_texture >= 0 or m.blend_weight > 0.0:
+        w = m.blend_weight
+        if m.blend_texture >= 0:
+            w = wp.clamp(luminance(surface_texture(scene, m.blend_texture, si)), 0.0, 1.0)
+        m.reflectance = m.reflectance * (1.0 - w) + m.blend_reflectance * w
     return m
 
 

@@ -27,7 +27,7 @@ import pytest
 
 from grisx.imageio import read_exr
 from grisx.render import render
-from grisx.scene.material import Diffuse, Mask, NormalMap, BumpMap, Null
+from grisx.scene.material import BlendBSDF, BumpMap, Diffuse, Mask, NormalMap, Null
 from grisx.scene.mitsuba import load_mitsuba
 from grisx.scene.texture import Bitmap, Checkerboard
 from grisx.scene.transform import rotate
@@ -82,6 +82,7 @@ CASES: dict[str, Case] = {
     "null": Case(32, 16),
     "normalmap": Case(32, 16),
     "bumpmap": Case(32, 16),
+    "blendbsdf": Case(32, 16),
     "texture_srgb": Case(32, 16),
     "texture_raw": Case(32, 16),
     "texture_exr": Case(32, 16),
@@ -336,3 +337,12 @@ def test_a_bump_map_of_half_the_scale_is_caught():
     scene.materials[:] = [dataclasses.replace(m, scale=0.5 * m.scale) if isinstance(m, BumpMap) else m for m in scene.materials]
     result = agreement(scene, "bumpmap")
     assert not result.passed, f"a bump map at half its scale went unnoticed: {result}"
+
+
+def test_a_blend_with_its_weight_inverted_is_caught():
+    """The first BSDF weighted w and the second 1 − w (blendbsdf.cpp gives the first 1 − w)."""
+    scene = load_mitsuba(SCENES / "blendbsdf.xml")
+    scene.materials[:] = [dataclasses.replace(m, bsdf0=m.bsdf1, bsdf1=m.bsdf0) if isinstance(m, BlendBSDF) and m.bsdf1.reflectance != m.bsdf0.reflectance
+                          and not hasattr(m.bsdf0.reflectance, "texture_id") else m for m in scene.materials]
+    result = agreement(scene, "blendbsdf")
+    assert not result.passed, f"a blend with its weight inverted went unnoticed: {result}"

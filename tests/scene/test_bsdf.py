@@ -59,6 +59,7 @@ from grisx.scene.material import (
     RoughPlastic,
     ThinDielectric,
     TextureRef,
+    BlendBSDF,
     BumpMap,
     Mask,
     NormalMap,
@@ -1138,3 +1139,22 @@ def test_wrapper_kinds_packing_and_refusals():
         pack_materials([BumpMap(NormalMap(Diffuse(), TextureRef(0)), TextureRef(0))])
     with pytest.raises(InvalidParameterError, match="needs a texture"):
         pack_materials([NormalMap(Diffuse(), 0.5)])
+
+
+def test_a_blend_of_two_diffuse_bsdfs_is_one_lambertian_lobe():
+    """Mitsuba's mixture (1 − w) f₀ + w f₁ of two Lambertian lobes: a constant weight packs as the blended
+    reflectance (clamped to [0, 1], as Mitsuba); a texture weight or a textured first reflectance is kept for the hit."""
+    a, b = (0.8, 0.4, 0.1), (0.1, 0.3, 0.8)
+    packed = pack_materials([BlendBSDF(Diffuse(a), Diffuse(b), 0.25), BlendBSDF(Diffuse(a), Diffuse(b), 1.5),
+                             BlendBSDF(Diffuse(a), Diffuse(b), TextureRef(1)), BlendBSDF(Diffuse(TextureRef(2)), Diffuse(b), 0.4)],
+                            "cpu").numpy()
+    np.testing.assert_allclose(packed["reflectance"][0], 0.75 * np.array(a) + 0.25 * np.array(b), rtol=1e-6)
+    np.testing.assert_allclose(packed["reflectance"][1], b, rtol=1e-6)
+    assert packed["kind"].tolist() == [0, 0, 0, 0] and packed["blend_texture"].tolist() == [-1, -1, 1, -1]
+    np.testing.assert_allclose(packed["blend_weight"], [0.0, 0.0, 0.0, 0.4], rtol=1e-6)
+    np.testing.assert_allclose(packed["blend_reflectance"][2:], [b, b], rtol=1e-6)
+    assert material_kinds([BlendBSDF(Diffuse(a), Diffuse(b), 0.5)]) == {MATERIAL_DIFFUSE}
+    with pytest.raises(InvalidParameterError, match="between two diffuse BSDFs only"):
+        pack_materials([BlendBSDF(Diffuse(), Plastic(), 0.5)])
+    with pytest.raises(InvalidParameterError, match="the second one's reflectance a colour"):
+        pack_materials([BlendBSDF(Diffuse(), Diffuse(TextureRef(0)), 0.5)])

@@ -13,6 +13,7 @@ from grisx.scene import shapes
 from grisx.scene.lights import ConstantEnvironment, DirectionalLight, EnvMap, Projector
 from grisx.scene.material import (
     CONDUCTOR_PRESETS,
+    BlendBSDF,
     BumpMap,
     Conductor,
     Mask,
@@ -352,6 +353,12 @@ def test_null_mask_normalmap_bumpmap():
               '<texture type="checkerboard" name="floor_tiles_bumpmap"/><bsdf type="diffuse"/></bsdf></bsdf>')
     assert bm == Mask(BumpMap(Diffuse(), TextureRef(0), scale=0.02), 0.9)
     assert bsdf('<bsdf type="bumpmap"><texture type="checkerboard" name="h"/><bsdf type="diffuse"/></bsdf>').scale == 1.0
+    # blendbsdf: the first nested BSDF weighs 1 − weight, the second weight (blendbsdf.cpp)
+    bl = bsdf('<bsdf type="blendbsdf"><float name="weight" value="0.25"/><bsdf type="diffuse"/>'
+              '<bsdf type="diffuse"><rgb name="reflectance" value="0.1 0.2 0.3"/></bsdf></bsdf>')
+    assert bl == BlendBSDF(Diffuse(), Diffuse((0.1, 0.2, 0.3)), 0.25)
+    assert bsdf('<bsdf type="blendbsdf"><texture type="checkerboard" name="weight"/><bsdf type="diffuse"/><bsdf type="diffuse"/></bsdf>').weight \
+        == TextureRef(0)
     for xml, message in [
         ('<bsdf type="mask"/>', "mask needs exactly one nested BSDF, got 0"),
         ('<bsdf type="normalmap"><bsdf type="diffuse"/></bsdf>', "normalmap needs a texture named 'normalmap'"),
@@ -361,7 +368,10 @@ def test_null_mask_normalmap_bumpmap():
         ('<bsdf type="normalmap"><texture type="checkerboard" name="normalmap"/><bsdf type="mask"><bsdf type="diffuse"/></bsdf></bsdf>',
          "a mask inside a normalmap or bumpmap is not supported"),
         ('<bsdf type="twosided"><bsdf type="mask"><bsdf type="dielectric"/></bsdf></bsdf>', "twosided cannot wrap a transmissive BSDF"),
-        ('<bsdf type="blendbsdf"/>', "unsupported bsdf type 'blendbsdf'"),
+        ('<bsdf type="blendbsdf"><float name="weight" value="0.5"/><bsdf type="diffuse"/><bsdf type="plastic"/></bsdf>',
+         "blendbsdf is supported between two diffuse BSDFs only"),
+        ('<bsdf type="blendbsdf"><bsdf type="diffuse"/><bsdf type="diffuse"/></bsdf>', "missing required parameter 'weight'"),
+        ('<bsdf type="principled"/>', "the Disney principled BSDF .* is not implemented by grisx"),
     ]:
         with pytest.raises(SceneFileError, match=message):
             bsdf(xml)
