@@ -1107,6 +1107,7 @@ def build_light_set(
         # a textured triangle's power: π A lum(L) × its image's mean luminance over the triangle (16 points), floored
         # at 1e-3 of the image's mean so that no triangle whose image may be bright somewhere is never picked
         means = wp.zeros(tris.size, dtype=float, device=device)
+        ls.selection = build_alias_table(np.ones(1), device)  # every array of the struct set before it goes to a kernel
         wp.launch(_emitter_texture_mean_kernel, tris.size, inputs=[ls, means], device=device)
         floor = np.array([1e-3 * float(_lum(_pixels(light_images[t])).mean()) if t >= 0 else 0.0 for t in e_tex])
         emitter_power = emitter_power * np.where(e_tex >= 0, np.maximum(means.numpy().astype(np.float64), floor), 1.0)
