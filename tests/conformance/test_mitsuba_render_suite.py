@@ -42,14 +42,8 @@ SUITE = HERE / "mitsuba_render_tests" / "tests" / "scenes"
 
 #: scene (folder/file stem) → why grisx does not pass it yet; remove a line when its scene passes
 NOT_YET: dict[str, str] = {
-    "bsdf_spheres/test_arealight_path": "loader: bsdf 'mask' (fragments/sphere_grid.xml)",
-    "bsdf_spheres/test_bumpmap_path": "loader: bsdf 'bumpmap'",
-    "bsdf_spheres/test_constant_path": "loader: bsdf 'mask' (fragments/sphere_grid.xml)",
-    "bsdf_spheres/test_envmap_path": "loader: bsdf 'mask' (fragments/sphere_grid.xml)",
-    "bsdf_spheres/test_normalmap_identity_roughconductor_path": "loader: bsdf 'normalmap'",
-    "bsdf_spheres/test_normalmap_path": "loader: bsdf 'normalmap'",
-    "bsdf_spheres/test_normalmap_roughconductor_path": "loader: bsdf 'normalmap'",
-    "bsdf_spheres/test_pointlight_path": "loader: bsdf 'mask' (fragments/sphere_grid.xml)",
+    "bsdf_spheres/test_normalmap_identity_roughconductor_path": "loader: roughconductor's anisotropic alpha_u/alpha_v",
+    "bsdf_spheres/test_normalmap_roughconductor_path": "loader: roughconductor's anisotropic alpha_u/alpha_v",
     "bsdf_spheres/test_textured_roughconductor_path": "loader: roughconductor's textured anisotropic alpha_u/alpha_v",
     "bsdf_spheres/test_texturedprincipled1_path": "loader: bsdf 'principled'",
     "bsdf_spheres/test_texturedprincipled2_path": "loader: bsdf 'principled'",
