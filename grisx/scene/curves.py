@@ -1,4 +1,4 @@
-"""Mitsuba 3's ``linearcurve`` shape: round linear curves, read as a fine triangle mesh.
+"""Mitsuba 3's ``linearcurve`` and ``bsplinecurve`` shapes, read as fine triangle meshes.
 
 Mitsuba's ``linearcurve`` [Mitsuba3] reads curves from a text file, one control
 point per line (``x y z radius``), an empty line between curves; ``to_world``
@@ -25,9 +25,20 @@ point of a curve v = 0 of the one that starts there), uv as on the frustum.
 Where one sphere holds the other (|r₀ − r₁| ≥ |p₁ − p₀|) the segment is its
 spheres alone.
 
+**B-spline curves** (``bsplinecurve``, at least four control points per curve):
+each segment i (control points i … i + 3, v ∈ [0, 1]) follows the uniform cubic
+B-spline c(v) with the radius r(v) interpolated alike. Mitsuba 3.9.1's hits on
+it lie on the circle of radius r(v) about c(v) in the plane normal to c'(v), at
+the v it reports (measured: |p − c| − r and (p − c)·c' vanish to 10⁻⁶), so
+grisx tessellates that tube (``steps`` rings per segment): uv as for linear
+curves, normals as ``bsplinecurve.cpp`` computes them, n ∝ (|c'|² − (p − c)·c'')
+(p − c) − r r' c'. Its ends are open (no caps), and Mitsuba culls its inner
+side, which grisx does not: looking into an open end shows the inside here
+(what the conformance case ``bsplinecurve`` keeps out of its frame).
+
 References
 ----------
-[Mitsuba3] W. Jakob et al., Mitsuba 3, ``src/shapes/linearcurve.cpp`` and the plugin reference
+[Mitsuba3] W. Jakob et al., Mitsuba 3, ``src/shapes/{linear,bspline}curve.cpp`` and the plugin reference
            "Linear curve", https://mitsuba.readthedocs.io (2022); Embree's ``RTC_GEOMETRY_TYPE_ROUND_LINEAR_CURVE``.
 """
 
@@ -41,11 +52,12 @@ import numpy as np
 from grisx.errors import GrisxError
 from grisx.scene.shapes import MeshData, sphere
 
-__all__ = ["read_curves", "local_frame", "linear_curve_mesh"]
+__all__ = ["read_curves", "local_frame", "linear_curve_mesh", "bspline_curve_mesh"]
 
 
-def read_curves(path: str | os.PathLike) -> list[np.ndarray]:
-    """Mitsuba's curve file: a list of (n, 4) arrays (x, y, z, radius), one per curve of at least two points."""
+def read_curves(path: str | os.PathLike, min_points: int = 2) -> list[np.ndarray]:
+    """Mitsuba's curve file: a list of (n, 4) arrays (x, y, z, radius), one per curve of at least ``min_points``
+    points (a linear curve needs two, a B-spline curve four)."""
     path = Path(path)
     if not path.is_file():
         raise GrisxError(f"cannot read curves '{path}': no such file")
@@ -66,8 +78,9 @@ def read_curves(path: str | os.PathLike) -> list[np.ndarray]:
     curves = [c for c in curves if c]
     if not curves:
         raise GrisxError(f"cannot read curves '{path}': no control points")
-    if any(len(c) < 2 for c in curves):
-        raise GrisxError(f"cannot read curves '{path}': a linear curve needs at least two control points")
+    if any(len(c) < min_points for c in curves):
+        kind = "a linear curve needs at least two" if min_points == 2 else f"a B-spline curve needs at least {min_points}"
+        raise GrisxError(f"cannot read curves '{path}': {kind} control points")
     return [np.asarray(c, dtype=np.float64) for c in curves]
 
 
@@ -80,6 +93,16 @@ def local_frame(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         rot = guide - d * float(d @ guide)
         rot /= np.linalg.norm(rot)
     return rot, np.cross(rot, d)
+
+
+def _outward(verts: list, norms: list, uvs: list, faces: list) -> MeshData:
+    """The pieces as one mesh, every triangle wound to face along its vertices' normals (outward)."""
+    vertices, normals = np.concatenate(verts), np.concatenate(norms)
+    f = np.concatenate(faces).astype(np.int64)
+    ng = np.cross(vertices[f[:, 1]] - vertices[f[:, 0]], vertices[f[:, 2]] - vertices[f[:, 0]])
+    flip = np.einsum("ij,ij->i", ng, normals[f].sum(axis=1)) < 0
+    f[flip] = f[flip][:, [0, 2, 1]]
+    return MeshData(vertices, f, normals, np.concatenate(uvs))
 
 
 def linear_curve_mesh(curves: list[np.ndarray], to_world: np.ndarray | None = None, around: int = 64, rings: int = 32) -> MeshData:
@@ -129,10 +152,61 @@ def linear_curve_mesh(curves: list[np.ndarray], to_world: np.ndarray | None = No
                 f = np.concatenate([np.stack([a, a + 1, b + 1], -1), np.stack([a, b + 1, b], -1)])
                 add(v, np.concatenate([n, n]), uv, f)
             seg += 1
-    vertices, normals = np.concatenate(verts), np.concatenate(norms)
-    faces = np.concatenate(faces).astype(np.int64)
-    # every triangle faces along its vertices' normals (outward)
-    ng = np.cross(vertices[faces[:, 1]] - vertices[faces[:, 0]], vertices[faces[:, 2]] - vertices[faces[:, 0]])
-    flip = np.einsum("ij,ij->i", ng, normals[faces].sum(axis=1)) < 0
-    faces[flip] = faces[flip][:, [0, 2, 1]]
-    return MeshData(vertices, faces, normals, np.concatenate(uvs))
+    return _outward(verts, norms, uvs, faces)
+
+
+#: the uniform cubic B-spline basis (rows: the weights of p₀..p₃ as polynomials in v, constant term first) ×6
+_BSPLINE = np.array([[1, -3, 3, -1], [4, 0, -6, 3], [1, 3, 3, -3], [0, 0, 0, 1]], dtype=np.float64) / 6.0
+
+
+def _bspline(points: np.ndarray, v: np.ndarray, order: int = 0) -> np.ndarray:
+    """The cubic B-spline of the four ``points`` (4, k) at ``v`` (m,), or its ``order``-th derivative, as
+    ``bsplinecurve.cpp``'s ``cubic_interpolation``."""
+    coeff = _BSPLINE
+    for _ in range(order):
+        coeff = coeff[:, 1:] * np.arange(1, coeff.shape[1])
+    powers = np.stack([v**k for k in range(coeff.shape[1])], axis=1)
+    return (powers @ coeff.T) @ points
+
+
+def bspline_curve_mesh(curves: list[np.ndarray], to_world: np.ndarray | None = None, around: int = 64, steps: int = 32) -> MeshData:
+    """Mitsuba's ``bsplinecurve`` as a world-space mesh: each cubic segment (control points i … i + 3, v ∈ [0, 1])
+    is the tube of circles of radius r(v) about c(v) in the planes normal to c'(v) — where Mitsuba 3.9.1's hits
+    lie, |p − c(v)| = r(v) and (p − c(v))·c'(v) = 0 at the v it reports — open at the curve's ends (no caps).
+    uv = (φ/2π, (v + i)/N) with φ the angle in ``local_frame(c'(v))``; normals as ``bsplinecurve.cpp``:
+    n ∝ (|c'|² − (p − c)·c'')(p − c) − r r' c'. Mitsuba culls the tubes' inner sides, grisx does not: looking
+    into an open end shows the inside here."""
+    m = np.eye(4) if to_world is None else np.asarray(to_world, dtype=np.float64)
+    n_segments = sum(len(c) - 3 for c in curves)
+    phi = np.linspace(0.0, 2.0 * np.pi, around + 1)
+    v = np.linspace(0.0, 1.0, steps + 1)
+    verts, norms, uvs, faces = [], [], [], []
+    count, seg = 0, 0
+    for curve in curves:
+        p = np.column_stack([curve[:, :3] @ m[:3, :3].T + m[:3, 3], curve[:, 3]])  # radii as they are
+        for i in range(len(curve) - 3):
+            cp = p[i:i + 4]
+            c, r = _bspline(cp[:, :3], v), _bspline(cp[:, 3:], v)[:, 0]
+            dc, dr = _bspline(cp[:, :3], v, 1), _bspline(cp[:, 3:], v, 1)[:, 0]
+            ddc = _bspline(cp[:, :3], v, 2)
+            if np.any(np.linalg.norm(dc, axis=1) == 0):
+                raise GrisxError("a B-spline curve's tangent vanishes (repeated control points)")
+            frames = [local_frame(t / np.linalg.norm(t)) for t in dc]
+            rot = np.array([f[0] for f in frames])[:, None, :]
+            rad = np.array([f[1] for f in frames])[:, None, :]
+            e = np.cos(phi)[None, :, None] * rad + np.sin(phi)[None, :, None] * rot  # (steps+1, around+1, 3)
+            radial = r[:, None, None] * e
+            pos = c[:, None, :] + radial
+            correction = np.einsum("vak,vk->va", radial, ddc)
+            normal = (np.einsum("vk,vk->v", dc, dc)[:, None] - correction)[..., None] * radial - (dr * r)[:, None, None] * dc[:, None, :]
+            normal /= np.maximum(np.linalg.norm(normal, axis=2, keepdims=True), 1e-300)
+            uv = np.stack(np.broadcast_arrays(phi[None, :] / (2 * np.pi), ((v + seg) / n_segments)[:, None]), axis=-1)
+            a = (np.arange(steps)[:, None] * (around + 1) + np.arange(around)[None, :]).reshape(-1)
+            b, a1, b1 = a + around + 1, a + 1, a + around + 2  # the next ring, the next column
+            verts.append(pos.reshape(-1, 3))
+            norms.append(normal.reshape(-1, 3))
+            uvs.append(uv.reshape(-1, 2))
+            faces.append(np.concatenate([np.stack([a, a1, b1], -1), np.stack([a, b1, b], -1)]) + count)
+            count += pos.shape[0] * pos.shape[1]
+            seg += 1
+    return _outward(verts, norms, uvs, faces)

@@ -98,8 +98,8 @@ Transforms ``<transform name="to_world">``
     instance. ``sdfgrid`` (``filename``: a ``.vol`` grid, ``normals`` smooth [default] or analytic) is
     read as a fine triangle mesh of its zero set with Mitsuba's shading normals (:mod:`grisx.scene.sdfgrid`:
     within 0.006 voxels of Mitsuba's surface, no uv, no emission); ``linearcurve`` (``filename``) as a fine
-    mesh of its round linear curves with Mitsuba's normals and uv (:mod:`grisx.scene.curves`);
-    ``bsplinecurve`` is refused. Under a mirroring ``to_world`` (det < 0) a shape's front side is Mitsuba's: where the
+    mesh of its round linear curves with Mitsuba's normals and uv, ``bsplinecurve`` likewise
+    (open tubes; :mod:`grisx.scene.curves`). Under a mirroring ``to_world`` (det < 0) a shape's front side is Mitsuba's: where the
     normals of a rectangle, a cube, a disk or a mesh with normals point (the winding is reversed to
     agree, :func:`grisx.scene.shapes.finish_mesh`), the winding's side for a mesh without normals, and
     inside out for a sphere or tube (``sphere.cpp``). A cube keeps its per-face normals with
@@ -181,7 +181,7 @@ from grisx.errors import GrisxError, GrisxWarning, SceneFileError
 from grisx.scene import shapes, spectrum
 from grisx.scene.serialized import load_serialized
 from grisx.scene.sdfgrid import read_vol, sdfgrid_mesh
-from grisx.scene.curves import linear_curve_mesh, read_curves
+from grisx.scene.curves import bspline_curve_mesh, linear_curve_mesh, read_curves
 from grisx.scene import transform as xf
 from grisx.scene.camera import Camera, lookat
 from grisx.scene.lights import ConstantEnvironment, DirectionalLight, EnvMap, Projector, load_envmap_image, rigid_frame
@@ -365,7 +365,6 @@ _WHY_NOT = {
     **dict.fromkeys(("principled", "principledthin"),
                     "the Disney principled BSDF (metallic, sheen, clearcoat, anisotropic and transmission lobes mixed per "
                     "texel) is not implemented by grisx; roughplastic or roughconductor come closest"),
-    "bsplinecurve": "grisx intersects triangles (and Mitsuba's analytic shapes), not B-spline curves",
 }
 
 #: Mitsuba's limit on nested <include>s (MI_XML_INCLUDE_MAX_RECURSION); deeper means a cycle, in practice
@@ -858,8 +857,8 @@ class _Props:
 # ---- the loader --------------------------------------------------------------------
 
 _SAMPLERS = ("independent", "stratified", "multijitter", "orthogonal", "ldsampler")
-_SHAPES = ("obj", "ply", "serialized", "rectangle", "cube", "sphere", "disk", "cylinder", "sdfgrid", "linearcurve", "shapegroup",
-           "instance")
+_SHAPES = ("obj", "ply", "serialized", "rectangle", "cube", "sphere", "disk", "cylinder", "sdfgrid", "linearcurve", "bsplinecurve",
+           "shapegroup", "instance")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -1293,10 +1292,14 @@ class _Loader:
                 # cylinder.cpp: to_world · translate(p0) · to_frame(Frame3f(d / |d|)) · scale(radius, radius, |d|)
                 to_world = to_world @ xf.translate(p0) @ xf.to_frame((p1 - p0) / length) @ xf.scale((radius, radius, length))
                 mesh = None
-            elif t == "linearcurve":  # round linear curves as a world-space mesh (grisx.scene.curves): radii ignore to_world
+            elif t in ("linearcurve", "bsplinecurve"):  # curves as a world-space mesh (grisx.scene.curves): radii ignore to_world
                 if flip:
-                    raise self.ctx.error(p.values["flip_normals"], "Mitsuba's linearcurve takes no flip_normals", "flip_normals")
-                mesh = linear_curve_mesh(read_curves(self.ctx.resolve(p.string("filename"))), to_world)
+                    raise self.ctx.error(p.values["flip_normals"], f"Mitsuba's {t} takes no flip_normals", "flip_normals")
+                if t == "bsplinecurve":
+                    p.float("silhouette_sampling_weight", 1.0)  # a differentiable-rendering choice: no effect on the image
+                    mesh = bspline_curve_mesh(read_curves(self.ctx.resolve(p.string("filename")), min_points=4), to_world)
+                else:
+                    mesh = linear_curve_mesh(read_curves(self.ctx.resolve(p.string("filename"))), to_world)
                 to_world = np.eye(4)
             elif t == "sdfgrid":  # a fine mesh of the grid's zero set (grisx.scene.sdfgrid); no uv, no emission
                 if flip:
@@ -1333,7 +1336,7 @@ class _Loader:
         emitters = p.take_objects(("emitter",))
         if len(emitters) > 1:
             raise self.ctx.error(emitters[1], "a shape takes one emitter")
-        if emitters and t in ("sdfgrid", "linearcurve"):
+        if emitters and t in ("sdfgrid", "linearcurve", "bsplinecurve"):
             raise self.ctx.error(emitters[0], f"a {t} cannot be an area emitter here (Mitsuba's sdfgrid cannot either)")
         if emitters:
             em = self._deref(emitters[0], "emitter")  # nested, or a top-level area emitter by reference

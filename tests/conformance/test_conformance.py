@@ -110,6 +110,7 @@ CASES: dict[str, Case] = {
     "mirrored_meshes": Case(32, 16, block=4),
     "sdfgrid": Case(32, 16, block=4),
     "linearcurve": Case(32, 16, block=4),
+    "bsplinecurve": Case(32, 16, block=4),
     "mesh_attribute": Case(32, 16, block=4),  # faces of a few pixels: blocks small enough to see a face's colour
     "max_depth_1": Case(16, 16),
     "max_depth_2": Case(16, 16),

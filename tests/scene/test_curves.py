@@ -72,5 +72,40 @@ def test_the_loader_reads_a_linearcurve_and_refuses_the_rest(tmp_path):
                            ('<emitter type="area"><rgb name="radiance" value="1"/></emitter>', "cannot be an area emitter")):
         with pytest.raises(SceneFileError, match=message):
             load_mitsuba(f'<scene version="3.0.0"><emitter type="constant"/>{shape.format(extra)}</scene>')
-    with pytest.raises(SceneFileError, match="unsupported shape type 'bsplinecurve'"):
-        load_mitsuba(f'<scene version="3.0.0"><emitter type="constant"/><shape type="bsplinecurve"/></scene>')
+    bspline = f'<shape type="bsplinecurve"><string name="filename" value="{path}"/></shape>'
+    with pytest.raises(SceneFileError, match="a B-spline curve needs at least 4 control points"):
+        load_mitsuba(f'<scene version="3.0.0"><emitter type="constant"/>{bspline}</scene>')
+
+
+def test_bspline_tubes_are_mitsubas_circles_normal_to_the_curve():
+    """Mitsuba 3.9.1's B-spline hits satisfy |p − c(v)| = r(v) and (p − c(v))·c'(v) = 0 at the v it reports
+    (measured on 193 hits: residuals 1e-7 and 8e-7); its normal is (|c'|² − (p − c)·c'')(p − c) − r r' c'."""
+    from grisx.scene.curves import _bspline, bspline_curve_mesh
+
+    curve = np.array([[-1.0, 0.0, 0.0, 0.1], [-0.5, 0.4, 0.2, 0.2], [0.0, 0.0, -0.2, 0.08], [0.5, 0.5, 0.1, 0.15], [1.0, 0.1, 0.0, 0.1]])
+    v = 0.3  # bsplinecurve.cpp's cubic_interpolation, written out
+    b = np.array([-v**3 + 3 * v**2 - 3 * v + 1, 3 * v**3 - 6 * v**2 + 4, -3 * v**3 + 3 * v**2 + 3 * v + 1, v**3]) / 6
+    db = np.array([-3 * v**2 + 6 * v - 3, 9 * v**2 - 12 * v, -9 * v**2 + 6 * v + 3, 3 * v**2]) / 6
+    ddb = np.array([1 - v, 3 * v - 2, 1 - 3 * v, v])
+    for order, w in enumerate((b, db, ddb)):
+        np.testing.assert_allclose(_bspline(curve[:4], np.array([v]), order)[0], w @ curve[:4], atol=1e-12)
+    mesh = bspline_curve_mesh([curve], around=16, steps=8)
+    seg = np.minimum(np.floor(mesh.uvs[:, 1] * 2).astype(int), 1)
+    t = mesh.uvs[:, 1] * 2 - seg
+    c = np.array([_bspline(curve[s:s + 4, :3], np.array([x]))[0] for s, x in zip(seg, t)])
+    r = np.array([_bspline(curve[s:s + 4, 3:], np.array([x]))[0, 0] for s, x in zip(seg, t)])
+    dc = np.array([_bspline(curve[s:s + 4, :3], np.array([x]), 1)[0] for s, x in zip(seg, t)])
+    np.testing.assert_allclose(np.linalg.norm(mesh.vertices - c, axis=1), r, atol=1e-12)
+    np.testing.assert_allclose(np.einsum("ij,ij->i", mesh.vertices - c, dc), 0.0, atol=1e-12)
+    assert np.all(np.einsum("ij,ij->i", mesh.normals, mesh.vertices - c) > 0)  # outward
+    with pytest.raises(GrisxError, match="at least 4 control points"):
+        bspline_curve_mesh(read_curves(_three_points(), min_points=4))
+
+
+def _three_points():
+    import tempfile
+    from pathlib import Path
+
+    path = Path(tempfile.mkdtemp()) / "three.txt"
+    path.write_text("0 0 0 0.1\n1 0 0 0.1\n2 0 0 0.1\n")
+    return path

@@ -505,7 +505,7 @@ ERRORS = [
     (doc('<include filename="x.xml"/>'), 2, "include", "filename", "included file 'x.xml' not found"),
     (doc('<path value="no/such/folder"/>'), 2, "path", "value", "folder 'no/such/folder' not found"),
     (doc('<shape type="cube">\n<path value="."/></shape>'), 3, "path", None, "only allowed directly inside <scene>"),
-    (doc('<shape type="bsplinecurve"/>'), 2, "shape", "type", "unsupported shape type 'bsplinecurve'"),
+    (doc('<shape type="nurbs"/>'), 2, "shape", "type", "unsupported shape type 'nurbs'"),
     (doc('<shape type="cube">\n<bsdf type="pplastic"/>\n</shape>'), 3, "bsdf", "type", "pplastic"),  # plastic is supported; its polarized sibling is not
     (doc('<shape type="cube">\n<bsdf type="diffuse">\n<float name="foo" value="1"/></bsdf></shape>'), 4, "float", "foo", "unsupported parameter 'foo'"),
     (doc('<shape type="cube">\n<float name="radius" value="1"/></shape>'), 3, "float", "radius", "unsupported parameter"),

@@ -145,9 +145,8 @@ def test_instanced_spheres_disks_and_tubes_stay_analytic_with_mitsubas_orientati
         ('<shape type="shapegroup" id="g"/>', 2, 'shape type="shapegroup" id="g"', "empty shapegroup"),
         ('<shape type="cube" id="c"/>\n<shape type="instance"/>', 3, 'shape type="instance"', "exactly one <ref> to a shapegroup"),
         ('<shape type="cube" id="c"/>\n<shape type="instance"><ref id="c"/></shape>', 3, 'ref id="c"', "takes a shapegroup, not a shape of type 'cube'"),
-        ('<shape type="shapegroup" id="g">\n<shape type="bsplinecurve"><string name="filename" value="curve.txt"/></shape></shape>',
-         3, 'shape type="bsplinecurve"', "unsupported shape type 'bsplinecurve': grisx intersects triangles"),
-        ('<shape type="bsplinecurve"/>', 2, 'shape type="bsplinecurve"', "not B-spline curves"),
+        ('<shape type="shapegroup" id="g">\n<shape type="hair"><string name="filename" value="curve.txt"/></shape></shape>',
+         3, 'shape type="hair"', "unsupported shape type 'hair'"),
     ],
 )
 def test_shape_errors_name_the_element_and_line(body, line, element, message):
