@@ -48,7 +48,6 @@ NOT_YET: dict[str, str] = {
     "bsdf_spheres/test_texturedprincipled1_path": "loader: bsdf 'principled'",
     "bsdf_spheres/test_texturedprincipled2_path": "loader: bsdf 'principled'",
     "bsdf_spheres/test_texturedprincipledthin_path": "loader: bsdf 'principledthin'",
-    "mesh_attributes/test_mesh_attributes_1_face_direct": "loader: bsdf 'blendbsdf'",
 }
 
 SCENES = sorted(str(p.relative_to(SUITE).with_suffix("")) for p in SUITE.glob("*/*.xml"))
