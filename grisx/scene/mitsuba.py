@@ -1262,6 +1262,9 @@ class _Loader:
         """A ``<shape>`` read into a mesh, its ``to_world``, material and emission (not yet in the scene)."""
         t = self._require_type(node, _SHAPES)
         p = _Props(self, node)
+        emitters = p.take_objects(("emitter",))
+        if emitters and t in ("sdfgrid", "linearcurve", "bsplinecurve"):  # before the (costly) tessellation
+            raise self.ctx.error(emitters[0], f"a {t} cannot be an area emitter here (Mitsuba's sdfgrid cannot either)")
         to_world = p.transform("to_world")
         to_world = np.eye(4) if to_world is None else to_world
         flip = p.bool("flip_normals", False)
@@ -1336,8 +1339,6 @@ class _Loader:
         emitters = p.take_objects(("emitter",))
         if len(emitters) > 1:
             raise self.ctx.error(emitters[1], "a shape takes one emitter")
-        if emitters and t in ("sdfgrid", "linearcurve", "bsplinecurve"):
-            raise self.ctx.error(emitters[0], f"a {t} cannot be an area emitter here (Mitsuba's sdfgrid cannot either)")
         if emitters:
             em = self._deref(emitters[0], "emitter")  # nested, or a top-level area emitter by reference
             if id(em) in self.area_emitters_used:
