@@ -82,7 +82,7 @@ import warp as wp
 
 from grisx.scene.bsdf import make_bsdf
 from grisx.scene.frame import frame_from_normal, to_local, to_world
-from grisx.scene.material import MATERIAL_DIELECTRIC, Material
+from grisx.scene.material import MATERIAL_BUMPMAP, MATERIAL_DIELECTRIC, MATERIAL_NORMALMAP, Material
 from grisx.scene.lights import emitter_radiance, environment_eval
 from grisx.scene.scene import (
     SceneData,
@@ -335,6 +335,9 @@ class CausticFuncs:
 @functools.cache
 def _make_caustics(kinds: frozenset[int]) -> CausticFuncs:
     bsdf = make_bsdf(kinds)
+    # only a normal or bump map turns a normal whose derivative the shot does not carry: without one, ∂C/∂u is
+    # always the differentials', and the four extra shots of the differences are not compiled in at all
+    differences = bool(kinds & {MATERIAL_NORMALMAP, MATERIAL_BUMPMAP})
 
     @wp.func
     def shoot(spec: CausticSpec, view: int, u: wp.vec2) -> CausticChain:
@@ -457,6 +460,8 @@ def _make_caustics(kinds: frozenset[int]) -> CausticFuncs:
             if not (wp.isfinite(center.dc[0, 0]) and wp.isfinite(center.dc[0, 1]) and wp.isfinite(center.dc[1, 0]) and wp.isfinite(center.dc[1, 1])):
                 return wp.mat22(0.0, 0.0, 0.0, 0.0)  # a grazing vertex: singular, the walk stops
             return center.dc
+        if wp.static(not differences):
+            return wp.mat22(0.0, 0.0, 0.0, 0.0)  # unreachable: every normal's derivative is known
         h = JACOBIAN_STEP
         d0 = _difference(center, shoot(spec, view, wp.vec2(u[0] + h, u[1])), shoot(spec, view, wp.vec2(u[0] - h, u[1])), h)
         d1 = _difference(center, shoot(spec, view, wp.vec2(u[0], u[1] + h)), shoot(spec, view, wp.vec2(u[0], u[1] - h)), h)

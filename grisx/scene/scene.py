@@ -416,6 +416,9 @@ def shading_normal_derivative(scene: SceneData, si: SurfaceInteraction, dp: wp.v
     this does not know: w = 0 there, and the caller falls back to differences (grisx.scene.caustics).
     """
     zero = wp.vec4(0.0, 0.0, 0.0, 0.0)
+    mat = scene.materials[si.material]
+    if mat.perturb != PERTURB_NONE:
+        return zero  # a normal or bump map turns the BSDF's frame (Material.perturbed_n): no derivative here
     n = si.ng
     dn = wp.vec3(0.0, 0.0, 0.0)
     if si.tri >= scene.shapes.prim_base and scene.shapes.count > 0:
@@ -448,7 +451,6 @@ def shading_normal_derivative(scene: SceneData, si: SurfaceInteraction, dp: wp.v
         db1 = (g00 * r1 - g01 * r0) / det
         dbig = (scene.normals[i0] - n2) * db0 + (scene.normals[i1] - n2) * db1
         dn = (dbig - n * wp.dot(n, dbig)) / length
-    mat = scene.materials[si.material]
     if mat.bump_amplitude > 0.0:
         dn = perturb_normal_derivative(n, dn, si.p, dp, mat.bump_amplitude, mat.bump_frequency)
         n = perturb_normal(n, si.p, mat.bump_amplitude, mat.bump_frequency)
