@@ -28,6 +28,14 @@ Lobes (equations in ``grisx.scene.microfacet``):
 * **Rough conductor** (``roughconductor``, GGX): m ~ D_wo (visible normals),
   wi = reflect(wo, m); f·cos θ_i = F D G2 / (4 cos θ_o) (Walter et al. 2007,
   Eq. 20), pdf = D_wo(m)/(4 |wi·m|) = D G1(wo) /(4 cos θ_o), weight = F G1(wi, m).
+  **Anisotropic** (α_u ≠ α_v, Mitsuba's ``alpha_u``/``alpha_v``): the same formulas with
+  α_u along the shading frame's tangent s = normalize(∂p/∂u − n(n·∂p/∂u)). The local frame
+  of a renderer (``frame_from_normal``) has its own tangent, so the material carries s as
+  an azimuth (``Material.tangent``, resolved at the hit) and the dispatch turns wo, wi by
+  it about the normal before the lobe and a sampled wi back after it
+  (``rotate_to_tangent``); inside a normal or bump map, s is projected on the perturbed
+  frame's plane first (Mitsuba's ``normalmap`` frame). Compiled in only for scenes with
+  ``MATERIAL_ANISOTROPIC`` and run only for materials with ``anisotropic = 1``.
 * **Smooth dielectric** (``dielectric``): reflect with probability F,
   otherwise refract (Snell); weight = specular_reflectance, or
   specular_transmittance · η_ti² (radiance).
@@ -125,6 +133,7 @@ from grisx.scene.material import (
     MATERIAL_DIELECTRIC,
     MATERIAL_DIFFUSE,
     MATERIAL_KIND_NAMES,
+    MATERIAL_ANISOTROPIC,
     MATERIAL_BUMPMAP,
     MATERIAL_KINDS,
     MATERIAL_MASK,
@@ -138,7 +147,7 @@ from grisx.scene.material import (
     PERTURB_NONE,
     Material,
 )
-from grisx.scene.frame import frame_from_normal, to_local, to_world
+from grisx.scene.frame import Frame, frame_from_normal, to_local, to_world
 from grisx.scene.microfacet import (
     fresnel_conductor,
     fresnel_dielectric,
@@ -193,6 +202,9 @@ __all__ = [
     "rough_plastic_pdf",
     "null_sample",
     "shadow_terminator",
+    "tangent_azimuth",
+    "rotate_to_tangent",
+    "rotate_from_tangent",
 ]
 
 _INV_PI = wp.constant(1.0 / math.pi)
@@ -332,9 +344,15 @@ def conductor_sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2) -> Bsd
 
 
 @wp.func
+def _alpha(m: Material) -> wp.vec2:
+    """(α_u, α_v) of a rough kind: roughness along the frame's tangent s and bitangent t (α_u = α_v: isotropic)."""
+    return wp.vec2(m.alpha, m.alpha_v)
+
+
+@wp.func
 def _glossy_dg(m: Material, wo: wp.vec3, wi: wp.vec3, h: wp.vec3) -> float:
     # D G2 / (4 cos θ_o): a microfacet reflection lobe without its Fresnel factor (Walter et al. 2007, Eq. 20)
-    return microfacet_d(h, m.alpha, m.distribution) * microfacet_g2(wo, wi, h, m.alpha, m.distribution) / (4.0 * wo[2])
+    return microfacet_d(h, _alpha(m), m.distribution) * microfacet_g2(wo, wi, h, _alpha(m), m.distribution) / (4.0 * wo[2])
 
 
 @wp.func
@@ -342,8 +360,8 @@ def _glossy_pdf(m: Material, wo: wp.vec3, wi: wp.vec3) -> float:
     # density of reflect(wo, sample_microfacet(wo)) for wo, wi above the surface
     h = wp.normalize(wo + wi)
     if m.distribution == MICROFACET_BECKMANN:
-        return microfacet_pdf(wo, h, m.alpha, m.distribution) / (4.0 * wp.dot(wi, h))
-    return ggx_d(h, m.alpha) * ggx_g1(wo, h, m.alpha) / (4.0 * wo[2])
+        return microfacet_pdf(wo, h, _alpha(m), m.distribution) / (4.0 * wp.dot(wi, h))
+    return ggx_d(h, _alpha(m)) * ggx_g1(wo, h, _alpha(m)) / (4.0 * wo[2])
 
 
 @wp.func
@@ -371,13 +389,13 @@ def rough_conductor_sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2) 
     s = _no_sample()
     if wo[2] <= 0.0:
         return s
-    mn = sample_microfacet(wo, m.alpha, m.distribution, u)
+    mn = sample_microfacet(wo, _alpha(m), m.distribution, u)
     wi = reflect(wo, mn)
     dot_i = wp.dot(wi, mn)
     if wi[2] <= 0.0 or dot_i <= 0.0:
         return s
-    pdf = microfacet_pdf(wo, mn, m.alpha, m.distribution) / (4.0 * dot_i)
-    g1 = microfacet_g1(wi, mn, m.alpha, m.distribution) * microfacet_visible_weight(wo, mn, m.alpha, m.distribution)
+    pdf = microfacet_pdf(wo, mn, _alpha(m), m.distribution) / (4.0 * dot_i)
+    g1 = microfacet_g1(wi, mn, _alpha(m), m.distribution) * microfacet_visible_weight(wo, mn, _alpha(m), m.distribution)
     if not (pdf > 0.0) or g1 <= 0.0:
         return s
     s.wi = wi
@@ -460,8 +478,8 @@ def rough_dielectric_eval(m: Material, wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
     h = _half_vector(m, wo, wi)
     dot_o = wp.dot(wo, h)
     dot_i = wp.dot(wi, h)
-    d = microfacet_d(h, m.alpha, m.distribution)
-    g = microfacet_g2(wo, wi, h, m.alpha, m.distribution)
+    d = microfacet_d(h, _alpha(m), m.distribution)
+    g = microfacet_g2(wo, wi, h, _alpha(m), m.distribution)
     f = fresnel_dielectric(dot_o, m.eta[0]).f
     if cos_o * cos_i > 0.0:
         return m.reflectance * (f * d * g / (4.0 * wp.abs(cos_o)))
@@ -490,7 +508,7 @@ def rough_dielectric_pdf(m: Material, wo: wp.vec3, wi: wp.vec3) -> float:
     if dot_o * cos_o <= 0.0 or dot_i * cos_i <= 0.0:
         return 0.0
     f = fresnel_dielectric(dot_o, m.eta[0]).f
-    pm = microfacet_pdf(wo * wp.sign(cos_o), h, m.alpha, m.distribution)
+    pm = microfacet_pdf(wo * wp.sign(cos_o), h, _alpha(m), m.distribution)
     if cos_o * cos_i > 0.0:
         return pm * f / (4.0 * wp.abs(dot_i))
     denom = dot_o + eta * dot_i
@@ -507,8 +525,8 @@ def rough_dielectric_sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2)
     if cos_o == 0.0:
         return s
     side = wp.sign(cos_o)
-    mn = sample_microfacet(wo * side, m.alpha, m.distribution, u)
-    pm = microfacet_pdf(wo * side, mn, m.alpha, m.distribution)
+    mn = sample_microfacet(wo * side, _alpha(m), m.distribution, u)
+    pm = microfacet_pdf(wo * side, mn, _alpha(m), m.distribution)
     dot_o = wp.dot(wo, mn)
     if dot_o * cos_o <= 0.0:  # a facet wo cannot see (only non-visible-normal sampling draws one)
         return s
@@ -531,7 +549,7 @@ def rough_dielectric_sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2)
         pdf = pm * (1.0 - fr.f) * wp.abs(fr.eta_it * fr.eta_it * dot_i / (denom * denom))
         weight = m.transmittance * (fr.eta_ti * fr.eta_ti)
         s.eta = fr.eta_it
-    g1 = microfacet_g1(wi, mn, m.alpha, m.distribution) * microfacet_visible_weight(wo, mn, m.alpha, m.distribution)
+    g1 = microfacet_g1(wi, mn, _alpha(m), m.distribution) * microfacet_visible_weight(wo, mn, _alpha(m), m.distribution)
     if not (pdf > 0.0) or g1 <= 0.0:
         return _no_sample()
     s.wi = wi
@@ -645,7 +663,7 @@ def rough_plastic_sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2) ->
     ps = _plastic_specular_prob(m, 1.0 - rough_table_lookup(m.external_transmittance, wo[2]))
     wi = wp.vec3(0.0, 0.0, 1.0)
     if u_lobe < ps:
-        wi = reflect(wo, sample_microfacet(wo, m.alpha, m.distribution, u))
+        wi = reflect(wo, sample_microfacet(wo, _alpha(m), m.distribution, u))
     else:
         wi = sample_cosine_hemisphere(u)
     return _weighted_sample(wi, rough_plastic_pdf(m, wo, wi), rough_plastic_eval(m, wo, wi))
@@ -697,6 +715,32 @@ def _perturbed_normal(m: Material, wo: wp.vec3) -> wp.vec3:
         if wo[2] * wp.dot(wo, n) <= 0.0:
             n = wp.vec3(-n[0], -n[1], n[2])
     return n
+
+
+# ---- the tangent of an anisotropic lobe ----
+
+
+@wp.func
+def tangent_azimuth(tangent: wp.vec3) -> wp.vec2:
+    """(cos φ, sin φ) of ``tangent`` projected on the local frame's plane: the azimuth of the shading frame's s
+    (Mitsuba's normalize(∂p/∂u − n (n·∂p/∂u))); the frame's own s where the projection vanishes."""
+    l2 = tangent[0] * tangent[0] + tangent[1] * tangent[1]
+    if l2 <= 0.0:
+        return wp.vec2(1.0, 0.0)
+    r = 1.0 / wp.sqrt(l2)
+    return wp.vec2(tangent[0] * r, tangent[1] * r)
+
+
+@wp.func
+def rotate_to_tangent(v: wp.vec3, cs: wp.vec2) -> wp.vec3:
+    """Local coordinates of ``v`` → those of the frame turned about z by the azimuth (cos φ, sin φ) = ``cs``."""
+    return wp.vec3(cs[0] * v[0] + cs[1] * v[1], cs[0] * v[1] - cs[1] * v[0], v[2])
+
+
+@wp.func
+def rotate_from_tangent(v: wp.vec3, cs: wp.vec2) -> wp.vec3:
+    """Inverse of :func:`rotate_to_tangent`."""
+    return wp.vec3(cs[0] * v[0] - cs[1] * v[1], cs[1] * v[0] + cs[0] * v[1], v[2])
 
 
 # ---- albedo (average reflectance) ----
@@ -766,6 +810,7 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
     has_null = MATERIAL_NULL in key
     has_mask = MATERIAL_MASK in key
     has_perturb = MATERIAL_NORMALMAP in key or MATERIAL_BUMPMAP in key
+    has_anisotropic = MATERIAL_ANISOTROPIC in key
     has_reflective = has_diffuse or has_conductor or has_rough_conductor or has_plastic or has_rough_plastic
     has_evaluable = has_diffuse or has_rough_conductor or has_plastic or has_rough_plastic
 
@@ -861,6 +906,41 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
                     p = rough_plastic_pdf(m, a, b)
         return p  # delta kinds: 0
 
+    # ---- the tangent: an anisotropic lobe turned about the normal to the shading frame's s ----
+
+    @wp.func
+    def oriented_sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2) -> BsdfSample:
+        if wp.static(has_anisotropic):
+            if m.anisotropic != 0:
+                cs = tangent_azimuth(m.tangent)
+                s = kind_sample(m, rotate_to_tangent(wo, cs), u_lobe, u)
+                s.wi = rotate_from_tangent(s.wi, cs)
+                return s
+        return kind_sample(m, wo, u_lobe, u)
+
+    @wp.func
+    def oriented_eval(m: Material, wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
+        if wp.static(has_anisotropic):
+            if m.anisotropic != 0:
+                cs = tangent_azimuth(m.tangent)
+                return kind_eval(m, rotate_to_tangent(wo, cs), rotate_to_tangent(wi, cs))
+        return kind_eval(m, wo, wi)
+
+    @wp.func
+    def oriented_pdf(m: Material, wo: wp.vec3, wi: wp.vec3) -> float:
+        if wp.static(has_anisotropic):
+            if m.anisotropic != 0:
+                cs = tangent_azimuth(m.tangent)
+                return kind_pdf(m, rotate_to_tangent(wo, cs), rotate_to_tangent(wi, cs))
+        return kind_pdf(m, wo, wi)
+
+    @wp.func
+    def perturbed_tangent(m: Material, f: Frame) -> Material:
+        # the perturbed frame's s is the unperturbed s projected on its plane (Mitsuba's normalmap frame())
+        if wp.static(has_anisotropic):
+            m.tangent = to_local(f, m.tangent)
+        return m
+
     # ---- wrappers: the perturbed frame (normalmap, bumpmap), then the mask ----
 
     @wp.func
@@ -869,7 +949,7 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
             if m.perturb != PERTURB_NONE:
                 n = _perturbed_normal(m, wo)
                 f = frame_from_normal(n)
-                s = kind_sample(m, to_local(f, wo), u_lobe, u)
+                s = oriented_sample(perturbed_tangent(m, f), to_local(f, wo), u_lobe, u)
                 wi = to_world(f, s.wi)
                 if s.valid == 0 or s.wi[2] * wi[2] <= 0.0:
                     return _no_sample()
@@ -877,7 +957,7 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
                 if (m.perturb_flags & 2) != 0:
                     s.weight = s.weight * shadow_terminator(n, wi)
                 return s
-        return kind_sample(m, wo, u_lobe, u)
+        return oriented_sample(m, wo, u_lobe, u)
 
     @wp.func
     def frame_eval(m: Material, wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
@@ -886,11 +966,11 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
                 f = frame_from_normal(_perturbed_normal(m, wo))
                 if wi[2] * wp.dot(wi, f.n) <= 0.0:
                     return wp.vec3(0.0, 0.0, 0.0)
-                v = kind_eval(m, to_local(f, wo), to_local(f, wi))
+                v = oriented_eval(perturbed_tangent(m, f), to_local(f, wo), to_local(f, wi))
                 if (m.perturb_flags & 2) != 0:
                     v = v * shadow_terminator(f.n, wi)
                 return v
-        return kind_eval(m, wo, wi)
+        return oriented_eval(m, wo, wi)
 
     @wp.func
     def frame_pdf(m: Material, wo: wp.vec3, wi: wp.vec3) -> float:
@@ -899,8 +979,8 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
                 f = frame_from_normal(_perturbed_normal(m, wo))
                 if wi[2] * wp.dot(wi, f.n) <= 0.0:
                     return 0.0
-                return kind_pdf(m, to_local(f, wo), to_local(f, wi))
-        return kind_pdf(m, wo, wi)
+                return oriented_pdf(perturbed_tangent(m, f), to_local(f, wo), to_local(f, wi))
+        return oriented_pdf(m, wo, wi)
 
     @wp.func
     def sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2) -> BsdfSample:
@@ -962,7 +1042,7 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
         if m.kind == MATERIAL_DIFFUSE:
             return 1.0
         if m.kind == MATERIAL_ROUGH_CONDUCTOR or m.kind == MATERIAL_ROUGH_DIELECTRIC or m.kind == MATERIAL_ROUGH_PLASTIC:
-            return m.alpha
+            return wp.min(m.alpha, m.alpha_v)  # anisotropic: as smooth as its smoothest direction
         return 0.0  # smooth kinds, and plastic: its coating's delta lobe makes a path through it unreconnectable
 
     @wp.func

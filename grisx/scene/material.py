@@ -35,7 +35,8 @@ Three **wrappers** hold one of those records, as Mitsuba's plugins nest one BSDF
 A wrapper may hold another wrapper of a different type (``Mask(NormalMap(...))``);
 ``material_kinds`` reports each wrapper present as a pseudo-kind
 (``MATERIAL_MASK``, ``MATERIAL_NORMALMAP``, ``MATERIAL_BUMPMAP``) beside the
-nested kinds, so a dispatch compiles the wrapper code only for scenes that use it.
+nested kinds, so a dispatch compiles the wrapper code only for scenes that use it;
+likewise ``MATERIAL_ANISOTROPIC`` where some rough conductor has α_u ≠ α_v.
 
 Every record carries ``two_sided`` (set by the loader for Mitsuba's
 ``twosided`` wrapper): a one-sided reflecting BSDF is black seen from the back,
@@ -44,7 +45,8 @@ back side is the interior, with η inverted) and ignore the flag, as Mitsuba
 refuses to wrap them.
 
 Rough records take ``distribution`` ``"ggx"`` or ``"beckmann"`` (Mitsuba's
-default) with an isotropic ``alpha``; GGX samples its visible normals, Beckmann
+default) with an isotropic ``alpha`` (``RoughConductor`` also Mitsuba's
+anisotropic ``alpha_u`` / ``alpha_v``, numbers or textures); GGX samples its visible normals, Beckmann
 D(m) cos θ_m (:mod:`grisx.scene.microfacet`): ``sample_visible`` only changes
 the variance, so it is not a field.
 
@@ -113,6 +115,7 @@ __all__ = [
     "MATERIAL_MASK",
     "MATERIAL_NORMALMAP",
     "MATERIAL_BUMPMAP",
+    "MATERIAL_ANISOTROPIC",
     "MATERIAL_WRAPPERS",
     "PERTURB_NONE",
     "PERTURB_NORMALMAP",
@@ -141,6 +144,7 @@ __all__ = [
     "Material",
     "material_kind",
     "material_kinds",
+    "is_anisotropic",
     "pack_materials",
 ]
 
@@ -157,6 +161,8 @@ MATERIAL_NULL = wp.constant(8)
 MATERIAL_MASK = wp.constant(9)
 MATERIAL_NORMALMAP = wp.constant(10)
 MATERIAL_BUMPMAP = wp.constant(11)
+#: a feature pseudo-kind: some rough material is anisotropic (α_u ≠ α_v), so the BSDF needs the shading frame's tangent
+MATERIAL_ANISOTROPIC = wp.constant(12)
 #: the wrapper pseudo-kinds
 MATERIAL_WRAPPERS: tuple[int, ...] = (MATERIAL_MASK, MATERIAL_NORMALMAP, MATERIAL_BUMPMAP)
 #: Material.perturb values: no perturbation, a normal map, a bump map
@@ -178,6 +184,7 @@ MATERIAL_KINDS: tuple[int, ...] = (
     MATERIAL_MASK,
     MATERIAL_NORMALMAP,
     MATERIAL_BUMPMAP,
+    MATERIAL_ANISOTROPIC,
 )
 #: Mitsuba plugin name of each kind
 #: microfacet distributions of the rough records → grisx.scene.microfacet's MICROFACET_* ids
@@ -196,6 +203,7 @@ MATERIAL_KIND_NAMES: dict[int, str] = {
     MATERIAL_MASK: "mask",
     MATERIAL_NORMALMAP: "normalmap",
     MATERIAL_BUMPMAP: "bumpmap",
+    MATERIAL_ANISOTROPIC: "anisotropic",
 }
 
 RGB = tuple[float, float, float]
@@ -328,7 +336,11 @@ class Conductor:
 
 @dataclasses.dataclass(frozen=True)
 class RoughConductor:
-    """Mitsuba ``roughconductor``: microfacet metal of roughness ``alpha`` (``distribution`` ggx or beckmann)."""
+    """Mitsuba ``roughconductor``: microfacet metal of roughness ``alpha`` (``distribution`` ggx or beckmann).
+
+    Anisotropic: ``alpha_u`` and ``alpha_v`` (both, numbers or :class:`TextureRef`, whose luminance at the hit is
+    used) replace ``alpha``: the roughness along the shading frame's tangent s (along ∂p/∂u) and bitangent t = n × s.
+    A surface without a parametrization (analytic shapes, meshes without uv) takes Mitsuba's s of its ∂p/∂u."""
 
     alpha: float = 0.1
     distribution: str = "ggx"
@@ -338,6 +350,8 @@ class RoughConductor:
     two_sided: bool = False
     bump_amplitude: float = 0.0
     bump_frequency: float = 0.0
+    alpha_u: float | TextureRef | None = None
+    alpha_v: float | TextureRef | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -527,7 +541,11 @@ class Material:
     ``specular_reflectance`` of conductors/dielectrics (for a textured diffuse
     material the caller replaces it with the texture's value before calling a
     BSDF). ``texture``: texture id or −1. ``alpha``: microfacet roughness (0 for smooth
-    kinds), ``distribution``: MICROFACET_GGX or MICROFACET_BECKMANN. ``eta``, ``k``: conductor complex index per channel; for
+    kinds; α_u along the shading frame's tangent), ``alpha_v`` (α_v along its bitangent; = ``alpha``
+    when isotropic), ``anisotropic`` (1 when α_u ≠ α_v may hold: the BSDF then turns its frame to
+    ``tangent``, the shading frame's s = normalize(∂p/∂u − n (n·∂p/∂u)) in the local frame of the
+    renderer (resolved at the hit by ``grisx.scene.scene.surface_material``), ``alpha_u_texture`` /
+    ``alpha_v_texture`` (texture ids whose luminance at the hit replaces α_u / α_v, or −1), ``distribution``: MICROFACET_GGX or MICROFACET_BECKMANN. ``eta``, ``k``: conductor complex index per channel; for
     dielectrics ``eta`` = int_ior/ext_ior in every channel and ``k`` = 0.
     ``transmittance``: ``specular_transmittance`` of dielectrics. ``two_sided``:
     1 if the frame is mirrored on the back side. ``bump_amplitude``,
@@ -550,6 +568,11 @@ class Material:
     reflectance: wp.vec3
     texture: int
     alpha: float
+    alpha_v: float
+    anisotropic: int
+    alpha_u_texture: int
+    alpha_v_texture: int
+    tangent: wp.vec3
     distribution: int
     eta: wp.vec3
     k: wp.vec3
@@ -591,7 +614,16 @@ def material_kinds(descs: Iterable[MaterialDesc]) -> set[int]:
     for d in descs:
         kinds.add(material_kind(d))
         kinds.update(_WRAPPER_KIND[type(w)] for w in unwrap(d)[1])
+        if is_anisotropic(d):
+            kinds.add(MATERIAL_ANISOTROPIC)
     return kinds
+
+
+def is_anisotropic(desc: MaterialDesc) -> bool:
+    """Whether ``desc`` (inside its wrappers) may have α_u ≠ α_v: a rough conductor given different alpha_u and
+    alpha_v (numbers or textures); such a BSDF turns to the shading frame's tangent."""
+    inner, _ = unwrap(desc)
+    return isinstance(inner, RoughConductor) and inner.alpha_u is not None and inner.alpha_u != inner.alpha_v
 
 
 def _rgb(value: RGB | float, what: str, *, nonneg: bool = True) -> RGB:
@@ -715,6 +747,28 @@ def _pack_blend(blend: BlendBSDF, m: Material, where: str) -> None:
         m.reflectance = wp.vec3(*((1.0 - w) * np.asarray(m.reflectance, dtype=np.float64) + w * np.asarray(rho1, dtype=np.float64)))
 
 
+def _pack_anisotropy(desc: RoughConductor, m: Material, where: str) -> None:
+    # roughconductor.cpp: alpha_u / alpha_v (numbers or textures) in place of alpha; anisotropic where they may differ
+    if desc.alpha_u is None and desc.alpha_v is None:
+        return
+    if desc.alpha_u is None or desc.alpha_v is None:
+        raise InvalidParameterError(f"{where}: give both alpha_u and alpha_v (or neither), got alpha_u={desc.alpha_u!r}, "
+                                    f"alpha_v={desc.alpha_v!r}")
+    values = []
+    for name in ("alpha_u", "alpha_v"):
+        v = getattr(desc, name)
+        if isinstance(v, TextureRef):
+            setattr(m, f"{name}_texture", _texture_id(v, where, name))
+            values.append(("texture", v.texture_id))
+            continue
+        values.append(("value", _positive(v, f"{where}: {name}")))
+    m.alpha = values[0][1] if values[0][0] == "value" else 0.1  # a texture's value replaces it at the hit
+    m.alpha_v = values[1][1] if values[1][0] == "value" else 0.1
+    m.anisotropic = 1 if values[0] != values[1] else 0
+    if m.anisotropic == 0 and m.alpha_u_texture >= 0:  # one texture for both: isotropic, resolved into both
+        m.alpha_v_texture = m.alpha_u_texture
+
+
 def _pack_one(desc: MaterialDesc, index: int, device: str | wp.context.Device | None = None) -> Material:
     kind = material_kind(desc)
     where = f"material {index} ({MATERIAL_KIND_NAMES[kind]})"
@@ -743,6 +797,11 @@ def _pack_one(desc: MaterialDesc, index: int, device: str | wp.context.Device | 
     m.kind = kind
     m.texture = -1
     m.alpha = 0.0
+    m.alpha_v = 0.0
+    m.anisotropic = 0
+    m.alpha_u_texture = -1
+    m.alpha_v_texture = -1
+    m.tangent = wp.vec3(1.0, 0.0, 0.0)
     m.distribution = 0
     m.eta = wp.vec3(1.0, 1.0, 1.0)
     m.k = wp.vec3(0.0, 0.0, 0.0)
@@ -759,6 +818,9 @@ def _pack_one(desc: MaterialDesc, index: int, device: str | wp.context.Device | 
         setattr(m, name, v)
     if isinstance(desc, (RoughConductor, RoughDielectric, RoughPlastic)):
         m.alpha = _positive(desc.alpha, f"{where}: alpha")
+        m.alpha_v = m.alpha
+        if isinstance(desc, RoughConductor):
+            _pack_anisotropy(desc, m, where)
         if desc.distribution not in MICROFACET_DISTRIBUTIONS:
             raise InvalidParameterError(f"{where}: distribution must be one of {', '.join(MICROFACET_DISTRIBUTIONS)}, got {desc.distribution!r}")
         m.distribution = MICROFACET_DISTRIBUTIONS[desc.distribution]

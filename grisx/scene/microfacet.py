@@ -2,12 +2,16 @@
 
 A rough surface is modelled as a field of tiny perfect mirrors whose normals
 m follow a distribution D(m) (per unit projected area, ∫ D(m) cos θ_m dm = 1).
-All formulas are in the local shading frame (z = macro normal) with an
-isotropic roughness α.
+All formulas are in the local shading frame (z = macro normal, x along the
+tangent s) with roughness α = (α_u, α_v) along s and the bitangent t
+(α_u = α_v: isotropic). Anisotropy stretches the microsurface: every formula
+below holds with m_x/α, m_y/α → m_x/α_u, m_y/α_v, α² → α_u α_v in D's
+normalization, and α² tan²θ_v → (α_u² v_x² + α_v² v_y²)/v_z² in Smith's
+masking (Heitz 2014, Eqs. 80, 82, 85).
 
 **GGX / Trowbridge–Reitz** (Walter et al. 2007, Eq. 33):
 
-    D(m) = 1 / (π α² (m_x²/α² + m_y²/α² + m_z²)²)      for m_z > 0.
+    D(m) = 1 / (π α_u α_v (m_x²/α_u² + m_y²/α_v² + m_z²)²)      for m_z > 0.
 
 **Smith masking** for a direction v (Walter et al. 2007, Eq. 34; Heitz 2014,
 Eq. 43 with Λ of GGX), with the orientation test that the back of a facet is
@@ -33,7 +37,9 @@ of D cos θ_m keeps the weight of a reflected sample to F·G1(wi, m) ≤ 1.
     G1(v, m) = (3.535a + 2.181a²) / (1 + 2.276a + 2.577a²) for a = 1/(α tan θ_v) < 1.6, else 1
 
 (the rational fit of Smith's G1 that Mitsuba 3 evaluates), sampled in
-proportion to D(m) cos θ_m (tan²θ_m = −α² ln(1 − u₁), φ = 2π u₂). Its
+proportion to D(m) cos θ_m (tan²θ_m = −α(φ)² ln(1 − u₁) with φ = 2π u₂, or
+anisotropic tan φ = (α_v/α_u) tan 2πu₂ in u₂'s quadrant and
+1/α(φ)² = cos²φ/α_u² + sin²φ/α_v²). Its
 visible normals are not sampled exactly here (Mitsuba does, by Heitz & d'Eon
 2014): the estimate is the same, only its variance differs. ``microfacet_*``
 dispatch on ``MICROFACET_GGX`` / ``MICROFACET_BECKMANN``; ``sample_microfacet``
@@ -123,13 +129,24 @@ _INV_PI = wp.constant(1.0 / math.pi)
 
 
 @wp.func
-def ggx_d(m: wp.vec3, alpha: float) -> float:
-    """GGX normal distribution D(m) (Walter et al. 2007, Eq. 33); 0 below the macro surface."""
-    a = wp.max(alpha, ALPHA_MIN)
-    x = m[0] / a
-    y = m[1] / a
+def _clamped(alpha: wp.vec2) -> wp.vec2:
+    return wp.vec2(wp.max(alpha[0], ALPHA_MIN), wp.max(alpha[1], ALPHA_MIN))
+
+
+@wp.func
+def _projected_alpha2_tan2(v: wp.vec3, a: wp.vec2) -> float:
+    # α(φ_v)² tan²θ_v = (α_u² v_x² + α_v² v_y²) / v_z²: the roughness seen along v's azimuth (Heitz 2014, Eq. 80)
+    return (a[0] * a[0] * v[0] * v[0] + a[1] * a[1] * v[1] * v[1]) / (v[2] * v[2])
+
+
+@wp.func
+def ggx_d(m: wp.vec3, alpha: wp.vec2) -> float:
+    """GGX normal distribution D(m) (Walter et al. 2007, Eq. 33; anisotropic: Heitz 2014, Eq. 85); 0 below the surface."""
+    a = _clamped(alpha)
+    x = m[0] / a[0]
+    y = m[1] / a[1]
     s = x * x + y * y + m[2] * m[2]
-    d = _INV_PI / (a * a * s * s)
+    d = _INV_PI / (a[0] * a[1] * s * s)
     # Mitsuba's guard: drop denormal-sized values and the lower hemisphere
     if d * m[2] > 1.0e-20:
         return d
@@ -137,30 +154,29 @@ def ggx_d(m: wp.vec3, alpha: float) -> float:
 
 
 @wp.func
-def ggx_g1(v: wp.vec3, m: wp.vec3, alpha: float) -> float:
+def ggx_g1(v: wp.vec3, m: wp.vec3, alpha: wp.vec2) -> float:
     """Smith masking G1(v, m) of GGX (Walter et al. 2007, Eq. 34), 0 when v sees the back of m."""
     if wp.dot(v, m) * v[2] <= 0.0:
         return 0.0
-    a = wp.max(alpha, ALPHA_MIN)
-    xy = a * a * (v[0] * v[0] + v[1] * v[1])
-    if xy == 0.0:
+    a = _clamped(alpha)
+    if v[0] * v[0] + v[1] * v[1] == 0.0:
         return 1.0  # normal incidence: no masking
-    tan2 = xy / (v[2] * v[2])  # α² tan²θ_v
+    tan2 = _projected_alpha2_tan2(v, a)  # α² tan²θ_v
     return 2.0 / (1.0 + wp.sqrt(1.0 + tan2))
 
 
 @wp.func
-def ggx_g2(wo: wp.vec3, wi: wp.vec3, m: wp.vec3, alpha: float) -> float:
+def ggx_g2(wo: wp.vec3, wi: wp.vec3, m: wp.vec3, alpha: wp.vec2) -> float:
     """Separable shadowing-masking G1(wo, m) G1(wi, m) (Mitsuba's ``G``)."""
     return ggx_g1(wo, m, alpha) * ggx_g1(wi, m, alpha)
 
 
 @wp.func
-def sample_ggx_vndf(wo: wp.vec3, alpha: float, u: wp.vec2) -> wp.vec3:
+def sample_ggx_vndf(wo: wp.vec3, alpha: wp.vec2, u: wp.vec2) -> wp.vec3:
     """Microfacet normal m ~ D_wo (Heitz 2018, Listing 1); ``wo`` must lie in the upper hemisphere."""
-    a = wp.max(alpha, ALPHA_MIN)
+    a = _clamped(alpha)
     # stretch to the hemisphere configuration (α = 1)
-    vh = wp.normalize(wp.vec3(a * wo[0], a * wo[1], wo[2]))
+    vh = wp.normalize(wp.vec3(a[0] * wo[0], a[1] * wo[1], wo[2]))
     # orthonormal basis around vh (T1 = (1, 0, 0) when vh is the pole)
     lensq = vh[0] * vh[0] + vh[1] * vh[1]
     t1 = wp.vec3(1.0, 0.0, 0.0)
@@ -176,11 +192,11 @@ def sample_ggx_vndf(wo: wp.vec3, alpha: float, u: wp.vec2) -> wp.vec3:
     p2 = (1.0 - s) * wp.sqrt(wp.max(0.0, 1.0 - p1 * p1)) + s * p2
     # reproject onto the hemisphere and unstretch
     nh = p1 * t1 + p2 * t2 + wp.sqrt(wp.max(0.0, 1.0 - p1 * p1 - p2 * p2)) * vh
-    return wp.normalize(wp.vec3(a * nh[0], a * nh[1], wp.max(0.0, nh[2])))
+    return wp.normalize(wp.vec3(a[0] * nh[0], a[1] * nh[1], wp.max(0.0, nh[2])))
 
 
 @wp.func
-def ggx_vndf_pdf(wo: wp.vec3, m: wp.vec3, alpha: float) -> float:
+def ggx_vndf_pdf(wo: wp.vec3, m: wp.vec3, alpha: wp.vec2) -> float:
     """Density D_wo(m) = G1(wo, m) max(0, wo·m) D(m) / cos θ_o of ``sample_ggx_vndf`` (Heitz 2018, Eq. 1)."""
     if wo[2] <= 0.0:
         return 0.0
@@ -192,68 +208,83 @@ MICROFACET_BECKMANN = wp.constant(1)
 
 
 @wp.func
-def beckmann_d(m: wp.vec3, alpha: float) -> float:
-    """Beckmann normal distribution D(m) (Walter et al. 2007, Eq. 25); 0 below the macro surface."""
+def beckmann_d(m: wp.vec3, alpha: wp.vec2) -> float:
+    """Beckmann normal distribution D(m) (Walter et al. 2007, Eq. 25; anisotropic: Heitz 2014, Eq. 82); 0 below the surface."""
     if m[2] <= 0.0:
         return 0.0
-    a = wp.max(alpha, ALPHA_MIN)
+    a = _clamped(alpha)
     c2 = m[2] * m[2]
-    d = wp.exp(-(m[0] * m[0] + m[1] * m[1]) / (a * a * c2)) / (_PI * a * a * c2 * c2)
+    x = m[0] / a[0]
+    y = m[1] / a[1]
+    d = wp.exp(-(x * x + y * y) / c2) / (_PI * a[0] * a[1] * c2 * c2)
     if d * m[2] > 1.0e-20:  # Mitsuba's guard, as for GGX
         return d
     return 0.0
 
 
 @wp.func
-def beckmann_g1(v: wp.vec3, m: wp.vec3, alpha: float) -> float:
+def beckmann_g1(v: wp.vec3, m: wp.vec3, alpha: wp.vec2) -> float:
     """Smith masking of Beckmann by Walter et al.'s rational fit (Eq. 27, as Mitsuba 3), 0 when v sees the back of m."""
     if wp.dot(v, m) * v[2] <= 0.0:
         return 0.0
-    a = wp.max(alpha, ALPHA_MIN)
-    xy = a * a * (v[0] * v[0] + v[1] * v[1])
-    if xy == 0.0:
+    a = _clamped(alpha)
+    if v[0] * v[0] + v[1] * v[1] == 0.0:
         return 1.0
-    b = wp.abs(v[2]) / wp.sqrt(xy)  # 1 / (α tan θ_v)
+    b = 1.0 / wp.sqrt(_projected_alpha2_tan2(v, a))  # 1 / (α tan θ_v)
     if b >= 1.6:
         return 1.0
     return (3.535 * b + 2.181 * b * b) / (1.0 + 2.276 * b + 2.577 * b * b)
 
 
 @wp.func
-def microfacet_d(m: wp.vec3, alpha: float, distribution: int) -> float:
+def microfacet_d(m: wp.vec3, alpha: wp.vec2, distribution: int) -> float:
     if distribution == MICROFACET_BECKMANN:
         return beckmann_d(m, alpha)
     return ggx_d(m, alpha)
 
 
 @wp.func
-def microfacet_g1(v: wp.vec3, m: wp.vec3, alpha: float, distribution: int) -> float:
+def microfacet_g1(v: wp.vec3, m: wp.vec3, alpha: wp.vec2, distribution: int) -> float:
     if distribution == MICROFACET_BECKMANN:
         return beckmann_g1(v, m, alpha)
     return ggx_g1(v, m, alpha)
 
 
 @wp.func
-def microfacet_g2(wo: wp.vec3, wi: wp.vec3, m: wp.vec3, alpha: float, distribution: int) -> float:
+def microfacet_g2(wo: wp.vec3, wi: wp.vec3, m: wp.vec3, alpha: wp.vec2, distribution: int) -> float:
     """Separable shadowing-masking G1(wo, m) G1(wi, m) (Mitsuba's ``G``)."""
     return microfacet_g1(wo, m, alpha, distribution) * microfacet_g1(wi, m, alpha, distribution)
 
 
 @wp.func
-def sample_microfacet(wo: wp.vec3, alpha: float, distribution: int, u: wp.vec2) -> wp.vec3:
+def sample_microfacet(wo: wp.vec3, alpha: wp.vec2, distribution: int, u: wp.vec2) -> wp.vec3:
     """A microfacet normal: GGX's visible normals seen from ``wo`` (upper hemisphere), Beckmann's ∝ D(m) cos θ_m."""
     if distribution == MICROFACET_BECKMANN:
-        a = wp.max(alpha, ALPHA_MIN)
-        tan2 = -a * a * wp.log(wp.max(1.0 - u[0], 1.0e-30))
+        a = _clamped(alpha)
+        cos_p = float(0.0)
+        sin_p = float(0.0)
+        alpha2 = a[0] * a[0]
+        if a[0] == a[1]:
+            phi = 2.0 * _PI * u[1]
+            cos_p = wp.cos(phi)
+            sin_p = wp.sin(phi)
+        else:
+            # the azimuth's marginal of D cos θ_m: tan φ = (α_v/α_u) tan 2πu₂, in u₂'s quadrant (Mitsuba's microfacet.h)
+            tmp = a[1] / a[0] * wp.tan(2.0 * _PI * u[1])
+            cos_p = 1.0 / wp.sqrt(tmp * tmp + 1.0)
+            if wp.abs(u[1] - 0.5) - 0.25 < 0.0:
+                cos_p = -cos_p
+            sin_p = cos_p * tmp
+            alpha2 = 1.0 / ((cos_p / a[0]) * (cos_p / a[0]) + (sin_p / a[1]) * (sin_p / a[1]))
+        tan2 = -alpha2 * wp.log(wp.max(1.0 - u[0], 1.0e-30))
         cos_t = 1.0 / wp.sqrt(1.0 + tan2)
         sin_t = wp.sqrt(wp.max(0.0, 1.0 - cos_t * cos_t))
-        phi = 2.0 * _PI * u[1]
-        return wp.vec3(sin_t * wp.cos(phi), sin_t * wp.sin(phi), cos_t)
+        return wp.vec3(sin_t * cos_p, sin_t * sin_p, cos_t)
     return sample_ggx_vndf(wo, alpha, u)
 
 
 @wp.func
-def microfacet_pdf(wo: wp.vec3, m: wp.vec3, alpha: float, distribution: int) -> float:
+def microfacet_pdf(wo: wp.vec3, m: wp.vec3, alpha: wp.vec2, distribution: int) -> float:
     """Density of :func:`sample_microfacet` (solid angle of m)."""
     if distribution == MICROFACET_BECKMANN:
         return beckmann_d(m, alpha) * wp.max(0.0, m[2])
@@ -261,7 +292,7 @@ def microfacet_pdf(wo: wp.vec3, m: wp.vec3, alpha: float, distribution: int) -> 
 
 
 @wp.func
-def microfacet_visible_weight(wo: wp.vec3, m: wp.vec3, alpha: float, distribution: int) -> float:
+def microfacet_visible_weight(wo: wp.vec3, m: wp.vec3, alpha: wp.vec2, distribution: int) -> float:
     """G1(wo, m)|wo·m| / (|cos θ_o| cos θ_m): the weight that visible-normal sampling folds away (1 for GGX)."""
     if distribution == MICROFACET_BECKMANN:
         return beckmann_g1(wo, m, alpha) * wp.abs(wp.dot(wo, m)) / (wp.abs(wo[2]) * m[2])
@@ -369,20 +400,21 @@ def _rough_interface_kernel(
     c = mu[i]
     wi = wp.vec3(wp.sqrt(wp.max(0.0, 1.0 - c * c)), 0.0, c)
     n = nodes.shape[0]
+    ab = wp.vec2(alpha, alpha)  # roughplastic is isotropic
     acc = float(0.0)
     for a in range(n):
         for b in range(n):
-            m = sample_microfacet(wi, alpha, distribution, wp.vec2(0.5 * nodes[a] + 0.5, 0.5 * nodes[b] + 0.5))
-            w = microfacet_visible_weight(wi, m, alpha, distribution) * weights[a] * weights[b]
+            m = sample_microfacet(wi, ab, distribution, wp.vec2(0.5 * nodes[a] + 0.5, 0.5 * nodes[b] + 0.5))
+            w = microfacet_visible_weight(wi, m, ab, distribution) * weights[a] * weights[b]
             fr = fresnel_dielectric(wp.dot(wi, m), eta)
             if transmit != 0:
                 wt = refract(wi, m, fr.cos_t, fr.eta_ti)
                 if wt[2] * wi[2] < 0.0:
-                    acc += w * microfacet_g1(wt, m, alpha, distribution) * (1.0 - fr.f)
+                    acc += w * microfacet_g1(wt, m, ab, distribution) * (1.0 - fr.f)
             else:
                 wr = reflect(wi, m)
                 if wr[2] > 0.0 and wi[2] > 0.0:
-                    acc += w * microfacet_g1(wr, m, alpha, distribution) * fr.f
+                    acc += w * microfacet_g1(wr, m, ab, distribution) * fr.f
     out[i] = acc * 0.25  # the square [0, 1]² is a quarter of Gauss–Legendre's [−1, 1]²
 
 

@@ -108,7 +108,8 @@ Transforms ``<transform name="to_world">``
     ``diffuse`` (``reflectance``: colour or ``bitmap`` texture [0.5]);
     ``conductor`` / ``roughconductor`` (``material`` [none]: any of Mitsuba's
     71 ``data/ior`` presets, ``a-C`` to ``W``, in RGB as its rgb variants read them; or ``eta``/``k``,
-    ``specular_reflectance``; rough: ``alpha`` [0.1], ``distribution``
+    ``specular_reflectance``; rough: ``alpha`` [0.1], or roughconductor's anisotropic
+    ``alpha_u`` and ``alpha_v`` (numbers or textures; on meshes), ``distribution``
     ``beckmann`` [default, as Mitsuba] or ``ggx``, ``sample_visible``);
     ``dielectric`` / ``roughdielectric`` (``int_ior`` [bk7], ``ext_ior`` [air]
     as numbers or Mitsuba's named IORs, ``specular_reflectance``,
@@ -142,8 +143,10 @@ Transforms ``<transform name="to_world">``
     ``bitmap``: ``filename`` (PNG/JPEG/BMP via pillow, 8-bit or 16-bit grey, sRGB-decoded
     to linear with the exact sRGB curve as Mitsuba does unless ``raw="true"``;
     EXR via :func:`grisx.imageio.read_exr`, linear), ``filter_type`` bilinear
-    [default] / nearest, ``wrap_mode`` repeat [default] / mirror / clamp (:mod:`grisx.scene.texture`).
+    [default] / nearest, ``wrap_mode`` repeat [default] / mirror / clamp, ``format`` (storage
+    precision: read, and the texels kept in float) (:mod:`grisx.scene.texture`).
     ``checkerboard``: ``color0`` [0.4], ``color1`` [0.2] (constant colours).
+    ``rawconstant``: ``value`` (a vector, or a colour) used as is.
     Both take ``to_uv`` (a ``<transform>``; its x/y rows and translation make
     Mitsuba's 2D affine map). ``mesh_attribute``: ``name`` (``vertex_*``: blended
     with the hit's barycentrics; ``face_*``: the face's value), ``scale`` [1]; a
@@ -204,6 +207,7 @@ from grisx.scene.material import (
     ThinDielectric,
     TextureRef,
     conductor_material,
+    is_anisotropic,
     pack_materials,
     unwrap,
 )
@@ -960,8 +964,16 @@ class _Loader:
         node = self._deref(node, "texture")
         if id(node) in self.texture_records:
             return self.texture_records[id(node)][0]
-        t = self._require_type(node, ("bitmap", "checkerboard", "mesh_attribute"))
+        t = self._require_type(node, ("bitmap", "checkerboard", "mesh_attribute", "rawconstant"))
         p = _Props(self, node)
+        if t == "rawconstant":  # a constant read as is (no spectral conversion): an image of one texel
+            node_value = p.values.get("value")
+            value = p.point("value", (0.0, 0.0, 0.0)) if node_value is not None and node_value.tag in ("vector", "point") \
+                else np.asarray(p.color("value", 1.0, kind="unbounded"), dtype=np.float64)
+            p.finish()
+            tex0 = np.asarray(value, dtype=np.float64).reshape(1, 1, 3)
+            self.texture_records[id(node)] = (tex0, node.attrs.get("id") or "rawconstant")
+            return tex0
         if t == "mesh_attribute":  # the hit mesh's own values: no uv, no mean (Mitsuba's Texture::mean is undefined)
             try:
                 attribute = MeshAttribute(p.string("name"), p.float("scale", 1.0))
@@ -980,6 +992,7 @@ class _Loader:
             filename = p.string("filename")
             name = node.attrs.get("id") or filename
             raw = p.bool("raw", False)
+            p.choice("format", "auto", ("auto", "variant", "float16", "fp16", "uint8"))  # storage precision only
             filter_type = p.choice("filter_type", "bilinear", tuple(FILTER_TYPES))
             wrap_mode = p.choice("wrap_mode", "repeat", tuple(WRAP_MODES))
             image = self.image(node, filename, raw)
@@ -1152,6 +1165,15 @@ class _Loader:
             return smooth(**kw)
         distribution = p.choice("distribution", "beckmann", tuple(MICROFACET_DISTRIBUTIONS))  # Mitsuba's default
         p.bool("sample_visible", True)  # a sampling choice: the expected image is the same
+        if rough_cls is RoughConductor and (p.has("alpha_u") or p.has("alpha_v")):
+            # microfacet.h: both alpha_u and alpha_v (numbers or textures), and then no alpha
+            if not (p.has("alpha_u") and p.has("alpha_v")):
+                given = "alpha_u" if p.has("alpha_u") else "alpha_v"
+                raise self.ctx.error(p.values[given], "both 'alpha_u' and 'alpha_v' must be specified (as in Mitsuba 3)", given)
+            if p.has("alpha"):
+                raise self.ctx.error(p.values["alpha"], "give either 'alpha' or 'alpha_u'/'alpha_v', not both", "alpha")
+            kw["alpha_u"], kw["alpha_v"] = (self._uv_texture(p, n) if p.values[n].tag in ("texture", "ref") else p.float(n)
+                                            for n in ("alpha_u", "alpha_v"))
         return rough_cls(alpha=p.float("alpha", 0.1), distribution=distribution, **kw)
 
     def default_material(self, name: str) -> int:
@@ -1354,6 +1376,9 @@ class _Loader:
                     and any(isinstance(w, (NormalMap, BumpMap)) for w in unwrap(self.scene.materials[mid])[1]):
                 raise self.ctx.error(bsdfs[0], f"a normalmap or bumpmap on an analytic {t} is not supported "
                                                f"(its shading frame needs a mesh's uv parametrization: use an obj, ply or serialized mesh)")
+            if t in ("sphere", "disk", "cylinder") and emission is None and is_anisotropic(self.scene.materials[mid]):
+                raise self.ctx.error(bsdfs[0], f"an anisotropic roughconductor (alpha_u != alpha_v) on an analytic {t} is not "
+                                               f"supported (its tangent needs a mesh's uv parametrization: use an obj, ply or serialized mesh)")
         else:  # Mitsuba's default: diffuse 0.5, but black on an emitter (an emitting shape reflects nothing)
             mid = self.default_material("default_emitter" if emission is not None else "default")
         p.finish()

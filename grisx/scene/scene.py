@@ -53,7 +53,7 @@ from grisx.scene.analytic import (
 )
 from grisx.scene.camera import Camera, CameraData, CameraPath
 from grisx.scene.lights import ConstantEnvironment, DirectionalLight, EnvMap, LightSample, LightSet, PointLight, Projector, build_light_set
-from grisx.scene.frame import frame_from_normal, to_local
+from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.material import (
     MATERIAL_CONDUCTOR,
     MATERIAL_DIELECTRIC,
@@ -79,6 +79,7 @@ from grisx.scene.texture import (
     pack_textures,
     texture_gradient,
     texture_lookup,
+    texture_lookup_1,
 )
 from grisx.theory.gris import luminance
 from grisx.scene.transform import rotate, translate
@@ -579,12 +580,11 @@ def stored_surface(scene: SceneData, material: int, uv: wp.vec2, tri: int, p: wp
 
 
 @wp.func
-def _perturbed_normal(scene: SceneData, si: SurfaceInteraction, m: Material) -> wp.vec3:
-    """A normal or bump map's normal at ``si`` in the local frame of ``si.ns`` (Mitsuba 3's ``normalmap``
-    and ``bumpmap`` frames over a mesh's ∂p/∂u, ∂p/∂v, and its shading frame s ∥ ∂p/∂u); unperturbed on an
-    analytic shape (the loader refuses the maps there)."""
+def _mesh_dp_duv(scene: SceneData, si: SurfaceInteraction) -> wp.mat33:
+    """Rows ∂p/∂u, ∂p/∂v of the triangle ``si.tri`` (Mitsuba 3's mesh parametrization: by its uvs, else by its
+    barycentrics; an arbitrary basis around n_g where the uvs are degenerate); zero rows off the triangles."""
     if si.tri < 0 or si.tri >= scene.shapes.prim_base:
-        return wp.vec3(0.0, 0.0, 1.0)
+        return wp.mat33(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     i0 = scene.indices[3 * si.tri + 0]
     i1 = scene.indices[3 * si.tri + 1]
     i2 = scene.indices[3 * si.tri + 2]
@@ -603,15 +603,39 @@ def _perturbed_normal(scene: SceneData, si: SurfaceInteraction, m: Material) -> 
             g = frame_from_normal(si.ng)
             dp_du = g.s
             dp_dv = g.t
+    return wp.mat33(dp_du[0], dp_du[1], dp_du[2], dp_dv[0], dp_dv[1], dp_dv[2], 0.0, 0.0, 0.0)
+
+
+@wp.func
+def shading_tangent(scene: SceneData, si: SurfaceInteraction) -> wp.vec3:
+    """The shading frame's tangent s = normalize(∂p/∂u − n_s (n_s·∂p/∂u)) (Mitsuba 3's ``initialize_sh_frame``) in
+    the local frame of ``si.ns`` (``frame_from_normal``): the direction α_u of an anisotropic BSDF runs along;
+    that frame's own s where ∂p/∂u vanishes or lies along n_s (and off the triangles: the loader refuses
+    anisotropy on analytic shapes)."""
+    dp_du = _mesh_dp_duv(scene, si)[0]
+    t = to_local(frame_from_normal(si.ns), dp_du)
+    l2 = t[0] * t[0] + t[1] * t[1]
+    if l2 <= 0.0:
+        return wp.vec3(1.0, 0.0, 0.0)
+    r = 1.0 / wp.sqrt(l2)
+    return wp.vec3(t[0] * r, t[1] * r, 0.0)
+
+
+@wp.func
+def _perturbed_normal(scene: SceneData, si: SurfaceInteraction, m: Material) -> wp.vec3:
+    """A normal or bump map's normal at ``si`` in the local frame of ``si.ns`` (Mitsuba 3's ``normalmap``
+    and ``bumpmap`` frames over a mesh's ∂p/∂u, ∂p/∂v, and its shading frame s ∥ ∂p/∂u); unperturbed on an
+    analytic shape (the loader refuses the maps there)."""
+    if si.tri < 0 or si.tri >= scene.shapes.prim_base:
+        return wp.vec3(0.0, 0.0, 1.0)
+    duv = _mesh_dp_duv(scene, si)
+    dp_du = duv[0]
+    dp_dv = duv[1]
     ns = si.ns
     local = frame_from_normal(ns)
     n = wp.vec3(0.0, 0.0, 1.0)
     if m.perturb == PERTURB_NORMALMAP:
-        s = dp_du - ns * wp.dot(ns, dp_du)
-        if wp.length_sq(s) > 0.0:
-            s = wp.normalize(s)
-        else:
-            s = local.s
+        s = to_world(local, shading_tangent(scene, si))
         t = wp.cross(ns, s)
         c = surface_texture(scene, m.perturb_texture, si) * 2.0 - wp.vec3(1.0, 1.0, 1.0)
         n = s * c[0] + t * c[1] + ns * c[2]
@@ -630,11 +654,18 @@ def _perturbed_normal(scene: SceneData, si: SurfaceInteraction, m: Material) -> 
 @wp.func
 def _resolve_wrappers(scene: SceneData, m: Material, si: SurfaceInteraction) -> Material:
     """A mask's ``opacity`` (the luminance of its texture at ``si.uv``, clamped to [0, 1]), a normal or bump map's
-    ``perturbed_n`` at ``si``, and a diffuse blend's reflectance (1 − w) ρ₀ + w ρ₁."""
+    ``perturbed_n`` at ``si``, textured α_u / α_v (their textures' luminance), an anisotropic BSDF's ``tangent``
+    (:func:`shading_tangent`), and a diffuse blend's reflectance (1 − w) ρ₀ + w ρ₁."""
     if m.opacity_texture >= 0:
         m.opacity = wp.clamp(luminance(surface_texture(scene, m.opacity_texture, si)), 0.0, 1.0)
     if m.perturb != PERTURB_NONE:
         m.perturbed_n = _perturbed_normal(scene, si, m)
+    if m.alpha_u_texture >= 0:  # roughconductor.cpp: m_alpha_u->eval_1(si), on meshes' uv (the loader's uv textures)
+        m.alpha = texture_lookup_1(scene.textures, m.alpha_u_texture, si.uv)
+    if m.alpha_v_texture >= 0:
+        m.alpha_v = texture_lookup_1(scene.textures, m.alpha_v_texture, si.uv)
+    if m.anisotropic != 0:
+        m.tangent = shading_tangent(scene, si)
     if m.blend_texture >= 0 or m.blend_weight > 0.0:
         w = m.blend_weight
         if m.blend_texture >= 0:

@@ -51,7 +51,7 @@ from grisx.theory.gris import luminance
 
 wp.set_module_options({"enable_backward": False})
 
-__all__ = ["Bitmap", "Checkerboard", "MeshAttribute", "AttributeTexels", "TextureInfo", "TextureSet", "texture_lookup", "texture_gradient",
+__all__ = ["Bitmap", "Checkerboard", "MeshAttribute", "AttributeTexels", "TextureInfo", "TextureSet", "texture_lookup", "texture_lookup_1", "texture_gradient",
            "attribute_lookup", "pack_textures", "TEXTURE_BITMAP", "TEXTURE_CHECKERBOARD", "TEXTURE_MESH_ATTRIBUTE",
            "WRAP_MODES", "FILTER_TYPES"]
 
@@ -178,9 +178,7 @@ def texture_lookup(ts: TextureSet, texture: int, uv_in: wp.vec2) -> wp.vec3:
     h = wp.vec3(uv_in[0], uv_in[1], 1.0)
     uv = wp.vec2(wp.dot(info.uv_row0, h), wp.dot(info.uv_row1, h))
     if info.kind == TEXTURE_CHECKERBOARD:
-        upper_u = uv[0] - wp.floor(uv[0]) > 0.5
-        upper_v = uv[1] - wp.floor(uv[1]) > 0.5
-        if upper_u == upper_v:
+        if _checker_even(uv):
             return info.color0
         return info.color1
     if info.nearest != 0:
@@ -189,6 +187,27 @@ def texture_lookup(ts: TextureSet, texture: int, uv_in: wp.vec2) -> wp.vec3:
     a = _texel(ts, info, q.ix, q.iy) * (1.0 - q.fx) + _texel(ts, info, q.ix + 1, q.iy) * q.fx
     b = _texel(ts, info, q.ix, q.iy + 1) * (1.0 - q.fx) + _texel(ts, info, q.ix + 1, q.iy + 1) * q.fx
     return a * (1.0 - q.fy) + b * q.fy
+
+
+@wp.func
+def _checker_even(uv: wp.vec2) -> bool:
+    # whether the fractional parts of u and v are both above ½ or both at most ½ (checkerboard.cpp)
+    return (uv[0] - wp.floor(uv[0]) > 0.5) == (uv[1] - wp.floor(uv[1]) > 0.5)
+
+
+@wp.func
+def texture_lookup_1(ts: TextureSet, texture: int, uv_in: wp.vec2) -> float:
+    """A scalar texture value at ``uv_in`` as Mitsuba's ``eval_1`` gives it: the luminance of :func:`texture_lookup`,
+    except that a checkerboard's ``eval_1`` picks its colours the other way round from its ``eval`` (``color0``
+    where exactly one of u, v has its fractional part above ½; ``checkerboard.cpp``), which grisx keeps so as to
+    render what Mitsuba renders (a roughconductor's textured α_u / α_v)."""
+    info = ts.info[texture]
+    if info.kind == TEXTURE_CHECKERBOARD:
+        h = wp.vec3(uv_in[0], uv_in[1], 1.0)
+        if _checker_even(wp.vec2(wp.dot(info.uv_row0, h), wp.dot(info.uv_row1, h))):
+            return luminance(info.color1)
+        return luminance(info.color0)
+    return luminance(texture_lookup(ts, texture, uv_in))
 
 
 @wp.func

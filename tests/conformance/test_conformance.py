@@ -70,6 +70,7 @@ CASES: dict[str, Case] = {
     "roughconductor": Case(32, 16),
     "roughconductor_all_normals": Case(32, 16),
     "roughconductor_beckmann": Case(32, 16),
+    "roughconductor_anisotropic": Case(32, 16),
     "twosided_conductor": Case(32, 16),
     "dielectric": Case(32, 16),
     "dielectric_named": Case(32, 16),
@@ -202,6 +203,14 @@ def test_ggx_is_caught_where_mitsuba_defaults_to_beckmann():
     scene.materials[:] = [dataclasses.replace(m, distribution="ggx") if hasattr(m, "distribution") else m for m in scene.materials]
     result = agreement(scene, "roughconductor_beckmann")
     assert not result.passed, f"GGX instead of Mitsuba's default Beckmann went unnoticed: {result}"
+
+
+def test_an_anisotropic_roughness_turned_by_90_degrees_is_caught():
+    scene = load_mitsuba(SCENES / "roughconductor_anisotropic.xml")
+    scene.materials[:] = [dataclasses.replace(m, alpha_u=m.alpha_v, alpha_v=m.alpha_u) if getattr(m, "alpha_u", None) else m
+                          for m in scene.materials]
+    result = agreement(scene, "roughconductor_anisotropic")
+    assert not result.passed, f"alpha_u and alpha_v swapped (the lobe turned by 90 degrees) went unnoticed: {result}"
 
 
 def test_a_spot_without_its_falloff_is_caught():

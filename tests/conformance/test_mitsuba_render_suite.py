@@ -42,9 +42,6 @@ SUITE = HERE / "mitsuba_render_tests" / "tests" / "scenes"
 
 #: scene (folder/file stem) → why grisx does not pass it yet; remove a line when its scene passes
 NOT_YET: dict[str, str] = {
-    "bsdf_spheres/test_normalmap_identity_roughconductor_path": "loader: roughconductor's anisotropic alpha_u/alpha_v",
-    "bsdf_spheres/test_normalmap_roughconductor_path": "loader: roughconductor's anisotropic alpha_u/alpha_v",
-    "bsdf_spheres/test_textured_roughconductor_path": "loader: roughconductor's textured anisotropic alpha_u/alpha_v",
     "bsdf_spheres/test_texturedprincipled1_path": "loader: bsdf 'principled' refused (not implemented)",
     "bsdf_spheres/test_texturedprincipled2_path": "loader: bsdf 'principled' refused (not implemented)",
     "bsdf_spheres/test_texturedprincipledthin_path": "loader: bsdf 'principledthin' refused (not implemented)",

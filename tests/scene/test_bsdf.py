@@ -141,10 +141,11 @@ def _microfacet_kernel(
     vsample: wp.array(dtype=wp.vec3),
 ):
     i = wp.tid()
-    d[i] = ggx_d(m[i], alpha)
-    g1[i] = ggx_g1(v[i], m[i], alpha)
-    vpdf[i] = ggx_vndf_pdf(v[i], m[i], alpha)
-    vsample[i] = sample_ggx_vndf(v[i], alpha, u[i])
+    a = wp.vec2(alpha, alpha)
+    d[i] = ggx_d(m[i], a)
+    g1[i] = ggx_g1(v[i], m[i], a)
+    vpdf[i] = ggx_vndf_pdf(v[i], m[i], a)
+    vsample[i] = sample_ggx_vndf(v[i], a, u[i])
 
 
 @wp.kernel
@@ -198,8 +199,21 @@ def direction(theta_deg: float, phi_deg: float = 30.0) -> np.ndarray:
     return np.array([math.sin(t) * math.cos(p), math.sin(t) * math.sin(p), math.cos(t)])
 
 
+@dataclasses.dataclass(frozen=True)
+class Turned:
+    """``desc`` at a hit whose shading tangent (the direction of α_u) lies at azimuth ``phi_deg`` in the local frame."""
+
+    desc: object
+    phi_deg: float
+
+
 def _packed(desc, device):
     """``desc`` packed, or ``desc`` itself where it is already a packed material array."""
+    if isinstance(desc, Turned):
+        m = _pack_one(desc.desc, 0)
+        phi = math.radians(desc.phi_deg)
+        m.tangent = wp.vec3(math.cos(phi), math.sin(phi), 0.0)  # as surface_material resolves it at a hit
+        return wp.array([m], dtype=Material, device=device)
     return desc if isinstance(desc, wp.array) else pack_materials([desc], device)
 
 
@@ -353,8 +367,8 @@ def test_ggx_d_is_normalized_in_projected_area(device):
 @wp.kernel
 def _beckmann_kernel(m: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), alpha: float, d: wp.array(dtype=float), g1: wp.array(dtype=float)):
     i = wp.tid()
-    d[i] = beckmann_d(m[i], alpha)
-    g1[i] = beckmann_g1(v[i], m[i], alpha)
+    d[i] = beckmann_d(m[i], wp.vec2(alpha, alpha))
+    g1[i] = beckmann_g1(v[i], m[i], wp.vec2(alpha, alpha))
 
 
 def test_beckmann_d_is_normalized_and_g1_is_walters_fit():
@@ -373,6 +387,57 @@ def test_beckmann_d_is_normalized_and_g1_is_walters_fit():
             a = 1.0 / (alpha * np.tan(theta[1:-1]))
         ref = np.where(a < 1.6, (3.535 * a + 2.181 * a**2) / (1 + 2.276 * a + 2.577 * a**2), 1.0)
         np.testing.assert_allclose(g1.numpy()[1:-1], ref, rtol=1e-4, atol=1e-6)
+
+
+@wp.kernel
+def _aniso_d_kernel(m: wp.array(dtype=wp.vec3), alpha: wp.vec2, ggx: wp.array(dtype=float), beckmann: wp.array(dtype=float)):
+    i = wp.tid()
+    ggx[i] = ggx_d(m[i], alpha)
+    beckmann[i] = beckmann_d(m[i], alpha)
+
+
+def test_anisotropic_d_is_normalized_and_matches_heitz_oracles():
+    # ∫ D(m) cos θ_m dω_m = 1 over (cos θ, φ); D against Heitz 2014, Eqs. 82 and 85 in slope space
+    c = np.linspace(1e-4, 1.0, 701)
+    phi = np.linspace(0.0, 2 * np.pi, 401)
+    cc, pp = np.meshgrid(c, phi, indexing="ij")
+    s_ = np.sqrt(1 - cc**2)
+    m = np.stack([s_ * np.cos(pp), s_ * np.sin(pp), cc], axis=-1).reshape(-1, 3)
+    au, av = 0.15, 0.6
+    ggx = wp.zeros(len(m), dtype=float)
+    beck = wp.zeros(len(m), dtype=float)
+    wp.launch(_aniso_d_kernel, len(m), inputs=[_arr(m, wp.vec3, "cpu"), wp.vec2(au, av)], outputs=[ggx, beck])
+    x2 = (m[:, 0] / m[:, 2] / au) ** 2 + (m[:, 1] / m[:, 2] / av) ** 2  # slope-space (x̃/α_u)² + (ỹ/α_v)²
+    ggx_ref = 1 / (np.pi * au * av * m[:, 2] ** 4 * (1 + x2) ** 2)
+    beck_ref = np.exp(-x2) / (np.pi * au * av * m[:, 2] ** 4)
+    np.testing.assert_allclose(ggx.numpy(), ggx_ref, rtol=2e-4, atol=1e-6)
+    np.testing.assert_allclose(beck.numpy(), np.where(beck_ref * m[:, 2] > 1e-20, beck_ref, 0.0), rtol=2e-4, atol=1e-6)
+    for d in (ggx.numpy(), beck.numpy()):
+        total = scipy.integrate.trapezoid(scipy.integrate.trapezoid((d * m[:, 2]).reshape(cc.shape), phi, axis=1), c)
+        assert total == pytest.approx(1.0, abs=2e-3)
+
+
+def test_anisotropic_lobe_turns_with_the_tangent_and_alpha_u_runs_along_it(device):
+    # the lobe at tangent azimuth φ is the untouched lobe with both directions turned by −φ
+    desc = RoughConductor(alpha_u=0.1, alpha_v=0.5, eta=GOLD[0], k=GOLD[1], distribution="ggx")
+    rng = np.random.default_rng(5)
+    wo, wi = _hemi(rng.random((64, 2)), 1.0), _hemi(rng.random((64, 2)), 1.0)
+    phi = math.radians(35.0)
+    rot = np.array([[math.cos(phi), -math.sin(phi), 0], [math.sin(phi), math.cos(phi), 0], [0, 0, 1]])
+    f0, p0 = evaluate(desc, wo, wi, device)
+    f1, p1 = evaluate(Turned(desc, 35.0), wo @ rot.T, wi @ rot.T, device)
+    np.testing.assert_allclose(f1, f0, rtol=2e-4, atol=1e-6)
+    np.testing.assert_allclose(p1, p0, rtol=2e-4, atol=1e-6)
+    # α_u = 0.1 along s: the highlight is narrow along s and wide across it
+    wo = direction(60.0, 0.0)
+    along, _ = evaluate(desc, wo, direction(75.0, 180.0), device)
+    across, _ = evaluate(desc, wo, direction(60.0, 160.0), device)
+    swapped, _ = evaluate(dataclasses.replace(desc, alpha_u=0.5, alpha_v=0.1), wo, direction(75.0, 180.0), device)
+    assert along[0, 0] < swapped[0, 0] and across[0, 0] > 0
+    # α_u = α_v is the isotropic lobe, turned or not
+    iso, _ = evaluate(RoughConductor(alpha=0.3, eta=GOLD[0], k=GOLD[1]), wo, direction(50.0, 150.0), device)
+    same, _ = evaluate(Turned(RoughConductor(alpha_u=0.3, alpha_v=0.3, eta=GOLD[0], k=GOLD[1]), 40.0), wo, direction(50.0, 150.0), device)
+    np.testing.assert_allclose(same, iso, rtol=1e-6)
 
 
 def test_visible_normal_density_is_normalized(device):
@@ -496,6 +561,8 @@ REFLECTION_CASES = [
     RoughConductor(alpha=0.8, eta=COPPER[0], k=COPPER[1]),
     RoughDielectric(alpha=0.4),
     RoughConductor(alpha=0.5, distribution="beckmann"),
+    RoughConductor(alpha_u=0.2, alpha_v=0.6, distribution="ggx"),
+    RoughConductor(alpha_u=0.6, alpha_v=0.25, distribution="beckmann"),
     RoughDielectric(alpha=0.3, distribution="beckmann"),
     Plastic(diffuse_reflectance=(0.2, 0.5, 0.8), nonlinear=True),
     RoughPlastic(alpha=0.3, diffuse_reflectance=(0.2, 0.5, 0.8)),
@@ -576,6 +643,11 @@ CHI2_CASES = [
     # Beckmann (Mitsuba's default distribution): m sampled ∝ D cos θ_m, not from the visible normals
     ("roughconductor-beckmann-a0.2-15", RoughConductor(alpha=0.2, eta=GOLD[0], k=GOLD[1], distribution="beckmann"), 15.0),
     ("roughconductor-beckmann-a0.6-70", RoughConductor(alpha=0.6, distribution="beckmann"), 70.0),
+    # anisotropic (α_u along a tangent turned by φ in the local frame): GGX's visible normals, Beckmann's D cos θ_m
+    ("roughconductor-aniso-ggx-0.1x0.5-turned25-50", Turned(RoughConductor(alpha_u=0.1, alpha_v=0.5, eta=GOLD[0], k=GOLD[1]), 25.0), 50.0),
+    ("roughconductor-aniso-ggx-0.6x0.15-80", RoughConductor(alpha_u=0.6, alpha_v=0.15), 80.0),
+    ("roughconductor-aniso-beckmann-0.1x0.5-turned-70-40", Turned(RoughConductor(alpha_u=0.1, alpha_v=0.5, distribution="beckmann"), -70.0), 40.0),
+    ("roughconductor-aniso-beckmann-0.5x0.2-75", RoughConductor(alpha_u=0.5, alpha_v=0.2, eta=COPPER[0], k=COPPER[1], distribution="beckmann"), 75.0),
     ("roughdielectric-beckmann-a0.3-30", RoughDielectric(alpha=0.3, distribution="beckmann"), 30.0),
     ("roughdielectric-beckmann-inside-a0.4-140", RoughDielectric(alpha=0.4, distribution="beckmann"), 140.0),
     # roughplastic: glossy coating lobe + cosine-weighted base, chosen by the coating's tabulated reflectance
@@ -632,6 +704,17 @@ def test_chi2_rejects_a_pdf_off_by_a_cosine(device):
     masses = _cell_masses(lambda d: np.where(d[:, 2] > 0, 1 / (2 * np.pi), 0.0))
     result = _chi2(s["wi"], s["valid"], masses, tests=len(CHI2_CASES))
     print(f"wrong pdf: {result}")
+    assert not result.passed and result.p_value < 1e-12, result
+
+
+@pytest.mark.parametrize("distribution", ["ggx", "beckmann"])
+def test_chi2_rejects_anisotropic_samples_against_the_pdf_with_alpha_u_and_alpha_v_swapped(distribution, device):
+    desc = RoughConductor(alpha_u=0.1, alpha_v=0.4, distribution=distribution)
+    wo = direction(50.0, 40.0)
+    s = sample(desc, wo, N_CHI2, device, seed=9)
+    swapped = dataclasses.replace(desc, alpha_u=0.4, alpha_v=0.1)
+    result = _chi2(s["wi"], s["valid"], _cell_masses(lambda d: evaluate(swapped, wo, d, device)[1]), tests=len(CHI2_CASES))
+    print(f"swapped alphas: {result}")
     assert not result.passed and result.p_value < 1e-12, result
 
 
