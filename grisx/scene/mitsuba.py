@@ -108,8 +108,8 @@ Transforms ``<transform name="to_world">``
     ``diffuse`` (``reflectance``: colour or ``bitmap`` texture [0.5]);
     ``conductor`` / ``roughconductor`` (``material`` [none]: any of Mitsuba's
     71 ``data/ior`` presets, ``a-C`` to ``W``, in RGB as its rgb variants read them; or ``eta``/``k``,
-    ``specular_reflectance``; rough: ``alpha`` [0.1], or roughconductor's anisotropic
-    ``alpha_u`` and ``alpha_v`` (numbers or textures; on meshes), ``distribution``
+    ``specular_reflectance``; rough: ``alpha`` [0.1] (roughconductor: a number or a texture), or
+    roughconductor's anisotropic ``alpha_u`` and ``alpha_v`` (numbers or textures; on meshes), ``distribution``
     ``beckmann`` [default, as Mitsuba] or ``ggx``, ``sample_visible``);
     ``dielectric`` / ``roughdielectric`` (``int_ior`` [bk7], ``ext_ior`` [air]
     as numbers or Mitsuba's named IORs, ``specular_reflectance``,
@@ -1174,7 +1174,9 @@ class _Loader:
                 raise self.ctx.error(p.values["alpha"], "give either 'alpha' or 'alpha_u'/'alpha_v', not both", "alpha")
             kw["alpha_u"], kw["alpha_v"] = (self._uv_texture(p, n) if p.values[n].tag in ("texture", "ref") else p.float(n)
                                             for n in ("alpha_u", "alpha_v"))
-        return rough_cls(alpha=p.float("alpha", 0.1), distribution=distribution, **kw)
+        elif rough_cls is RoughConductor and p.has("alpha") and p.values["alpha"].tag in ("texture", "ref"):
+            kw["alpha_u"] = kw["alpha_v"] = self._uv_texture(p, "alpha")  # one texture for both: isotropic
+        return rough_cls(alpha=0.1 if "alpha_u" in kw else p.float("alpha", 0.1), distribution=distribution, **kw)
 
     def default_material(self, name: str) -> int:
         """Mitsuba's BSDF for a shape given none: diffuse 0.5, or diffuse 0 if the shape emits (``Shape::Shape``)."""

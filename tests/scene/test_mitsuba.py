@@ -327,6 +327,11 @@ def test_anisotropic_roughconductor():
     assert (tex.alpha_u.texture_id, tex.alpha_v.texture_id, tex.distribution) == (0, 1, "beckmann")
     packed = pack_materials([tex], "cpu").numpy()[0]
     assert (packed["alpha_u_texture"], packed["alpha_v_texture"], packed["anisotropic"]) == (0, 1, 1)
+    # one texture as alpha: isotropic, its value at the hit in both
+    one = bsdf('<bsdf type="roughconductor"><texture type="checkerboard" name="alpha"/></bsdf>')
+    assert one.alpha_u == one.alpha_v == TextureRef(0) and material_kinds([one]) == {MATERIAL_ROUGH_CONDUCTOR}
+    packed = pack_materials([one], "cpu").numpy()[0]
+    assert (packed["alpha_u_texture"], packed["alpha_v_texture"], packed["anisotropic"]) == (0, 0, 0)
     with pytest.raises(SceneFileError, match=r"<float name=\"alpha_u\"> both 'alpha_u' and 'alpha_v' must be specified"):
         bsdf('<bsdf type="roughconductor"><float name="alpha_u" value="0.1"/></bsdf>')
     with pytest.raises(SceneFileError, match="give either 'alpha' or 'alpha_u'/'alpha_v', not both"):
