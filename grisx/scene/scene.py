@@ -102,6 +102,7 @@ __all__ = [
     "surface_material",
     "surface_material_at",
     "surface_texture",
+    "surface_texture_1",
     "stored_surface",
     "triangle_barycentrics",
     "spawn_origin",
@@ -560,6 +561,16 @@ def surface_texture(scene: SceneData, texture: int, si: SurfaceInteraction) -> w
 
 
 @wp.func
+def surface_texture_1(scene: SceneData, texture: int, si: SurfaceInteraction) -> float:
+    """A scalar texture value at ``si`` as Mitsuba's ``eval_1`` gives it (a mask's opacity, a blend's weight, a
+    textured roughness): the luminance of :func:`surface_texture`, with a checkerboard's ``eval_1`` convention
+    (:func:`grisx.scene.texture.texture_lookup_1`)."""
+    if scene.textures.info[texture].kind == TEXTURE_MESH_ATTRIBUTE:
+        return luminance(surface_texture(scene, texture, si))
+    return texture_lookup_1(scene.textures, texture, si.uv)
+
+
+@wp.func
 def stored_surface(scene: SceneData, material: int, uv: wp.vec2, tri: int, p: wp.vec3, ns: wp.vec3, ng: wp.vec3) -> SurfaceInteraction:
     """A surface point kept by a renderer (material id, uv, primitive, position ``p`` on it, its shading and geometric
     normals) as the record :func:`surface_material` reads: its barycentrics recomputed from ``p`` on a triangle (mesh
@@ -657,19 +668,19 @@ def _resolve_wrappers(scene: SceneData, m: Material, si: SurfaceInteraction) -> 
     ``perturbed_n`` at ``si``, textured α_u / α_v (their textures' luminance), an anisotropic BSDF's ``tangent``
     (:func:`shading_tangent`), and a diffuse blend's reflectance (1 − w) ρ₀ + w ρ₁."""
     if m.opacity_texture >= 0:
-        m.opacity = wp.clamp(luminance(surface_texture(scene, m.opacity_texture, si)), 0.0, 1.0)
+        m.opacity = wp.clamp(surface_texture_1(scene, m.opacity_texture, si), 0.0, 1.0)
     if m.perturb != PERTURB_NONE:
         m.perturbed_n = _perturbed_normal(scene, si, m)
-    if m.alpha_u_texture >= 0:  # roughconductor.cpp: m_alpha_u->eval_1(si), on meshes' uv (the loader's uv textures)
-        m.alpha = texture_lookup_1(scene.textures, m.alpha_u_texture, si.uv)
+    if m.alpha_u_texture >= 0:  # roughconductor.cpp: m_alpha_u->eval_1(si)
+        m.alpha = surface_texture_1(scene, m.alpha_u_texture, si)
     if m.alpha_v_texture >= 0:
-        m.alpha_v = texture_lookup_1(scene.textures, m.alpha_v_texture, si.uv)
+        m.alpha_v = surface_texture_1(scene, m.alpha_v_texture, si)
     if m.anisotropic != 0:
         m.tangent = shading_tangent(scene, si)
     if m.blend_texture >= 0 or m.blend_weight > 0.0:
         w = m.blend_weight
         if m.blend_texture >= 0:
-            w = wp.clamp(luminance(surface_texture(scene, m.blend_texture, si)), 0.0, 1.0)
+            w = wp.clamp(surface_texture_1(scene, m.blend_texture, si), 0.0, 1.0)
         m.reflectance = m.reflectance * (1.0 - w) + m.blend_reflectance * w
     return m
 

@@ -200,7 +200,7 @@ def texture_lookup_1(ts: TextureSet, texture: int, uv_in: wp.vec2) -> float:
     """A scalar texture value at ``uv_in`` as Mitsuba's ``eval_1`` gives it: the luminance of :func:`texture_lookup`,
     except that a checkerboard's ``eval_1`` picks its colours the other way round from its ``eval`` (``color0``
     where exactly one of u, v has its fractional part above ½; ``checkerboard.cpp``), which grisx keeps so as to
-    render what Mitsuba renders (a roughconductor's textured α_u / α_v)."""
+    render what Mitsuba renders (a mask's opacity, a blend's weight, a roughconductor's textured α)."""
     info = ts.info[texture]
     if info.kind == TEXTURE_CHECKERBOARD:
         h = wp.vec3(uv_in[0], uv_in[1], 1.0)

@@ -80,6 +80,7 @@ CASES: dict[str, Case] = {
     "plastic": Case(32, 16),
     "roughplastic": Case(32, 16),
     "mask": Case(32, 16),
+    "mask_checkerboard": Case(32, 16),
     "null": Case(32, 16),
     "normalmap": Case(32, 16),
     "bumpmap": Case(32, 16),
@@ -211,6 +212,15 @@ def test_an_anisotropic_roughness_turned_by_90_degrees_is_caught():
                           for m in scene.materials]
     result = agreement(scene, "roughconductor_anisotropic")
     assert not result.passed, f"alpha_u and alpha_v swapped (the lobe turned by 90 degrees) went unnoticed: {result}"
+
+
+def test_a_checkerboard_opacity_and_weight_read_as_its_colour_are_caught():
+    # Mitsuba's scalar eval_1 picks a checkerboard's colours the other way round from its eval: swapped here
+    scene = load_mitsuba(SCENES / "mask_checkerboard.xml")
+    scene.textures[:] = [dataclasses.replace(t, color0=t.color1, color1=t.color0) if isinstance(t, Checkerboard) else t
+                         for t in scene.textures]
+    result = agreement(scene, "mask_checkerboard")
+    assert not result.passed, f"a checkerboard's opacity and blend weight read as its eval went unnoticed: {result}"
 
 
 def test_a_spot_without_its_falloff_is_caught():
