@@ -359,9 +359,7 @@ def _glossy_dg(m: Material, wo: wp.vec3, wi: wp.vec3, h: wp.vec3) -> float:
 def _glossy_pdf(m: Material, wo: wp.vec3, wi: wp.vec3) -> float:
     # density of reflect(wo, sample_microfacet(wo)) for wo, wi above the surface
     h = wp.normalize(wo + wi)
-    if m.distribution == MICROFACET_BECKMANN:
-        return microfacet_pdf(wo, h, _alpha(m), m.distribution) / (4.0 * wp.dot(wi, h))
-    return ggx_d(h, _alpha(m)) * ggx_g1(wo, h, _alpha(m)) / (4.0 * wo[2])
+    return microfacet_pdf(wo, h, _alpha(m), m.distribution, m.sample_visible) / (4.0 * wp.dot(wi, h))
 
 
 @wp.func
@@ -389,13 +387,13 @@ def rough_conductor_sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2) 
     s = _no_sample()
     if wo[2] <= 0.0:
         return s
-    mn = sample_microfacet(wo, _alpha(m), m.distribution, u)
+    mn = sample_microfacet(wo, _alpha(m), m.distribution, m.sample_visible, u)
     wi = reflect(wo, mn)
     dot_i = wp.dot(wi, mn)
     if wi[2] <= 0.0 or dot_i <= 0.0:
         return s
-    pdf = microfacet_pdf(wo, mn, _alpha(m), m.distribution) / (4.0 * dot_i)
-    g1 = microfacet_g1(wi, mn, _alpha(m), m.distribution) * microfacet_visible_weight(wo, mn, _alpha(m), m.distribution)
+    pdf = microfacet_pdf(wo, mn, _alpha(m), m.distribution, m.sample_visible) / (4.0 * dot_i)
+    g1 = microfacet_g1(wi, mn, _alpha(m), m.distribution) * microfacet_visible_weight(wo, mn, _alpha(m), m.distribution, m.sample_visible)
     if not (pdf > 0.0) or g1 <= 0.0:
         return s
     s.wi = wi
@@ -508,7 +506,7 @@ def rough_dielectric_pdf(m: Material, wo: wp.vec3, wi: wp.vec3) -> float:
     if dot_o * cos_o <= 0.0 or dot_i * cos_i <= 0.0:
         return 0.0
     f = fresnel_dielectric(dot_o, m.eta[0]).f
-    pm = microfacet_pdf(wo * wp.sign(cos_o), h, _alpha(m), m.distribution)
+    pm = microfacet_pdf(wo * wp.sign(cos_o), h, _alpha(m), m.distribution, m.sample_visible)
     if cos_o * cos_i > 0.0:
         return pm * f / (4.0 * wp.abs(dot_i))
     denom = dot_o + eta * dot_i
@@ -525,8 +523,8 @@ def rough_dielectric_sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2)
     if cos_o == 0.0:
         return s
     side = wp.sign(cos_o)
-    mn = sample_microfacet(wo * side, _alpha(m), m.distribution, u)
-    pm = microfacet_pdf(wo * side, mn, _alpha(m), m.distribution)
+    mn = sample_microfacet(wo * side, _alpha(m), m.distribution, m.sample_visible, u)
+    pm = microfacet_pdf(wo * side, mn, _alpha(m), m.distribution, m.sample_visible)
     dot_o = wp.dot(wo, mn)
     if dot_o * cos_o <= 0.0:  # a facet wo cannot see (only non-visible-normal sampling draws one)
         return s
@@ -549,7 +547,7 @@ def rough_dielectric_sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2)
         pdf = pm * (1.0 - fr.f) * wp.abs(fr.eta_it * fr.eta_it * dot_i / (denom * denom))
         weight = m.transmittance * (fr.eta_ti * fr.eta_ti)
         s.eta = fr.eta_it
-    g1 = microfacet_g1(wi, mn, _alpha(m), m.distribution) * microfacet_visible_weight(wo, mn, _alpha(m), m.distribution)
+    g1 = microfacet_g1(wi, mn, _alpha(m), m.distribution) * microfacet_visible_weight(wo, mn, _alpha(m), m.distribution, m.sample_visible)
     if not (pdf > 0.0) or g1 <= 0.0:
         return _no_sample()
     s.wi = wi
@@ -663,7 +661,7 @@ def rough_plastic_sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2) ->
     ps = _plastic_specular_prob(m, 1.0 - rough_table_lookup(m.external_transmittance, wo[2]))
     wi = wp.vec3(0.0, 0.0, 1.0)
     if u_lobe < ps:
-        wi = reflect(wo, sample_microfacet(wo, _alpha(m), m.distribution, u))
+        wi = reflect(wo, sample_microfacet(wo, _alpha(m), m.distribution, m.sample_visible, u))
     else:
         wi = sample_cosine_hemisphere(u)
     return _weighted_sample(wi, rough_plastic_pdf(m, wo, wi), rough_plastic_eval(m, wo, wi))

@@ -46,9 +46,10 @@ refuses to wrap them.
 
 Rough records take ``distribution`` ``"ggx"`` or ``"beckmann"`` (Mitsuba's
 default) with an isotropic ``alpha`` (``RoughConductor`` also Mitsuba's
-anisotropic ``alpha_u`` / ``alpha_v``, numbers or textures); GGX samples its visible normals, Beckmann
-D(m) cos θ_m (:mod:`grisx.scene.microfacet`): ``sample_visible`` only changes
-the variance, so it is not a field.
+anisotropic ``alpha_u`` / ``alpha_v``, numbers or textures) and
+``sample_visible`` (Mitsuba's default true: m drawn from the normals visible
+from wo, else from D(m) cos θ_m; :mod:`grisx.scene.microfacet`), which changes
+the variance, not the image.
 
 Conductor indices come from ``conductor_material(name)``: RGB η and k for
 Mitsuba's measured presets (the spectral ``data/ior/<name>.{eta,k}.spd`` tables
@@ -352,6 +353,7 @@ class RoughConductor:
     bump_frequency: float = 0.0
     alpha_u: float | TextureRef | None = None
     alpha_v: float | TextureRef | None = None
+    sample_visible: bool = True
 
 
 @dataclasses.dataclass(frozen=True)
@@ -380,6 +382,7 @@ class RoughDielectric:
     two_sided: bool = False  # ignored: dielectrics have two sides by nature
     bump_amplitude: float = 0.0
     bump_frequency: float = 0.0
+    sample_visible: bool = True
 
 
 @dataclasses.dataclass(frozen=True)
@@ -433,6 +436,7 @@ class RoughPlastic(Plastic):
 
     alpha: float = 0.1
     distribution: str = "ggx"
+    sample_visible: bool = True
 
 
 @dataclasses.dataclass(frozen=True)
@@ -574,6 +578,7 @@ class Material:
     alpha_v_texture: int
     tangent: wp.vec3
     distribution: int
+    sample_visible: int
     eta: wp.vec3
     k: wp.vec3
     transmittance: wp.vec3
@@ -803,6 +808,7 @@ def _pack_one(desc: MaterialDesc, index: int, device: str | wp.context.Device | 
     m.alpha_v_texture = -1
     m.tangent = wp.vec3(1.0, 0.0, 0.0)
     m.distribution = 0
+    m.sample_visible = 1
     m.eta = wp.vec3(1.0, 1.0, 1.0)
     m.k = wp.vec3(0.0, 0.0, 0.0)
     m.transmittance = wp.vec3(0.0, 0.0, 0.0)
@@ -824,6 +830,7 @@ def _pack_one(desc: MaterialDesc, index: int, device: str | wp.context.Device | 
         if desc.distribution not in MICROFACET_DISTRIBUTIONS:
             raise InvalidParameterError(f"{where}: distribution must be one of {', '.join(MICROFACET_DISTRIBUTIONS)}, got {desc.distribution!r}")
         m.distribution = MICROFACET_DISTRIBUTIONS[desc.distribution]
+        m.sample_visible = 1 if desc.sample_visible else 0
     if isinstance(desc, Diffuse):
         if isinstance(desc.reflectance, TextureRef):
             m.texture = _texture_id(desc.reflectance, where, "reflectance")

@@ -107,6 +107,8 @@ __all__ = [
     "MICROFACET_BECKMANN",
     "beckmann_d",
     "beckmann_g1",
+    "beckmann_g1_exact",
+    "sample_beckmann_vndf",
     "microfacet_d",
     "microfacet_g1",
     "microfacet_g2",
@@ -126,6 +128,8 @@ __all__ = [
 ALPHA_MIN = wp.constant(1.0e-4)
 _PI = wp.constant(math.pi)
 _INV_PI = wp.constant(1.0 / math.pi)
+_SQRT_PI = wp.constant(math.sqrt(math.pi))
+_INV_SQRT_PI = wp.constant(1.0 / math.sqrt(math.pi))
 
 
 @wp.func
@@ -257,45 +261,114 @@ def microfacet_g2(wo: wp.vec3, wi: wp.vec3, m: wp.vec3, alpha: wp.vec2, distribu
 
 
 @wp.func
-def sample_microfacet(wo: wp.vec3, alpha: wp.vec2, distribution: int, u: wp.vec2) -> wp.vec3:
-    """A microfacet normal: GGX's visible normals seen from ``wo`` (upper hemisphere), Beckmann's ∝ D(m) cos θ_m."""
+def beckmann_g1_exact(v: wp.vec3, m: wp.vec3, alpha: wp.vec2) -> float:
+    """Smith's exact masking of Beckmann, 1/(1 + Λ(a)), Λ(a) = (erf(a) − 1)/2 + e^{−a²}/(2a√π), a = 1/(α tan θ_v)
+    (Walter et al. 2007, Eq. 27 before its fit): the G1 of the visible normals that :func:`sample_microfacet` draws."""
+    if wp.dot(v, m) * v[2] <= 0.0:
+        return 0.0
+    if v[0] * v[0] + v[1] * v[1] == 0.0:
+        return 1.0
+    a = 1.0 / wp.sqrt(_projected_alpha2_tan2(v, _clamped(alpha)))
+    lam = 0.5 * (wp.erf(a) - 1.0) + wp.exp(-a * a) / (2.0 * a * _SQRT_PI)
+    return 1.0 / (1.0 + lam)
+
+
+@wp.func
+def _beckmann_visible_slopes(cos_theta_i: float, u: wp.vec2) -> wp.vec2:
+    # slopes of the α = 1 visible normals seen at cos θ_i: Heitz and d'Eon 2014, by Mitsuba 3's numerical inversion
+    # of the slope CDF (an initial guess exact at grazing incidence, three Newton steps; microfacet.h sample_visible_11)
+    tan_i = wp.sqrt(wp.max(0.0, 1.0 - cos_theta_i * cos_theta_i)) / cos_theta_i
+    cot_i = 1.0e30
+    if tan_i > 0.0:
+        cot_i = 1.0 / tan_i
+    maxval = wp.erf(cot_i)
+    ux = wp.clamp(u[0], 1.0e-6, 1.0 - 1.0e-6)
+    uy = wp.clamp(u[1], 1.0e-6, 1.0 - 1.0e-6)
+    x = maxval - (maxval + 1.0) * wp.erf(wp.sqrt(-wp.log(ux)))
+    ux = ux * (1.0 + maxval + _INV_SQRT_PI * tan_i * wp.exp(-cot_i * cot_i))
+    for _k in range(3):
+        slope = wp.erfinv(x)
+        value = 1.0 + x + _INV_SQRT_PI * tan_i * wp.exp(-slope * slope) - ux
+        x = x - value / (1.0 - slope * tan_i)
+    return wp.vec2(wp.erfinv(x), wp.erfinv(2.0 * uy - 1.0))
+
+
+@wp.func
+def sample_beckmann_vndf(wo: wp.vec3, alpha: wp.vec2, u: wp.vec2) -> wp.vec3:
+    """Microfacet normal m ~ D_wo of Beckmann (Heitz and d'Eon 2014: stretch, sample the α = 1 slopes, rotate, unstretch)."""
+    a = _clamped(alpha)
+    wh = wp.normalize(wp.vec3(a[0] * wo[0], a[1] * wo[1], wo[2]))
+    sin_t = wp.sqrt(wh[0] * wh[0] + wh[1] * wh[1])
+    cos_p = float(1.0)
+    sin_p = float(0.0)
+    if sin_t > 0.0:
+        cos_p = wh[0] / sin_t
+        sin_p = wh[1] / sin_t
+    sl = _beckmann_visible_slopes(wh[2], u)
+    sx = (cos_p * sl[0] - sin_p * sl[1]) * a[0]
+    sy = (sin_p * sl[0] + cos_p * sl[1]) * a[1]
+    return wp.normalize(wp.vec3(-sx, -sy, 1.0))
+
+
+@wp.func
+def sample_microfacet(wo: wp.vec3, alpha: wp.vec2, distribution: int, visible: int, u: wp.vec2) -> wp.vec3:
+    """A microfacet normal: with ``visible`` (Mitsuba's ``sample_visible``, its default) the normals seen from ``wo``
+    (upper hemisphere) of either distribution, else all normals ∝ D(m) cos θ_m (azimuth, then elevation)."""
+    if visible != 0:
+        if distribution == MICROFACET_BECKMANN:
+            return sample_beckmann_vndf(wo, alpha, u)
+        return sample_ggx_vndf(wo, alpha, u)
+    a = _clamped(alpha)
+    cos_p = float(0.0)
+    sin_p = float(0.0)
+    alpha2 = a[0] * a[0]
+    if a[0] == a[1]:
+        phi = 2.0 * _PI * u[1]
+        cos_p = wp.cos(phi)
+        sin_p = wp.sin(phi)
+    else:
+        # the azimuth's marginal of D cos θ_m: tan φ = (α_v/α_u) tan 2πu₂, in u₂'s quadrant (Mitsuba's microfacet.h)
+        tmp = a[1] / a[0] * wp.tan(2.0 * _PI * u[1])
+        cos_p = 1.0 / wp.sqrt(tmp * tmp + 1.0)
+        if wp.abs(u[1] - 0.5) - 0.25 < 0.0:
+            cos_p = -cos_p
+        sin_p = cos_p * tmp
+        alpha2 = 1.0 / ((cos_p / a[0]) * (cos_p / a[0]) + (sin_p / a[1]) * (sin_p / a[1]))
+    tan2 = float(0.0)
     if distribution == MICROFACET_BECKMANN:
-        a = _clamped(alpha)
-        cos_p = float(0.0)
-        sin_p = float(0.0)
-        alpha2 = a[0] * a[0]
-        if a[0] == a[1]:
-            phi = 2.0 * _PI * u[1]
-            cos_p = wp.cos(phi)
-            sin_p = wp.sin(phi)
-        else:
-            # the azimuth's marginal of D cos θ_m: tan φ = (α_v/α_u) tan 2πu₂, in u₂'s quadrant (Mitsuba's microfacet.h)
-            tmp = a[1] / a[0] * wp.tan(2.0 * _PI * u[1])
-            cos_p = 1.0 / wp.sqrt(tmp * tmp + 1.0)
-            if wp.abs(u[1] - 0.5) - 0.25 < 0.0:
-                cos_p = -cos_p
-            sin_p = cos_p * tmp
-            alpha2 = 1.0 / ((cos_p / a[0]) * (cos_p / a[0]) + (sin_p / a[1]) * (sin_p / a[1]))
         tan2 = -alpha2 * wp.log(wp.max(1.0 - u[0], 1.0e-30))
-        cos_t = 1.0 / wp.sqrt(1.0 + tan2)
-        sin_t = wp.sqrt(wp.max(0.0, 1.0 - cos_t * cos_t))
-        return wp.vec3(sin_t * cos_p, sin_t * sin_p, cos_t)
-    return sample_ggx_vndf(wo, alpha, u)
+    else:
+        tan2 = alpha2 * u[0] / wp.max(1.0 - u[0], 1.0e-30)
+    cos_t = 1.0 / wp.sqrt(1.0 + tan2)
+    sin_t = wp.sqrt(wp.max(0.0, 1.0 - cos_t * cos_t))
+    return wp.vec3(sin_t * cos_p, sin_t * sin_p, cos_t)
 
 
 @wp.func
-def microfacet_pdf(wo: wp.vec3, m: wp.vec3, alpha: wp.vec2, distribution: int) -> float:
-    """Density of :func:`sample_microfacet` (solid angle of m)."""
-    if distribution == MICROFACET_BECKMANN:
-        return beckmann_d(m, alpha) * wp.max(0.0, m[2])
-    return ggx_vndf_pdf(wo, m, alpha)
+def microfacet_pdf(wo: wp.vec3, m: wp.vec3, alpha: wp.vec2, distribution: int, visible: int) -> float:
+    """Density of :func:`sample_microfacet` (solid angle of m): D_wo(m) = G1(wo, m) max(0, wo·m) D(m) / cos θ_o with
+    the exact G1 of the sampled distribution, or D(m) cos θ_m."""
+    if visible != 0:
+        if distribution == MICROFACET_BECKMANN:
+            if wo[2] <= 0.0:
+                return 0.0
+            return beckmann_g1_exact(wo, m, alpha) * wp.max(0.0, wp.dot(wo, m)) * beckmann_d(m, alpha) / wo[2]
+        return ggx_vndf_pdf(wo, m, alpha)
+    return microfacet_d(m, alpha, distribution) * wp.max(0.0, m[2])
 
 
 @wp.func
-def microfacet_visible_weight(wo: wp.vec3, m: wp.vec3, alpha: wp.vec2, distribution: int) -> float:
-    """G1(wo, m)|wo·m| / (|cos θ_o| cos θ_m): the weight that visible-normal sampling folds away (1 for GGX)."""
+def microfacet_visible_weight(wo: wp.vec3, m: wp.vec3, alpha: wp.vec2, distribution: int, visible: int) -> float:
+    """What a sample's weight G1(wi, m)·F owes to how m was drawn: G1(wo, m)|wo·m| / (|cos θ_o| cos θ_m) for all
+    normals; for Beckmann's visible normals G1(wo, m) / G1_exact(wo, m) (the masking evaluated is Walter's fit, the
+    one sampled Smith's exact); 1 for GGX's."""
+    if visible == 0:
+        return microfacet_g1(wo, m, alpha, distribution) * wp.abs(wp.dot(wo, m)) / (wp.abs(wo[2]) * m[2])
     if distribution == MICROFACET_BECKMANN:
-        return beckmann_g1(wo, m, alpha) * wp.abs(wp.dot(wo, m)) / (wp.abs(wo[2]) * m[2])
+        g = beckmann_g1_exact(wo, m, alpha)
+        if g > 0.0:
+            return beckmann_g1(wo, m, alpha) / g
+        return 0.0
     return 1.0
 
 
@@ -401,11 +474,12 @@ def _rough_interface_kernel(
     wi = wp.vec3(wp.sqrt(wp.max(0.0, 1.0 - c * c)), 0.0, c)
     n = nodes.shape[0]
     ab = wp.vec2(alpha, alpha)  # roughplastic is isotropic
+    visible = int(distribution == MICROFACET_GGX)  # the quadrature's map from the square to m (its integral is the same)
     acc = float(0.0)
     for a in range(n):
         for b in range(n):
-            m = sample_microfacet(wi, ab, distribution, wp.vec2(0.5 * nodes[a] + 0.5, 0.5 * nodes[b] + 0.5))
-            w = microfacet_visible_weight(wi, m, ab, distribution) * weights[a] * weights[b]
+            m = sample_microfacet(wi, ab, distribution, visible, wp.vec2(0.5 * nodes[a] + 0.5, 0.5 * nodes[b] + 0.5))
+            w = microfacet_visible_weight(wi, m, ab, distribution, visible) * weights[a] * weights[b]
             fr = fresnel_dielectric(wp.dot(wi, m), eta)
             if transmit != 0:
                 wt = refract(wi, m, fr.cos_t, fr.eta_ti)

@@ -1164,7 +1164,7 @@ class _Loader:
         if not rough:
             return smooth(**kw)
         distribution = p.choice("distribution", "beckmann", tuple(MICROFACET_DISTRIBUTIONS))  # Mitsuba's default
-        p.bool("sample_visible", True)  # a sampling choice: the expected image is the same
+        kw["sample_visible"] = p.bool("sample_visible", True)  # a sampling choice: the expected image is the same
         if rough_cls is RoughConductor and (p.has("alpha_u") or p.has("alpha_v")):
             # microfacet.h: both alpha_u and alpha_v (numbers or textures), and then no alpha
             if not (p.has("alpha_u") and p.has("alpha_v")):

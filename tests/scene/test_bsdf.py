@@ -640,7 +640,7 @@ CHI2_CASES = [
     ("roughdielectric-a0.6-45", RoughDielectric(alpha=0.6), 45.0),
     ("roughdielectric-inside-a0.3-160", RoughDielectric(alpha=0.3), 160.0),
     ("roughdielectric-inside-a0.5-125", RoughDielectric(alpha=0.5, int_ior=1.33, ext_ior=1.0), 125.0),
-    # Beckmann (Mitsuba's default distribution): m sampled ∝ D cos θ_m, not from the visible normals
+    # Beckmann (Mitsuba's default distribution), its visible normals (Heitz and d'Eon 2014)
     ("roughconductor-beckmann-a0.2-15", RoughConductor(alpha=0.2, eta=GOLD[0], k=GOLD[1], distribution="beckmann"), 15.0),
     ("roughconductor-beckmann-a0.6-70", RoughConductor(alpha=0.6, distribution="beckmann"), 70.0),
     # anisotropic (α_u along a tangent turned by φ in the local frame): GGX's visible normals, Beckmann's D cos θ_m
@@ -648,6 +648,13 @@ CHI2_CASES = [
     ("roughconductor-aniso-ggx-0.6x0.15-80", RoughConductor(alpha_u=0.6, alpha_v=0.15), 80.0),
     ("roughconductor-aniso-beckmann-0.1x0.5-turned-70-40", Turned(RoughConductor(alpha_u=0.1, alpha_v=0.5, distribution="beckmann"), -70.0), 40.0),
     ("roughconductor-aniso-beckmann-0.5x0.2-75", RoughConductor(alpha_u=0.5, alpha_v=0.2, eta=COPPER[0], k=COPPER[1], distribution="beckmann"), 75.0),
+    # sample_visible=false: m ∝ D(m) cos θ_m for either distribution
+    ("roughconductor-ggx-all-normals-0.3-60", RoughConductor(alpha=0.3, sample_visible=False), 60.0),
+    ("roughconductor-aniso-ggx-all-normals-0.1x0.5-turned25-50",
+     Turned(RoughConductor(alpha_u=0.1, alpha_v=0.5, sample_visible=False), 25.0), 50.0),
+    ("roughconductor-aniso-beckmann-all-normals-0.5x0.2-75",
+     RoughConductor(alpha_u=0.5, alpha_v=0.2, distribution="beckmann", sample_visible=False), 75.0),
+    ("roughdielectric-ggx-all-normals-0.3-30", RoughDielectric(alpha=0.3, sample_visible=False), 30.0),
     ("roughdielectric-beckmann-a0.3-30", RoughDielectric(alpha=0.3, distribution="beckmann"), 30.0),
     ("roughdielectric-beckmann-inside-a0.4-140", RoughDielectric(alpha=0.4, distribution="beckmann"), 140.0),
     # roughplastic: glossy coating lobe + cosine-weighted base, chosen by the coating's tabulated reflectance
