@@ -25,7 +25,8 @@ Lobes (equations in ``grisx.scene.microfacet``):
   (``invert_cosine_hemisphere``) for random-replay shifts.
 * **Smooth conductor** (``conductor``): wi = (−wo_x, −wo_y, wo_z), weight =
   specular_reflectance · F_c(cos θ_o; η, k) per channel.
-* **Rough conductor** (``roughconductor``, GGX): m ~ D_wo (visible normals),
+* **Rough conductor** (``roughconductor``, GGX or Beckmann): m ~ D_wo (visible normals; ``sample_visible``
+  false: m ∝ D cos θ_m, the weight times ``microfacet_visible_weight``),
   wi = reflect(wo, m); f·cos θ_i = F D G2 / (4 cos θ_o) (Walter et al. 2007,
   Eq. 20), pdf = D_wo(m)/(4 |wi·m|) = D G1(wo) /(4 cos θ_o), weight = F G1(wi, m).
   **Anisotropic** (α_u ≠ α_v, Mitsuba's ``alpha_u``/``alpha_v``): the same formulas with

@@ -36,15 +36,22 @@ of D cos θ_m keeps the weight of a reflected sample to F·G1(wi, m) ≤ 1.
     D(m) = exp(−tan²θ_m / α²) / (π α² cos⁴θ_m),
     G1(v, m) = (3.535a + 2.181a²) / (1 + 2.276a + 2.577a²) for a = 1/(α tan θ_v) < 1.6, else 1
 
-(the rational fit of Smith's G1 that Mitsuba 3 evaluates), sampled in
-proportion to D(m) cos θ_m (tan²θ_m = −α(φ)² ln(1 − u₁) with φ = 2π u₂, or
-anisotropic tan φ = (α_v/α_u) tan 2πu₂ in u₂'s quadrant and
-1/α(φ)² = cos²φ/α_u² + sin²φ/α_v²). Its
-visible normals are not sampled exactly here (Mitsuba does, by Heitz & d'Eon
-2014): the estimate is the same, only its variance differs. ``microfacet_*``
-dispatch on ``MICROFACET_GGX`` / ``MICROFACET_BECKMANN``; ``sample_microfacet``
-and ``microfacet_pdf`` are a sampling pair (visible normals for GGX, D cos θ_m
-for Beckmann).
+(the rational fit of Smith's G1 that Mitsuba 3 evaluates).
+
+**Sampling** (``sample_microfacet`` / ``microfacet_pdf``, a sampling pair, and
+Mitsuba's ``sample_visible``). Visible normals (the default): GGX by Heitz 2018
+as above, Beckmann by Heitz & d'Eon 2014 (stretch, the α = 1 slopes by
+Mitsuba's numerical inversion of their CDF, rotate, unstretch). They are
+distributed as D_wo with Smith's *exact* Beckmann masking
+1/(1 + Λ), Λ(a) = (erf a − 1)/2 + e^{−a²}/(2a√π) (``beckmann_g1_exact``), so
+that is the pdf; the fit's ratio G1/G1_exact (≈ 1, within 0.4%) goes into the
+sample's weight (``microfacet_visible_weight``), which stays eval/pdf exactly.
+All normals (``sample_visible`` false): m ∝ D(m) cos θ_m, the azimuth first
+(φ = 2π u₂, or anisotropic tan φ = (α_v/α_u) tan 2πu₂ in u₂'s quadrant), then
+tan²θ_m = −α(φ)² ln(1 − u₁) (Beckmann) or α(φ)² u₁/(1 − u₁) (GGX), with
+1/α(φ)² = cos²φ/α_u² + sin²φ/α_v²; the weight then carries
+G1(wo, m)|wo·m|/(|cos θ_o| cos θ_m). ``microfacet_*`` dispatch on
+``MICROFACET_GGX`` / ``MICROFACET_BECKMANN``.
 
 **Fresnel.** A conductor with complex index η + i k (per RGB channel) reflects
 the unpolarized fraction F_c(cos θ) of K. D. Möller's closed form (Mitsuba 3's
