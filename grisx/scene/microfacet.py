@@ -44,7 +44,7 @@ as above, Beckmann by Heitz & d'Eon 2014 (stretch, the α = 1 slopes by
 Mitsuba's numerical inversion of their CDF, rotate, unstretch). They are
 distributed as D_wo with Smith's *exact* Beckmann masking
 1/(1 + Λ), Λ(a) = (erf a − 1)/2 + e^{−a²}/(2a√π) (``beckmann_g1_exact``), so
-that is the pdf; the fit's ratio G1/G1_exact (≈ 1, within 0.4%) goes into the
+that is the pdf; the fit's ratio G1/G1_exact (within 0.32% of 1) goes into the
 sample's weight (``microfacet_visible_weight``), which stays eval/pdf exactly.
 All normals (``sample_visible`` false): m ∝ D(m) cos θ_m, the azimuth first
 (φ = 2π u₂, or anisotropic tan φ = (α_v/α_u) tan 2πu₂ in u₂'s quadrant), then
