@@ -67,7 +67,7 @@ import warp as wp
 from grisx.device import SHIFT_REGISTERS, specialized_module
 from grisx.errors import InvalidParameterError
 from grisx.params import Param
-from grisx.render.base.area import FILM_STREAM, FilmSample, area_domain, film_sample, film_translate
+from grisx.render.base.area import FILM_STREAM, FilmSample, area_domain, film_sample, film_translate, temporal_film_offset
 from grisx.render.base.path_shift import (
     Domain,
     PathReservoir,
@@ -85,7 +85,6 @@ from grisx.render.base.reuse import (
     SIMILARITY_NORMAL_COS,
     domain_code,
     domain_pixel,
-    NeighborPixel,
     pixels_similar,
     spatial_neighbor,
     temporal_neighbor,
@@ -107,12 +106,6 @@ __all__ = ["AreaReSTIR", "create_area_restir", "make_area_restir_kernels", "area
 # random streams of a pixel (pixel_key_of), as ReSTIR PT's (whose candidate walk serves as the initial pass)
 _STREAM_TEMPORAL = wp.constant(2)
 _STREAM_SPATIAL = wp.constant(3)  # + round
-
-
-@wp.func
-def temporal_offset(g: GBufferData, x: int, y: int, nb: NeighborPixel) -> wp.vec2:
-    """u' = u + i + δ − p: the film offset from pixel (x, y) into its previous pixel ``nb`` (δ its fractional motion)."""
-    return wp.vec2(float(x - nb.x), float(y - nb.y)) + g.motion[y, x]
 
 
 @wp.func
@@ -182,7 +175,7 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             return
         # canonical sample: p̂_{←p}(y_c) through the inverse translation, on the previous camera and in the
         # previous frame's scene (each domain in its own frame)
-        t_cj = target_to(film_shift_across(scene_prev, cam_prev, nb.x, nb.y, film_translate(fs_c, temporal_offset(g, x, y, nb), cam), can, sp))
+        t_cj = target_to(film_shift_across(scene_prev, cam_prev, nb.x, nb.y, film_translate(fs_c, temporal_film_offset(x, y, nb.x, nb.y, g.motion[y, x]), cam), can, sp))
         target_cj[y, x] = t_cj
         history_pixel[y, x] = domain_code(nb.x, nb.y, g.hit.shape[1], 0)
 
@@ -209,7 +202,7 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         t_c = path_target(can.path)
         m_c = two_domain_balance(c_i, t_c, c_j, target_cj[y, x])  # seed 001, Eq. 15
         # history sample translated into pixel i (fractional motion vector), its path shifted from the new x₁
-        fs_t = film_translate(film_hist[nb.y, nb.x], -temporal_offset(g, x, y, nb), cam)
+        fs_t = film_translate(film_hist[nb.y, nb.x], -temporal_film_offset(x, y, nb.x, nb.y, g.motion[y, x]), cam)
         s_t = film_shift_across(scene, cam, x, y, fs_t, prev, sp)
         t_ti = path_target(s_t.path)
         t_tj = target_back(prev.path, s_t)

@@ -74,7 +74,7 @@ import warp as wp
 from grisx.device import specialized_module
 from grisx.errors import InvalidParameterError
 from grisx.params import Param
-from grisx.render.base.area import FilmSample, area_domain, film_translate
+from grisx.render.base.area import FilmSample, area_domain, film_translate, temporal_film_offset
 from grisx.render.base.path_shift import PathReservoir, PathSample, ShiftParams, make_path_shift, path_sample_empty, path_target
 from grisx.render.base.registry import RenderMethod, create_renderer, register, renderer_params
 from grisx.render.base.reuse import SIMILARITY_DEPTH, SIMILARITY_NORMAL_COS, pixels_similar, spatial_neighbor, temporal_neighbor
@@ -332,7 +332,7 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             if nb.valid != 0 and _pair_on_film(nb.x, nb.y, orient, w, h):
                 nx = nb.x
                 ny = nb.y
-                to_dst = wp.vec2(float(nb.x - x), float(nb.y - y)) - g.motion[y, x]
+                to_dst = -temporal_film_offset(x, y, nb.x, nb.y, g.motion[y, x])
         else:
             if reuse == _REUSE_ADAPTIVE and not _edge_pair(g, x, y, x + e[0], y + e[1]):
                 return  # an interior pair: no spatial reuse (Sec. 4.3.2)

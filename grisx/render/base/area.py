@@ -52,7 +52,7 @@ from grisx.theory.random import random_uniform
 
 wp.set_module_options({"enable_backward": False})
 
-__all__ = ["FilmSample", "AreaDomain", "film_sample", "area_domain", "film_translate", "FILM_STREAM"]
+__all__ = ["FilmSample", "AreaDomain", "film_sample", "area_domain", "film_translate", "temporal_film_offset", "FILM_STREAM"]
 
 #: the film sample's random stream of a pixel (pixel_key_of), apart from ReSTIR PT's 1–10 and 64+
 FILM_STREAM = 48
@@ -110,6 +110,15 @@ def area_domain(scene: SceneData, cam: CameraData, x: int, y: int, s: FilmSample
     else:
         out.emission = emitter_radiance(scene.lights, si.tri, si.p, si.ng, -ray.d) * weight
     return out
+
+
+@wp.func
+def temporal_film_offset(x: int, y: int, prev_x: int, prev_y: int, motion: wp.vec2) -> wp.vec2:
+    """The film translation u' = u + i + δ − p that carries a sample of pixel i = (``x``, ``y``) into its
+    previous pixel p = (``prev_x``, ``prev_y``), δ = ``motion`` (the G-buffer's fractional motion vector: previous
+    minus current film position); its negative carries a previous sample of p into i. The one convention of
+    every temporal film shift (Area ReSTIR, ReSTIR G-PT's pixel pairs)."""
+    return wp.vec2(float(x - prev_x), float(y - prev_y)) + motion
 
 
 @wp.func
