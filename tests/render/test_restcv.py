@@ -156,7 +156,8 @@ def test_icv_refuses_temporal_reuse():
     [
         ("restcv", "red-green-lights", {"alpha": "sample"}, 64),
         ("restcv", "closed-room", {"alpha": "sample", "max_depth": 32}, 64),
-        ("restcv", "red-green-lights", {"difference_mis": "none"}, 128),
+        # 512: with lights chosen ¼ by power, ¾ uniformly (lights.SELECTION_UNIFORM) 128 runs read max block |z| 4.8
+        ("restcv", "red-green-lights", {"difference_mis": "none"}, 512),
         ("stcv", "red-green-lights", {"alpha": "sample"}, 64),
     ],
     ids=["alpha-from-samples-red-green", "alpha-from-samples-closed-room", "no-difference-mis-red-green", "stcv-alpha-from-samples"],
