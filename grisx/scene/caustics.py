@@ -173,6 +173,7 @@ class SeedDirection:
 
     d: wp.vec3
     jacobian: float
+    dist: float  # ρ = |P(u) − x₁|, the distance to the square's point (∂ω₁/∂u = (I − ω₁ω₁ᵀ) ∂P/∂u / ρ)
 
 
 @wp.struct
@@ -246,6 +247,7 @@ def seed_direction(f: SeedFrame, x1: wp.vec3, u: wp.vec2) -> SeedDirection:
     v = p - x1
     rho = wp.length(v)
     out.d = v / rho
+    out.dist = rho
     out.jacobian = 4.0 * f.half * f.half * f.dist / (rho * rho * rho)
     return out
 
@@ -358,7 +360,7 @@ def _make_caustics(kinds: frozenset[int]) -> CausticFuncs:
         o = spawn_origin(scene, x1, spec.x1_ng[view], d)
         # ∂/∂u₀, ∂/∂u₁ of the ray (Igehy's ray differentials): x₁ is fixed; ω₁ = normalize(P(u) − x₁) with
         # ∂P/∂u = 2s (t, b), so ∂ω₁ = (I − ω₁ω₁ᵀ) ∂P / ρ
-        rho = wp.length(sf.c + sf.t * (sf.half * (2.0 * u[0] - 1.0)) + sf.b * (sf.half * (2.0 * u[1] - 1.0)) - x1)
+        rho = sd.dist
         dp0 = wp.vec3(0.0, 0.0, 0.0)
         dp1 = wp.vec3(0.0, 0.0, 0.0)
         dd0 = (sf.t - d * wp.dot(d, sf.t)) * (2.0 * sf.half / rho)
