@@ -4,6 +4,7 @@ session's shared folder for work done once across xdist workers (:mod:`session_c
 import os
 import shutil
 import tempfile
+from pathlib import Path
 
 import pytest
 import session_cache
@@ -25,6 +26,12 @@ def pytest_configure(config: pytest.Config) -> None:
         config._grisx_shared = tempfile.mkdtemp(prefix="grisx-tests-")
         os.environ[session_cache.ENV] = config._grisx_shared
     session_cache.compile_once()
+
+
+def pytest_terminal_summary(terminalreporter, config: pytest.Config) -> None:
+    folder = getattr(config, "_grisx_shared", None)
+    for line in session_cache.compile_report(Path(folder)) if folder else []:
+        terminalreporter.write_line(line)
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:

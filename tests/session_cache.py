@@ -10,20 +10,23 @@ resolution, ...); the code does not change within a session, so it need not be p
 
 :func:`compile_once` does the same for Warp's kernel cache: a module being compiled by one
 worker is not compiled again by the other at the same time (Warp checks its cache first, so the
-waiting worker loads the binary the first one wrote).
+waiting worker loads the binary the first one wrote). Each compilation's wall time is logged in the
+shared folder, and :func:`compile_report` sums them at the end of the session: on a cold kernel cache
+compilation is most of the suite's time, and the report says which modules cost it.
 """
 
 from __future__ import annotations
 
 import hashlib
 import os
+import time
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 from filelock import FileLock
 
-__all__ = ["ENV", "shared", "compile_once"]
+__all__ = ["ENV", "shared", "compile_once", "compile_report"]
 
 #: the environment variable naming the session's shared folder
 ENV = "GRISX_TEST_SHARED"
@@ -77,7 +80,30 @@ def compile_once() -> None:
     def _compile(self, device, output_dir, *args, **kwargs):
         lock = folder / ("compile-" + hashlib.sha256(f"{output_dir}|{device}".encode()).hexdigest()[:32] + ".lock")
         with FileLock(str(lock)):
-            return original(self, device, output_dir, *args, **kwargs)
+            start = time.perf_counter()
+            result = original(self, device, output_dir, *args, **kwargs)
+            seconds = time.perf_counter() - start
+        if seconds < 0.05:  # the binary was already there (the other worker wrote it while this one waited)
+            return result
+        with open(folder / _COMPILE_LOG, "a") as log:  # one short line per append: safe across processes
+            log.write(f"{seconds:.3f}\t{device}\t{self.name}\n")
+        return result
 
     _compile._grisx_once = True
     Module._compile = _compile
+
+
+_COMPILE_LOG = "compile-times.tsv"
+
+
+def compile_report(folder: Path, top: int = 12) -> list[str]:
+    """Lines summing the session's Warp compilations (logged by :func:`compile_once`), slowest modules first."""
+    try:
+        rows = [line.split("\t") for line in (folder / _COMPILE_LOG).read_text().splitlines() if line]
+    except OSError:
+        return []
+    rows = sorted(((float(s), d, n) for s, d, n in rows), reverse=True)
+    total = sum(s for s, _, _ in rows)
+    lines = [f"Warp compiled {len(rows)} modules in {total:.0f} s (summed over workers); the slowest:"]
+    lines += [f"  {s:7.1f} s  {n} ({d})" for s, d, n in rows[:top]]
+    return lines
