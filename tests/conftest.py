@@ -11,7 +11,12 @@ import session_cache
 import warp as wp
 from hypothesis import settings
 
-from grisx.device import cuda_available, init
+# One kernel set per renderer for every scene (``grisx.scene.material.kernel_kinds``): the suite renders ~100 scenes
+# whose material kinds differ, and each combination was its own compilation of each renderer (on a cold kernel cache,
+# most of CI's time). Specialising on a scene's kinds leaves images bit-identical; test_pt checks that it does.
+os.environ.setdefault("GRISX_KERNEL_KINDS", "all")
+
+from grisx.device import cuda_available, init  # noqa: E402
 
 init()
 # No test differentiates a kernel: the kernels that tests define compile their forward code only (grisx's own modules

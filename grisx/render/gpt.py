@@ -65,7 +65,7 @@ class GradientFromPrimal(AreaReSTIR):
         super().__init__(built, width, height, **area)
         self.symmetric = bool(symmetric)
         self.gradient = GradientFrame(self.width, self.height, built.device, reconstruction, poisson_alpha)
-        self.gk = make_gradient_kernels(frozenset(built.features.material_kinds))
+        self.gk = make_gradient_kernels(built.features.kernel_kinds)
 
     def kernels(self) -> list[Any]:
         return [*super().kernels(), *self.gk.values()]

@@ -146,7 +146,7 @@ class PathTracer:
         self.timer = timer
         self.jitter = int(bool(jitter))
         # compile only the scene's material kinds (``kinds`` overrides, e.g. to measure the gain)
-        self.kernel = make_path_tracer_kernel(frozenset(built.features.material_kinds if kinds is None else kinds))
+        self.kernel = make_path_tracer_kernel(built.features.kernel_kinds if kinds is None else frozenset(kinds))
         dev = built.device
         self.total = wp.zeros((self.height, self.width), dtype=wp.vec3d, device=dev)
         self.total_sq = wp.zeros((self.height, self.width), dtype=wp.vec3d, device=dev)

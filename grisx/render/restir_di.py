@@ -688,7 +688,7 @@ class ReSTIRDI(ScreenSpaceRenderer):
         self.unbiased = int(bool(unbiased))
         self.jitter = bool(jitter)
         self.timer = timer
-        self.k = self.make_kernels(frozenset(built.features.material_kinds))
+        self.k = self.make_kernels(built.features.kernel_kinds)
         self.cv_options = cv_options()  # the passes' CV options: unused by ReSTIR DI itself (ReSTCV's, restcv-di)
         dev = self.device = built.device
         shape = (self.height, self.width)

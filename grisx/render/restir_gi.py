@@ -1233,7 +1233,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
         self.max_jacobian = float(max_jacobian)
         self.jitter = bool(jitter)
         self.timer = timer
-        self.k = make_restir_gi_kernels(frozenset(built.features.material_kinds), built.features.animated_objects)
+        self.k = make_restir_gi_kernels(built.features.kernel_kinds, built.features.animated_objects)
         dev = self.device = built.device
         shape = (self.height, self.width)
         self.di = None

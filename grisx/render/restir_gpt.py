@@ -434,7 +434,7 @@ class ReSTIRGPT(GradientFromPrimal):
         self.pair_temporal = bool(pair_temporal)
         self.pair_search = int(pair_search)
         self.outer_jacobian = bool(outer_jacobian)
-        self.pk = make_restir_gpt_kernels(frozenset(built.features.material_kinds))
+        self.pk = make_restir_gpt_kernels(built.features.kernel_kinds)
         shape = (2, 2, self.height, self.width)  # (slot: r+ or |.|, r-), (orientation: x, y), H, W
         self.pairs = [wp.zeros(shape, dtype=PairReservoir, device=built.device) for _ in range(3)]  # 0: history, 1–2: scratch
         self.canonical_kept = wp.zeros((self.height, self.width), dtype=PathReservoir, device=built.device)

@@ -622,7 +622,7 @@ class ReSTIRPT(ScreenSpaceRenderer):
             rr_depth=rr_depth,
             min_bounces=2 if direct == "restir-di" else 1,  # ReSTIR DI owns the paths x₁ → light
         )
-        self.k = self.make_kernels(frozenset(built.features.material_kinds))
+        self.k = self.make_kernels(built.features.kernel_kinds)
         self.cv_options = cv_options()  # the passes' CV options: unused by ReSTIR PT itself (see PixelEstimateHooks)
         dev = built.device
         shape = (self.height, self.width)

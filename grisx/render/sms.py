@@ -508,7 +508,7 @@ class SMSRenderer(PathTracer):
         self.casters_host = caster_objects(built.scene)
         # no casters: SMS adds nothing and the path tracer keeps every path (it owns them all)
         self.casters = wp.array(np.asarray(self.casters_host, dtype=np.int32), dtype=int, device=dev)
-        self.kernels_ = make_sms_kernels(frozenset(built.features.material_kinds), self.chain)
+        self.kernels_ = make_sms_kernels(built.features.kernel_kinds, self.chain)
         self.blocks_x = -(-self.width // self.block)
         self.blocks_y = -(-self.height // self.block)
         n_rows = self.blocks_x * self.blocks_y * max(len(self.casters_host), 1)

@@ -895,7 +895,7 @@ class SuffixReSTIR(ScreenSpaceRenderer):
         self.grid_radius = float(gather_radius) * float(built.data.scene_radius)
         if self.grid_radius <= 0.0:
             self.grid_radius = 2.0 * float(built.data.scene_radius) * math.sqrt(max(self.gather_k, 1) / n)
-        self.k = make_suffix_restir_kernels(frozenset(built.features.material_kinds))
+        self.k = make_suffix_restir_kernels(built.features.kernel_kinds)
         dev = built.device
         shape = (self.height, self.width)
         self.di = None

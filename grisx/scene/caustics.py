@@ -623,7 +623,7 @@ def solve_chains(
     spec.xn.assign(rows(xn))
     spec.xn_n.assign(rows(xn_n))
     spec.light_tri.assign(np.full(n, int(light_tri), dtype=np.int32))
-    funcs = make_caustics(built.features.material_kinds)
+    funcs = make_caustics(built.features.kernel_kinds)
     out = {
         "u": wp.zeros(n, dtype=wp.vec2, device=dev),
         "converged": wp.zeros(n, dtype=int, device=dev),

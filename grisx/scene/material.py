@@ -92,6 +92,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 from collections.abc import Iterable, Sequence
 from typing import Any
 
@@ -104,6 +105,8 @@ from grisx.scene.microfacet import ROUGH_TABLE_SIZE, rough_interface_table
 wp.set_module_options({"enable_backward": False})
 
 __all__ = [
+    "ALL_MATERIAL_KINDS",
+    "kernel_kinds",
     "MATERIAL_DIFFUSE",
     "MATERIAL_CONDUCTOR",
     "MATERIAL_ROUGH_CONDUCTOR",
@@ -206,6 +209,31 @@ MATERIAL_KIND_NAMES: dict[int, str] = {
     MATERIAL_BUMPMAP: "bumpmap",
     MATERIAL_ANISOTROPIC: "anisotropic",
 }
+
+#: every kind a kernel can be compiled for
+ALL_MATERIAL_KINDS: frozenset[int] = frozenset(int(k) for k in MATERIAL_KIND_NAMES)
+
+#: ``GRISX_KERNEL_KINDS``: which kinds renderers compile their kernels for, ``scene`` (the default: the kinds the
+#: scene uses, the leanest kernels) or ``all`` (one kernel set per renderer serves every scene)
+KERNEL_KINDS_ENV = "GRISX_KERNEL_KINDS"
+
+
+def kernel_kinds(kinds: Iterable[int]) -> frozenset[int]:
+    """The material kinds to compile kernels for, given the kinds a scene uses.
+
+    Kernels are specialised on the scene's kinds (``make_bsdf``): each set of kinds is its own
+    compilation, seconds on the CPU and more on CUDA. A process that renders many scenes of
+    different kinds — the test suite renders ~100 — pays one compilation per renderer and set;
+    with ``GRISX_KERNEL_KINDS=all`` it pays one per renderer. The images are the same (the
+    specialisation only leaves out the code of absent kinds; ``tests/scene/test_bsdf.py`` checks it).
+    """
+    policy = os.environ.get(KERNEL_KINDS_ENV, "scene")
+    if policy == "all":
+        return ALL_MATERIAL_KINDS
+    if policy != "scene":
+        raise InvalidParameterError(f"{KERNEL_KINDS_ENV}={policy!r}: expected 'scene' or 'all'")
+    return frozenset(int(k) for k in kinds)
+
 
 RGB = tuple[float, float, float]
 

@@ -64,6 +64,7 @@ from grisx.scene.material import (
     MATERIAL_ROUGH_DIELECTRIC,
     MATERIAL_THIN_DIELECTRIC,
     Material,
+    kernel_kinds,
     material_kinds,
     pack_materials,
     unwrap,
@@ -194,6 +195,11 @@ class SceneFeatures:
     has_caustic_casters: bool  # delta or near-specular surfaces that can focus light (seed 003)
     animated_camera: bool
     animated_objects: bool
+
+    @property
+    def kernel_kinds(self) -> frozenset[int]:
+        """The kinds renderers compile their kernels for: the scene's (``GRISX_KERNEL_KINDS``, :func:`kernel_kinds`)."""
+        return kernel_kinds(self.material_kinds)
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)

@@ -136,7 +136,7 @@ def _roundtrips(scene: str, shift: str, seed: int, n: int = 600, reach: int = 6,
     scalars = wp.zeros((n, 14), dtype=float, device="cpu")
     points = wp.zeros((n, 7), dtype=wp.vec3, device="cpu")
     wp.launch(
-        _harness(frozenset(built.features.material_kinds)),
+        _harness(built.features.kernel_kinds),
         dim=n,
         inputs=[built.data, r.shift_params, r.domains[0], r.reservoirs_array(), wp.array(src.astype(np.int32), dtype=wp.vec2i), wp.array(dst.astype(np.int32), dtype=wp.vec2i)],
         outputs=[scalars, points],

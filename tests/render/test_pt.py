@@ -134,6 +134,23 @@ def test_same_seed_same_image_other_seed_other_image():
     assert not np.array_equal(images[0], images[2])
 
 
+def test_kernels_specialised_on_the_scene_kinds_give_the_same_image(monkeypatch):
+    """The suite compiles every renderer for all kinds (conftest: ``GRISX_KERNEL_KINDS=all``); users' kernels are
+    specialised on their scene's kinds. The specialisation must only leave out absent kinds' code: same image, bit
+    for bit. Its sibling leaves out a kind the scene uses (the rough conductor), and the image changes."""
+    built = build_builtin("glossy-room").build("cpu")
+    assert built.features.material_kinds == {0, 2}  # diffuse, rough conductor
+
+    def image(**kinds) -> np.ndarray:
+        return PathTracer(built, 16, 12, spp=2, seed=3, max_depth=6, **kinds).render_frame(0).numpy()
+
+    monkeypatch.setenv("GRISX_KERNEL_KINDS", "all")
+    every = image()
+    monkeypatch.setenv("GRISX_KERNEL_KINDS", "scene")
+    np.testing.assert_array_equal(image(), every)
+    assert not np.array_equal(image(kinds=frozenset({0})), every)
+
+
 @pytest.mark.parametrize("name", sorted(BUILTIN_SCENES))
 def test_no_nan_or_inf_on_any_builtin_scene(name):
     built = build_builtin(name).build("cpu")
@@ -149,7 +166,7 @@ def test_trace_path_prefix_is_the_same_path_truncated(prefix_depth):
     # one traced path gives both sums: its first prefix_depth segments must be exactly what the path
     # tracer gives with max_depth = prefix_depth and the same random numbers (ReSTIR GI relies on it)
     built = build_builtin("cornell-box").build("cpu")
-    trace_path = make_trace_path(frozenset(built.features.material_kinds))
+    trace_path = make_trace_path(built.features.kernel_kinds)
     cam = built.camera_data(0.0, 16, 16)
     mis = STRATEGIES["mis"]
 
