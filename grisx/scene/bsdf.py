@@ -141,6 +141,8 @@ from grisx.scene.material import (
     MATERIAL_NORMALMAP,
     MATERIAL_NULL,
     MATERIAL_PLASTIC,
+    MATERIAL_PRINCIPLED,
+    MATERIAL_PRINCIPLED_THIN,
     MATERIAL_ROUGH_CONDUCTOR,
     MATERIAL_ROUGH_PLASTIC,
     MATERIAL_ROUGH_DIELECTRIC,
@@ -810,8 +812,17 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
     has_mask = MATERIAL_MASK in key
     has_perturb = MATERIAL_NORMALMAP in key or MATERIAL_BUMPMAP in key
     has_anisotropic = MATERIAL_ANISOTROPIC in key
-    has_reflective = has_diffuse or has_conductor or has_rough_conductor or has_plastic or has_rough_plastic
-    has_evaluable = has_diffuse or has_rough_conductor or has_plastic or has_rough_plastic
+    # ---- principled (grisx.scene.principled): in the reflective blocks below, as its back side is its own
+    # (black, or the inside of its transmission) unless a twosided wrapper mirrors it
+    has_principled = MATERIAL_PRINCIPLED in key
+    has_principled_thin = MATERIAL_PRINCIPLED_THIN in key
+    if has_principled or has_principled_thin:
+        from grisx.scene import principled as pr  # noqa: PLC0415 (it imports this module's records)
+    else:
+        pr = None
+    has_reflective = (has_diffuse or has_conductor or has_rough_conductor or has_plastic or has_rough_plastic or has_principled
+                      or has_principled_thin)
+    has_evaluable = has_diffuse or has_rough_conductor or has_plastic or has_rough_plastic or has_principled or has_principled_thin
 
     @wp.func
     def kind_sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2) -> BsdfSample:
@@ -849,6 +860,12 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
             if wp.static(has_rough_plastic):
                 if m.kind == MATERIAL_ROUGH_PLASTIC:
                     s = rough_plastic_sample(m, w, u_lobe, u)
+            if wp.static(has_principled):
+                if m.kind == MATERIAL_PRINCIPLED:
+                    s = pr.principled_sample(m, w, u_lobe, u)
+            if wp.static(has_principled_thin):
+                if m.kind == MATERIAL_PRINCIPLED_THIN:
+                    s = pr.principled_thin_sample(m, w, u_lobe, u)
             if flip:
                 s.wi = wp.vec3(s.wi[0], s.wi[1], -s.wi[2])
         return s
@@ -877,6 +894,12 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
             if wp.static(has_rough_plastic):
                 if m.kind == MATERIAL_ROUGH_PLASTIC:
                     r = rough_plastic_eval(m, a, b)
+            if wp.static(has_principled):
+                if m.kind == MATERIAL_PRINCIPLED:
+                    r = pr.principled_eval(m, a, b)
+            if wp.static(has_principled_thin):
+                if m.kind == MATERIAL_PRINCIPLED_THIN:
+                    r = pr.principled_thin_eval(m, a, b)
         return r  # delta kinds: 0
 
     @wp.func
@@ -903,6 +926,12 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
             if wp.static(has_rough_plastic):
                 if m.kind == MATERIAL_ROUGH_PLASTIC:
                     p = rough_plastic_pdf(m, a, b)
+            if wp.static(has_principled):
+                if m.kind == MATERIAL_PRINCIPLED:
+                    p = pr.principled_pdf(m, a, b)
+            if wp.static(has_principled_thin):
+                if m.kind == MATERIAL_PRINCIPLED_THIN:
+                    p = pr.principled_thin_pdf(m, a, b)
         return p  # delta kinds: 0
 
     # ---- the tangent: an anisotropic lobe turned about the normal to the shading frame's s ----
@@ -1025,6 +1054,9 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
                 f = average_fresnel_dielectric(m.eta[0])
                 r = 2.0 * f / (1.0 + f)  # the pane's R of an average F (an approximation: the albedo guides, it is not estimated)
                 return m.reflectance * r + m.transmittance * (1.0 - r)
+        if wp.static(has_principled or has_principled_thin):
+            if m.kind == MATERIAL_PRINCIPLED or m.kind == MATERIAL_PRINCIPLED_THIN:
+                return pr.principled_albedo(m)
         return wp.vec3(0.0, 0.0, 0.0)
 
     @wp.func
@@ -1042,6 +1074,9 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
             return 1.0
         if m.kind == MATERIAL_ROUGH_CONDUCTOR or m.kind == MATERIAL_ROUGH_DIELECTRIC or m.kind == MATERIAL_ROUGH_PLASTIC:
             return wp.min(m.alpha, m.alpha_v)  # anisotropic: as smooth as its smoothest direction
+        if wp.static(has_principled or has_principled_thin):
+            if m.kind == MATERIAL_PRINCIPLED or m.kind == MATERIAL_PRINCIPLED_THIN:
+                return pr.principled_roughness(m)
         return 0.0  # smooth kinds, and plastic: its coating's delta lobe makes a path through it unreconnectable
 
     @wp.func

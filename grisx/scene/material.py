@@ -82,7 +82,7 @@ interface's transmittance at 64 cosines (:func:`grisx.scene.microfacet.rough_int
 
 References: W. Jakob et al., Mitsuba 3 plugin documentation (``diffuse``,
 ``conductor``, ``roughconductor``, ``dielectric``, ``roughdielectric``,
-``twosided``, ``plastic``, ``roughplastic``); W. Jakob, Tungsten renderer ``ComplexIorData.hpp``;
+``twosided``, ``plastic``, ``roughplastic``, ``principled``, ``principledthin``); W. Jakob, Tungsten renderer ``ComplexIorData.hpp``;
 E. d'Eon, G. Irving, "A quantized-diffusion model for rendering translucent materials",
 SIGGRAPH 2011 (the Fdr fit); J. Egan, T. Hilgeman, "Optical properties of inhomogeneous
 materials", 1979 (Fdr for η < 1).
@@ -121,6 +121,8 @@ __all__ = [
     "MATERIAL_BUMPMAP",
     "MATERIAL_ANISOTROPIC",
     "MATERIAL_WRAPPERS",
+    "MATERIAL_PRINCIPLED",
+    "MATERIAL_PRINCIPLED_THIN",
     "PERTURB_NONE",
     "PERTURB_NORMALMAP",
     "PERTURB_BUMPMAP",
@@ -137,6 +139,8 @@ __all__ = [
     "RoughPlastic",
     "Null",
     "BlendBSDF",
+    "Principled",
+    "PrincipledThin",
     "Mask",
     "NormalMap",
     "BumpMap",
@@ -167,6 +171,10 @@ MATERIAL_NORMALMAP = wp.constant(10)
 MATERIAL_BUMPMAP = wp.constant(11)
 #: a feature pseudo-kind: some rough material is anisotropic (α_u ≠ α_v), so the BSDF needs the shading frame's tangent
 MATERIAL_ANISOTROPIC = wp.constant(12)
+# ---- principled (grisx.scene.principled); ids 16, 17 leave room for kinds added beside them
+#: Mitsuba 3's ``principled`` and ``principledthin`` (Disney's principled BSDF, Burley 2012, 2015)
+MATERIAL_PRINCIPLED = wp.constant(16)
+MATERIAL_PRINCIPLED_THIN = wp.constant(17)
 #: the wrapper pseudo-kinds
 MATERIAL_WRAPPERS: tuple[int, ...] = (MATERIAL_MASK, MATERIAL_NORMALMAP, MATERIAL_BUMPMAP)
 #: Material.perturb values: no perturbation, a normal map, a bump map
@@ -189,6 +197,8 @@ MATERIAL_KINDS: tuple[int, ...] = (
     MATERIAL_NORMALMAP,
     MATERIAL_BUMPMAP,
     MATERIAL_ANISOTROPIC,
+    MATERIAL_PRINCIPLED,
+    MATERIAL_PRINCIPLED_THIN,
 )
 #: Mitsuba plugin name of each kind
 #: microfacet distributions of the rough records → grisx.scene.microfacet's MICROFACET_* ids
@@ -208,6 +218,8 @@ MATERIAL_KIND_NAMES: dict[int, str] = {
     MATERIAL_NORMALMAP: "normalmap",
     MATERIAL_BUMPMAP: "bumpmap",
     MATERIAL_ANISOTROPIC: "anisotropic",
+    MATERIAL_PRINCIPLED: "principled",
+    MATERIAL_PRINCIPLED_THIN: "principledthin",
 }
 
 #: every kind a kernel can be compiled for
@@ -537,10 +549,67 @@ class BlendBSDF:
     bump_frequency = 0.0
 
 
+# ---- principled (Mitsuba 3's principled.cpp, principledthin.cpp) ----
+
+#: a lobe weight of the principled records: a number or a texture (its ``eval_1`` at the hit)
+Weight = float | TextureRef
+
+
+@dataclasses.dataclass(frozen=True)
+class _PrincipledLobes:
+    """The parameters ``principled`` and ``principledthin`` share (Mitsuba's names and defaults)."""
+
+    base_color: RGB | float | TextureRef = (0.5, 0.5, 0.5)
+    roughness: Weight = 0.5
+    anisotropic: Weight = 0.0
+    spec_trans: Weight = 0.0
+    spec_tint: Weight = 0.0
+    sheen: Weight = 0.0
+    sheen_tint: Weight = 0.0
+    flatness: Weight = 0.0
+    has_anisotropic: bool | None = None  # None: given when anisotropic is not the number 0 (Mitsuba's get_flag)
+    two_sided: bool = False
+    bump_amplitude: float = 0.0
+    bump_frequency: float = 0.0
+
+
+@dataclasses.dataclass(frozen=True)
+class Principled(_PrincipledLobes):
+    """Mitsuba ``principled``: the Disney principled BSDF (Burley 2012, 2015) as Mitsuba 3 implements it
+    (:mod:`grisx.scene.principled`). Parameters and defaults are Mitsuba's; ``base_color`` an RGB or a texture,
+    every other weight a number or a :class:`TextureRef` (at most four textured besides base_color, roughness and
+    anisotropic). ``eta`` (interior/exterior index) or ``specular`` (η = 2/(1 − √(0.08 specular)) − 1) — not both;
+    ``has_*``: whether Mitsuba was given the parameter (its ``get_flag``), which the loader sets; only
+    ``has_spec_trans`` changes a value (the pdf seen from inside, and η = 1 or specular = 0 nudged to 1.001 or 1e-3)."""
+
+    metallic: Weight = 0.0
+    eta: float | None = None
+    specular: float | None = None
+    clearcoat: Weight = 0.0
+    clearcoat_gloss: Weight = 0.0
+    has_spec_trans: bool | None = None  # None: given when spec_trans is not the number 0 (Mitsuba's get_flag)
+
+    diff_trans = 0.0  # principledthin only
+
+
+@dataclasses.dataclass(frozen=True)
+class PrincipledThin(_PrincipledLobes):
+    """Mitsuba ``principledthin``: the thin-sheet principled BSDF (Burley 2015), two-sided (``two_sided`` ignored), no
+    bending: GGX reflection, a GGX transmission through a roughness scaled by 0.65 η − 0.35, a diffuse reflection and a
+    Lambertian transmission ``diff_trans`` ∈ [0, 2] (Mitsuba's range). ``eta`` a number (Mitsuba's may be a texture)."""
+
+    eta: float = 1.5
+    diff_trans: Weight = 0.0
+
+    metallic = 0.0  # principled only
+    clearcoat = 0.0
+    clearcoat_gloss = 0.0
+
+
 _WRAPPER_KIND: dict[type, int] = {Mask: MATERIAL_MASK, NormalMap: MATERIAL_NORMALMAP, BumpMap: MATERIAL_BUMPMAP}
 
 MaterialDesc = (Diffuse | Conductor | RoughConductor | Dielectric | RoughDielectric | ThinDielectric | Plastic | RoughPlastic | Null
-                | BlendBSDF | Mask | NormalMap | BumpMap)
+                | BlendBSDF | Mask | NormalMap | BumpMap | Principled | PrincipledThin)
 
 
 def unwrap(desc: Any) -> tuple[Any, list[Any]]:
@@ -562,6 +631,8 @@ _KIND_OF: dict[type, int] = {
     RoughPlastic: MATERIAL_ROUGH_PLASTIC,
     Null: MATERIAL_NULL,
     BlendBSDF: MATERIAL_DIFFUSE,
+    Principled: MATERIAL_PRINCIPLED,
+    PrincipledThin: MATERIAL_PRINCIPLED_THIN,
 }
 
 
@@ -594,6 +665,9 @@ class Material:
     two diffuse BSDFs whose weight or first reflectance is a texture: ``blend_weight`` (or
     ``blend_texture``, its texture id or −1) and ``blend_reflectance`` (ρ₁); the hit's
     reflectance is (1 − w) ρ₀ + w ρ₁ (a constant blend is packed as a diffuse of that reflectance).
+    The principled kinds reuse fields whose meaning is otherwise unused for them (``_pack_principled`` lists
+    them) and add one: ``lobe_textures``, up to four textured lobe weights (texture id · 16 + slot, −1 unused),
+    resolved at the hit into their slots (``grisx.scene.principled.principled_set_slot``).
     """
 
     kind: int
@@ -628,6 +702,7 @@ class Material:
     blend_weight: float
     blend_texture: int
     blend_reflectance: wp.vec3
+    lobe_textures: wp.vec4i
 
 
 def material_kind(desc: MaterialDesc) -> int:
@@ -656,6 +731,8 @@ def is_anisotropic(desc: MaterialDesc) -> bool:
     """Whether ``desc`` (inside its wrappers) may have α_u ≠ α_v: a rough conductor given different alpha_u and
     alpha_v (numbers or textures); such a BSDF turns to the shading frame's tangent."""
     inner, _ = unwrap(desc)
+    if isinstance(inner, (Principled, PrincipledThin)):
+        return _principled_has(inner, "anisotropic")
     return isinstance(inner, RoughConductor) and inner.alpha_u is not None and inner.alpha_u != inner.alpha_v
 
 
@@ -802,6 +879,82 @@ def _pack_anisotropy(desc: RoughConductor, m: Material, where: str) -> None:
         m.alpha_v_texture = m.alpha_u_texture
 
 
+def _principled_has(desc: Principled | PrincipledThin, name: str) -> bool:
+    """Mitsuba's ``get_flag(name)``: the parameter was given and is not the number 0 (an explicit ``has_*`` wins)."""
+    flag = getattr(desc, f"has_{name}", None)
+    if flag is not None:
+        return bool(flag)
+    v = getattr(desc, name)
+    return isinstance(v, TextureRef) or float(v) != 0.0
+
+
+def _pack_principled(desc: Principled | PrincipledThin, m: Material, where: str) -> None:
+    # principled.cpp / principledthin.cpp constructors. Field reuse (none of these fields has another meaning for
+    # the principled kinds; grisx.scene.principled reads them): reflectance = base_color, alpha = roughness,
+    # alpha_v = anisotropic, eta[0] = η, k = (metallic, spec_trans, spec_tint), transmittance = (sheen, sheen_tint,
+    # flatness), specular_reflectance = (clearcoat, clearcoat_gloss, diff_trans), nonlinear = has_spec_trans;
+    # textured lobe weights: alpha_u_texture / alpha_v_texture (roughness / anisotropic) and lobe_textures.
+    from grisx.scene.principled import PRINCIPLED_SLOTS  # noqa: PLC0415 (principled imports this module)
+
+    thin = isinstance(desc, PrincipledThin)
+    if isinstance(desc.base_color, TextureRef):
+        m.texture = _texture_id(desc.base_color, where, "base_color")
+        m.reflectance = wp.vec3(1.0, 1.0, 1.0)  # replaced by the texture's value at the hit
+    else:
+        m.reflectance = wp.vec3(*_rgb(desc.base_color, f"{where}: base_color"))
+    m.sample_visible = 1  # GGX (distribution 0), visible normals: Mitsuba's MicrofacetDistribution defaults
+    m.anisotropic = 1 if _principled_has(desc, "anisotropic") else 0
+    values = {}
+    for name in ("roughness", "anisotropic", *PRINCIPLED_SLOTS):
+        v = getattr(desc, name)
+        if isinstance(v, TextureRef):
+            values[name] = v
+            continue
+        x = float(v)
+        if not math.isfinite(x):
+            raise InvalidParameterError(f"{where}: {name} must be finite, got {v!r}")
+        values[name] = x
+    for name, field in (("roughness", "alpha_u_texture"), ("anisotropic", "alpha_v_texture")):
+        if isinstance(values[name], TextureRef):
+            setattr(m, field, _texture_id(values[name], where, name))
+            values[name] = 0.0
+    m.alpha = values["roughness"]
+    m.alpha_v = values["anisotropic"] if m.anisotropic else 0.0
+    textured = [(i, values[n]) for i, n in enumerate(PRINCIPLED_SLOTS) if isinstance(values[n], TextureRef)]
+    if len(textured) > 4:
+        raise InvalidParameterError(f"{where}: at most four of {', '.join(PRINCIPLED_SLOTS)} may be textures, got "
+                                    f"{', '.join(PRINCIPLED_SLOTS[i] for i, _ in textured)}")
+    slots = [-1, -1, -1, -1]
+    for j, (i, ref) in enumerate(textured):
+        slots[j] = _texture_id(ref, where, PRINCIPLED_SLOTS[i]) * 16 + i
+        values[PRINCIPLED_SLOTS[i]] = 0.0
+    m.lobe_textures = wp.vec4i(*slots)
+    w = [values[n] for n in PRINCIPLED_SLOTS]
+    m.k = wp.vec3(w[0], w[1], w[2])
+    m.transmittance = wp.vec3(w[3], w[4], w[5])
+    m.specular_reflectance = wp.vec3(w[6], w[7], w[8])
+    has_spec_trans = _principled_has(desc, "spec_trans")
+    m.nonlinear = 1 if has_spec_trans and not thin else 0
+    if thin:
+        eta = float(desc.eta)
+        if isinstance(desc.eta, TextureRef) or not math.isfinite(eta) or eta <= 0.0:
+            raise InvalidParameterError(f"{where}: eta must be a finite positive number, got {desc.eta!r}")
+    elif desc.eta is not None and desc.specular is not None:
+        raise InvalidParameterError(f"{where}: give either eta or specular, not both (as in Mitsuba 3)")
+    elif desc.eta is not None:
+        eta = _positive(desc.eta, f"{where}: eta")
+        if has_spec_trans and eta == 1.0:
+            eta = 1.001  # principled.cpp: η = 1 is not plausible for transmission
+    else:
+        specular = 0.5 if desc.specular is None else float(desc.specular)
+        if not (math.isfinite(specular) and 0.0 <= specular < 12.5):
+            raise InvalidParameterError(f"{where}: specular must be in [0, 12.5), got {desc.specular!r}")
+        if has_spec_trans and specular == 0.0:
+            specular = 1.0e-3  # principled.cpp: zero specular is not plausible for transmission
+        eta = float(np.float32(2.0) / (np.float32(1.0) - np.sqrt(np.float32(0.08) * np.float32(specular))) - np.float32(1.0))
+    m.eta = wp.vec3(eta, eta, eta)
+
+
 def _pack_one(desc: MaterialDesc, index: int, device: str | wp.context.Device | None = None) -> Material:
     kind = material_kind(desc)
     where = f"material {index} ({MATERIAL_KIND_NAMES[kind]})"
@@ -819,6 +972,7 @@ def _pack_one(desc: MaterialDesc, index: int, device: str | wp.context.Device | 
     m.blend_weight = 0.0
     m.blend_texture = -1
     m.blend_reflectance = wp.vec3(0.0, 0.0, 0.0)
+    m.lobe_textures = wp.vec4i(-1, -1, -1, -1)
     m.opacity = 1.0
     m.opacity_texture = -1
     m.perturb = PERTURB_NONE
@@ -870,6 +1024,9 @@ def _pack_one(desc: MaterialDesc, index: int, device: str | wp.context.Device | 
         return m
     if isinstance(desc, Plastic):  # and RoughPlastic
         _pack_plastic(desc, m, where, device)
+        return m
+    if isinstance(desc, (Principled, PrincipledThin)):
+        _pack_principled(desc, m, where)
         return m
     if isinstance(desc, Null):
         return m

@@ -69,6 +69,7 @@ from grisx.scene.material import (
     pack_materials,
     unwrap,
 )
+from grisx.scene.principled import principled_set_slot
 from grisx.scene.texture import (
     TEXTURE_MESH_ATTRIBUTE,
     AttributeTexels,
@@ -683,6 +684,11 @@ def _resolve_wrappers(scene: SceneData, m: Material, si: SurfaceInteraction) -> 
         m.alpha_v = surface_texture_1(scene, m.alpha_v_texture, si)
     if m.anisotropic != 0:
         m.tangent = shading_tangent(scene, si)
+    if m.lobe_textures[0] >= 0:  # a principled BSDF's textured lobe weights (Mitsuba's eval_1 of each)
+        for j in range(4):
+            t = m.lobe_textures[j]
+            if t >= 0:
+                m = principled_set_slot(m, t % 16, surface_texture_1(scene, t // 16, si))
     if m.blend_texture >= 0 or m.blend_weight > 0.0:
         w = m.blend_weight
         if m.blend_texture >= 0:

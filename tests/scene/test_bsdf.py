@@ -64,6 +64,7 @@ from grisx.scene.material import (
     Mask,
     NormalMap,
     Null,
+    Principled,
     MATERIAL_MASK,
     MATERIAL_NORMALMAP,
     MATERIAL_NULL,
@@ -692,16 +693,21 @@ def _chi2(wi: np.ndarray, valid: np.ndarray, masses: np.ndarray, tests: int):
     return chi2_test(x, lambda t: masses[np.clip(np.floor(t).astype(int), 0, cells - 1)], 0.0, float(cells), bins=cells, tests=tests)
 
 
+def check_chi2(name: str, desc, theta: float, device, seed: int, tests: int) -> None:
+    """χ² of ``desc``'s samples at wo = (θ, 40°) against its pdf's cell masses (one of a family of ``tests``)."""
+    wo = direction(theta, 40.0)
+    s = sample(desc, wo, N_CHI2, device, seed=seed)
+    masses = _cell_masses(lambda d: evaluate(desc, wo, d, device)[1])
+    assert 0.3 < masses.sum() <= 1.0 + 1e-3
+    result = _chi2(s["wi"], s["valid"], masses, tests=tests)
+    print(f"{name}: {result}")
+    assert result.passed, f"{name}: {result}"
+
+
 @pytest.mark.parametrize("index", range(len(CHI2_CASES)), ids=[c[0] for c in CHI2_CASES])
 def test_chi2_sample_matches_pdf(index, device):
     name, desc, theta = CHI2_CASES[index]
-    wo = direction(theta, 40.0)
-    s = sample(desc, wo, N_CHI2, device, seed=1000 + index)
-    masses = _cell_masses(lambda d: evaluate(desc, wo, d, device)[1])
-    assert 0.3 < masses.sum() <= 1.0 + 1e-3
-    result = _chi2(s["wi"], s["valid"], masses, tests=len(CHI2_CASES))
-    print(f"{name}: {result}")
-    assert result.passed, f"{name}: {result}"
+    check_chi2(name, desc, theta, device, 1000 + index, len(CHI2_CASES))
 
 
 def test_chi2_rejects_a_pdf_off_by_a_cosine(device):
@@ -747,29 +753,39 @@ def test_chi2_rejects_the_ndf_pdf_for_visible_normal_samples(device):
 NON_DELTA = [(name, desc, theta) for name, desc, theta in CHI2_CASES]
 
 
-@pytest.mark.parametrize("case", NON_DELTA, ids=[c[0] for c in NON_DELTA])
-def test_weight_is_eval_over_pdf(case, device):
-    name, desc, theta = case
+def check_weight(name: str, desc, theta: float, device, valid: float = 0.5) -> dict:
+    """A sample's pdf is the pdf at its direction and its weight eval/pdf (more than ``valid`` of them valid)."""
     s = sample(desc, direction(theta, 40.0), 20_000, device, seed=3)
     v = s["valid"]
-    assert v.mean() > 0.5 and np.all(s["delta"] == 0)
+    assert v.mean() > valid and np.all(s["delta"] == 0)
     assert np.all(np.isfinite(s["weight"])) and np.all(s["weight"][~v] == 0)
     np.testing.assert_allclose(s["pdf_at"][v], s["pdf"][v], rtol=2e-3, err_msg=name)
     np.testing.assert_allclose(s["weight"][v], s["eval"][v] / s["pdf_at"][v, None], rtol=2e-3, err_msg=name)
+    return s
+
+
+@pytest.mark.parametrize("case", NON_DELTA, ids=[c[0] for c in NON_DELTA])
+def test_weight_is_eval_over_pdf(case, device):
+    check_weight(*case, device)
 
 
 def _unscaled(desc, wo, wi):
     """η_it² for refracted directions (undoes the radiance 1/η² factor), 1 otherwise."""
-    if not isinstance(desc, (Dielectric, RoughDielectric)):
+    desc = getattr(desc, "desc", desc)  # Turned
+    if not isinstance(desc, (Dielectric, RoughDielectric, Principled)):
         return np.ones(len(wi))
-    eta = desc.int_ior / desc.ext_ior
+    eta = _pack_one(desc, 0).eta[0]  # int_ior/ext_ior; a principled BSDF's η (from its specular where given)
     eta_it = eta if wo[2] > 0 else 1 / eta
     return np.where(wi[:, 2] * wo[2] < 0, eta_it**2, 1.0)
 
 
 @pytest.mark.parametrize("case", NON_DELTA, ids=[c[0] for c in NON_DELTA])
 def test_albedo_from_sampling_and_from_eval_agree_and_conserve_energy(case, device):
-    name, desc, theta = case
+    check_albedo(*case, device)
+
+
+def check_albedo(name: str, desc, theta: float, device) -> None:
+    """Monte Carlo albedo at wo = (θ, 40°) from ``desc``'s samples and from its eval at uniform directions agree, ≤ 1."""
     wo = direction(theta, 40.0)
     n = 100_000
     s = sample(desc, wo, n, device, seed=11)
@@ -879,7 +895,7 @@ def test_specialized_dispatch_compiles_only_its_kinds(device):
     # the rough conductor is not compiled into this dispatch: it is black
     assert np.all(weight.numpy()[1] == 0) and np.all(f.numpy()[1] == 0)
     with pytest.raises(InvalidParameterError, match="unknown material kind"):
-        make_bsdf({MATERIAL_DIFFUSE, 17})
+        make_bsdf({MATERIAL_DIFFUSE, 99})
 
 
 def test_material_records_and_packing():
