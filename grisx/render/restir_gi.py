@@ -179,6 +179,7 @@ from grisx.device import PATH_REGISTERS, specialized_module
 from grisx.params import Param
 from grisx.render.base.registry import RenderMethod, composed_direct, create_renderer, register, renderer_params
 from grisx.scene.bsdf import MATERIAL_ROUGH_DIELECTRIC, cosine_hemisphere_pdf, make_bsdf, sample_cosine_hemisphere
+from grisx.scene.material import MATERIAL_PRINCIPLED, MATERIAL_PRINCIPLED_THIN
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.gbuffer import GBuffer, GBufferData, gbuffer_kernel
 from grisx.scene.lights import emitter_radiance, environment_eval, luminance
@@ -379,6 +380,7 @@ def make_restir_gi_kernels(kinds: frozenset[int], moving: bool = False) -> Any:
     bsdf = make_bsdf(kinds)
     trace_path = make_trace_path(kinds, bounds=moving)  # with moving objects, the box of what L_o depends on
     has_rough_dielectric = MATERIAL_ROUGH_DIELECTRIC in kinds
+    has_principled = MATERIAL_PRINCIPLED in kinds or MATERIAL_PRINCIPLED_THIN in kinds
 
     @wp.func
     def path_traced_here(scene: SceneData, si: SurfaceInteraction) -> bool:
@@ -389,6 +391,9 @@ def make_restir_gi_kernels(kinds: frozenset[int], moving: bool = False) -> Any:
             return True
         if wp.static(has_rough_dielectric):
             if m.kind == MATERIAL_ROUGH_DIELECTRIC:
+                return True
+        if wp.static(has_principled):  # their transmission lobes cross the surface, as a rough dielectric's
+            if m.kind == MATERIAL_PRINCIPLED or m.kind == MATERIAL_PRINCIPLED_THIN:
                 return True
         return False
 

@@ -154,6 +154,7 @@ __all__ = [
     "material_kinds",
     "is_anisotropic",
     "pack_materials",
+    "principled_has",
 ]
 
 MATERIAL_DIFFUSE = wp.constant(0)
@@ -732,7 +733,7 @@ def is_anisotropic(desc: MaterialDesc) -> bool:
     alpha_v (numbers or textures); such a BSDF turns to the shading frame's tangent."""
     inner, _ = unwrap(desc)
     if isinstance(inner, (Principled, PrincipledThin)):
-        return _principled_has(inner, "anisotropic")
+        return principled_has(inner, "anisotropic")
     return isinstance(inner, RoughConductor) and inner.alpha_u is not None and inner.alpha_u != inner.alpha_v
 
 
@@ -879,7 +880,7 @@ def _pack_anisotropy(desc: RoughConductor, m: Material, where: str) -> None:
         m.alpha_v_texture = m.alpha_u_texture
 
 
-def _principled_has(desc: Principled | PrincipledThin, name: str) -> bool:
+def principled_has(desc: Principled | PrincipledThin, name: str) -> bool:
     """Mitsuba's ``get_flag(name)``: the parameter was given and is not the number 0 (an explicit ``has_*`` wins)."""
     flag = getattr(desc, f"has_{name}", None)
     if flag is not None:
@@ -903,7 +904,7 @@ def _pack_principled(desc: Principled | PrincipledThin, m: Material, where: str)
     else:
         m.reflectance = wp.vec3(*_rgb(desc.base_color, f"{where}: base_color"))
     m.sample_visible = 1  # GGX (distribution 0), visible normals: Mitsuba's MicrofacetDistribution defaults
-    m.anisotropic = 1 if _principled_has(desc, "anisotropic") else 0
+    m.anisotropic = 1 if principled_has(desc, "anisotropic") else 0
     values = {}
     for name in ("roughness", "anisotropic", *PRINCIPLED_SLOTS):
         v = getattr(desc, name)
@@ -933,7 +934,7 @@ def _pack_principled(desc: Principled | PrincipledThin, m: Material, where: str)
     m.k = wp.vec3(w[0], w[1], w[2])
     m.transmittance = wp.vec3(w[3], w[4], w[5])
     m.specular_reflectance = wp.vec3(w[6], w[7], w[8])
-    has_spec_trans = _principled_has(desc, "spec_trans")
+    has_spec_trans = principled_has(desc, "spec_trans")
     m.nonlinear = 1 if has_spec_trans and not thin else 0
     if thin:
         eta = float(desc.eta)

@@ -123,8 +123,12 @@ Transforms ``<transform name="to_world">``
     ``use_shadowing_function`` [true], around one BSDF (at most one mask, outermost,
     and one normalmap or bumpmap; a twosided goes inside a normalmap or bumpmap);
     ``blendbsdf`` of two ``diffuse`` BSDFs (``weight``: a number or a texture, mesh
-    attributes included; the first reflectance may be a texture). ``principled`` and
-    ``principledthin`` are refused.
+    attributes included; the first reflectance may be a texture); ``principled`` (``base_color``
+    [0.5]: a colour or a texture; ``roughness`` [0.5], ``anisotropic``, ``metallic``, ``spec_trans``,
+    ``spec_tint``, ``sheen``, ``sheen_tint``, ``flatness``, ``clearcoat``, ``clearcoat_gloss`` [0]: numbers or
+    textures, at most four of the lobe weights textured besides roughness and anisotropic; ``eta`` or
+    ``specular`` [0.5]) and ``principledthin`` (the same without metallic and clearcoat, with ``diff_trans``
+    [0] and ``eta`` [1.5], a number); their sampling rates only at Mitsuba's default 1.
 ``emitter``
     ``area`` (inside a shape, or top-level with an ``id`` that one shape
     references; ``radiance``, required: a colour or a bitmap looked up at the
@@ -201,6 +205,8 @@ from grisx.scene.material import (
     MICROFACET_DISTRIBUTIONS,
     Diffuse,
     Plastic,
+    Principled,
+    PrincipledThin,
     RoughConductor,
     RoughDielectric,
     RoughPlastic,
@@ -209,6 +215,7 @@ from grisx.scene.material import (
     conductor_material,
     is_anisotropic,
     pack_materials,
+    principled_has,
     unwrap,
 )
 from grisx.scene.scene import Film, Scene
@@ -366,9 +373,6 @@ _WHY_NOT = {
                     "grisx films filter with box, gaussian or tent only (a filter with negative lobes would need "
                     "signed camera-sample weights in every renderer)"),
     "depth": "grisx integrators render radiance",
-    **dict.fromkeys(("principled", "principledthin"),
-                    "the Disney principled BSDF (metallic, sheen, clearcoat, anisotropic and transmission lobes mixed per "
-                    "texel) is not implemented by grisx; roughplastic or roughconductor come closest"),
 }
 
 #: Mitsuba's limit on nested <include>s (MI_XML_INCLUDE_MAX_RECURSION); deeper means a cycle, in practice
@@ -1034,7 +1038,7 @@ class _Loader:
             return self.records[id(node)]
         t = self._require_type(node, ("diffuse", "conductor", "roughconductor", "dielectric", "roughdielectric", "thindielectric",
                                       "plastic", "roughplastic", "twosided", "null", "mask", "normalmap", "bumpmap",
-                                      "blendbsdf"))
+                                      "blendbsdf", "principled", "principledthin"))
         p = _Props(self, node)
         if t == "twosided":
             inner = p.take_objects(("bsdf",))
@@ -1078,6 +1082,8 @@ class _Loader:
             weight = self._uv_texture(p, "weight", attributes=True) if p.values["weight"].tag in ("texture", "ref") \
                 else p.float("weight")
             rec = BlendBSDF(first, second, weight)
+        elif t in ("principled", "principledthin"):
+            rec = self._principled(p, t)
         elif t == "null":
             rec = Null()
         elif t == "diffuse":
@@ -1131,6 +1137,46 @@ class _Loader:
         self.records[id(node)] = rec
         return rec
 
+    # ---- principled (principled.cpp, principledthin.cpp constructors) ----
+
+    #: lobe sampling rates each plugin reads, all 1 by default (principled.cpp reads clearcoat_sampling_rate with 1,
+    #: though its documentation says 0)
+    _PRINCIPLED_RATES = {
+        "principled": ("main_specular_sampling_rate", "clearcoat_sampling_rate", "diffuse_reflectance_sampling_rate"),
+        "principledthin": ("specular_reflectance_sampling_rate", "specular_transmittance_sampling_rate",
+                           "diffuse_transmittance_sampling_rate", "diffuse_reflectance_sampling_rate"),
+    }
+
+    def _principled(self, p: _Props, t: str) -> Principled | PrincipledThin:
+        """A ``principled`` or ``principledthin`` record: base_color an RGB or a texture, every weight a number or a
+        texture (Mitsuba's ``get_texture``); non-default sampling rates and a textured ``eta`` are refused."""
+        thin = t == "principledthin"
+        for name in self._PRINCIPLED_RATES[t]:
+            if p.has(name) and p.float(name) != 1.0:
+                raise self.ctx.error(p.values[name], f"parameter '{name}' of {t}: sampling rates other than 1 are not "
+                                                     f"supported (its pdf would need them in every kernel)", name)
+        kw: dict[str, Any] = {"base_color": p.color("base_color", 0.5, texture=True)}
+        weights = ["roughness", "anisotropic", "spec_trans", "spec_tint", "sheen", "sheen_tint", "flatness"]
+        weights += ["diff_trans"] if thin else ["metallic", "clearcoat", "clearcoat_gloss"]
+        for name in weights:
+            if name not in p.values:
+                continue
+            node = p.values[name]
+            kw[name] = self._uv_texture(p, name, attributes=True) if node.tag in ("texture", "ref") else p.float(name)
+        if thin:
+            if p.has("eta") and p.values["eta"].tag in ("texture", "ref"):
+                raise self.ctx.error(p.values["eta"], "parameter 'eta' of principledthin: a textured eta is not supported "
+                                                      "(give a number)", "eta")
+            kw["eta"] = p.float("eta", 1.5)
+            return PrincipledThin(**kw)
+        if p.has("eta") and p.has("specular"):
+            raise self.ctx.error(p.values["specular"], "give either 'eta' or 'specular', not both (as in Mitsuba 3)", "specular")
+        if p.has("eta"):
+            kw["eta"] = p.float("eta")
+        elif p.has("specular"):
+            kw["specular"] = p.float("specular")
+        return Principled(**kw)
+
     def _texture_mean(self, p: _Props, name: str, value: Any) -> float | None:
         """Mitsuba's ``texture.mean()`` of parameter ``name`` (``None`` for a constant); a mesh attribute has none."""
         if not isinstance(value, TextureRef):
@@ -1156,7 +1202,8 @@ class _Loader:
             return dataclasses.replace(rec, bsdf=self._two_sided(node, rec.bsdf))
         if isinstance(rec, (NormalMap, BumpMap)):
             raise self.ctx.error(node, "twosided around a normalmap or bumpmap is not supported (put the twosided inside it)")
-        if isinstance(rec, (Dielectric, RoughDielectric, ThinDielectric)):
+        transmissive = isinstance(rec, PrincipledThin) or (isinstance(rec, Principled) and principled_has(rec, "spec_trans"))
+        if isinstance(rec, (Dielectric, RoughDielectric, ThinDielectric)) or transmissive:
             raise self.ctx.error(node, "twosided cannot wrap a transmissive BSDF (as in Mitsuba)")
         return dataclasses.replace(rec, two_sided=True)
 

@@ -27,7 +27,7 @@ import pytest
 
 from grisx.imageio import read_exr
 from grisx.render import render
-from grisx.scene.material import BlendBSDF, BumpMap, Diffuse, Mask, NormalMap, Null
+from grisx.scene.material import BlendBSDF, BumpMap, Diffuse, Mask, NormalMap, Null, Principled, PrincipledThin
 from grisx.scene.mitsuba import load_mitsuba
 from grisx.scene.texture import Bitmap, Checkerboard
 from grisx.scene.transform import rotate
@@ -85,6 +85,8 @@ CASES: dict[str, Case] = {
     "normalmap": Case(32, 16),
     "bumpmap": Case(32, 16),
     "blendbsdf": Case(32, 16),
+    "principled": Case(32, 16),
+    "principledthin": Case(32, 16),
     "texture_srgb": Case(32, 16),
     "texture_raw": Case(32, 16),
     "texture_exr": Case(32, 16),
@@ -366,3 +368,20 @@ def test_a_blend_with_its_weight_inverted_is_caught():
                           and not hasattr(m.bsdf0.reflectance, "texture_id") else m for m in scene.materials]
     result = agreement(scene, "blendbsdf")
     assert not result.passed, f"a blend with its weight inverted went unnoticed: {result}"
+
+
+def test_a_principled_roughness_read_as_alpha_is_caught():
+    """α = roughness instead of Burley's α = roughness² (calc_dist_params): every principled lobe rougher."""
+    scene = load_mitsuba(SCENES / "principled.xml")
+    scene.materials[:] = [dataclasses.replace(m, roughness=m.roughness**0.5) if isinstance(m, Principled) else m for m in scene.materials]
+    result = agreement(scene, "principled")
+    assert not result.passed, f"a principled roughness read as alpha went unnoticed: {result}"
+
+
+def test_a_thin_sheet_with_its_diff_trans_not_halved_is_caught():
+    """principledthin's diff_trans runs over [0, 2] and is halved (principledthin.cpp): read as a [0, 1] weight here."""
+    scene = load_mitsuba(SCENES / "principledthin.xml")
+    scene.materials[:] = [dataclasses.replace(m, diff_trans=2.0 * m.diff_trans) if isinstance(m, PrincipledThin) and not hasattr(m.diff_trans, "texture_id")
+                          else m for m in scene.materials]
+    result = agreement(scene, "principledthin")
+    assert not result.passed, f"a thin sheet's diff_trans read unhalved went unnoticed: {result}"

@@ -14,8 +14,9 @@ verdict. Every radiance method also renders each scene finite (4 frames, 16×16)
 
 A scene that does not load or does not pass yet has one line in ``NOT_YET`` with the
 reason; its tests are strict xfails, so a scene that starts passing turns its test red
-until its line is removed. The siblings at the end show that the criterion catches a
-2% dimmer light and a rough plastic rendered without its nonlinear internal scattering.
+until its line is removed (none now). The siblings at the end show that the criterion catches a
+2% dimmer light, a rough plastic rendered without its nonlinear internal scattering and a
+principled sphere whose textured anisotropy is ignored.
 
     python -m pytest tests/conformance/test_mitsuba_render_suite.py -n 0
     python benchmarks/mitsuba_render_tests.py --device cuda   # the same suite on a GPU, JSON out
@@ -41,11 +42,7 @@ HERE = Path(__file__).resolve().parent
 SUITE = HERE / "mitsuba_render_tests" / "tests" / "scenes"
 
 #: scene (folder/file stem) → why grisx does not pass it yet; remove a line when its scene passes
-NOT_YET: dict[str, str] = {
-    "bsdf_spheres/test_texturedprincipled1_path": "loader: bsdf 'principled' refused (not implemented)",
-    "bsdf_spheres/test_texturedprincipled2_path": "loader: bsdf 'principled' refused (not implemented)",
-    "bsdf_spheres/test_texturedprincipledthin_path": "loader: bsdf 'principledthin' refused (not implemented)",
-}
+NOT_YET: dict[str, str] = {}
 
 SCENES = sorted(str(p.relative_to(SUITE).with_suffix("")) for p in SUITE.glob("*/*.xml"))
 FINITE_RES = (16, 16)
@@ -139,3 +136,11 @@ def test_a_rough_plastic_without_its_nonlinear_scattering_is_caught():
     scene.materials[:] = [dataclasses.replace(m, nonlinear=False) if hasattr(m, "nonlinear") else m for m in scene.materials]
     result = run(scene, name)
     assert not result.passed, f"roughplastic's nonlinear=true rendered as linear went unnoticed: {result}"
+
+
+def test_a_principled_sphere_with_its_anisotropy_ignored_is_caught():
+    name = "bsdf_spheres/test_texturedprincipled1_path"
+    scene = load_mitsuba(SUITE / f"{name}.xml")
+    scene.materials[:] = [dataclasses.replace(m, anisotropic=0.0) if type(m).__name__ == "Principled" else m for m in scene.materials]
+    result = run(scene, name)
+    assert not result.passed, f"principled's textured anisotropy ignored went unnoticed: {result}"

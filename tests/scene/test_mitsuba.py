@@ -22,6 +22,8 @@ from grisx.scene.material import (
     Dielectric,
     Diffuse,
     Plastic,
+    Principled,
+    PrincipledThin,
     RoughPlastic,
     RoughConductor,
     RoughDielectric,
@@ -416,13 +418,41 @@ def test_null_mask_normalmap_bumpmap():
         ('<bsdf type="blendbsdf"><float name="weight" value="0.5"/><bsdf type="diffuse"/><bsdf type="plastic"/></bsdf>',
          "blendbsdf is supported between two diffuse BSDFs only"),
         ('<bsdf type="blendbsdf"><bsdf type="diffuse"/><bsdf type="diffuse"/></bsdf>', "missing required parameter 'weight'"),
-        ('<bsdf type="principled"/>', "the Disney principled BSDF .* is not implemented by grisx"),
     ]:
         with pytest.raises(SceneFileError, match=message):
             bsdf(xml)
     with pytest.raises(SceneFileError, match="a normalmap or bumpmap on an analytic sphere is not supported"):
         load_mitsuba(doc('<shape type="sphere"><bsdf type="normalmap"><texture type="checkerboard" name="normalmap"/>'
                          '<bsdf type="diffuse"/></bsdf></shape>'))
+
+
+def test_principled_bsdfs():
+    """principled.cpp / principledthin.cpp parameters: numbers or textures, Mitsuba's defaults; the corners refused."""
+    assert bsdf('<bsdf type="principled"/>') == Principled()
+    p = bsdf('<bsdf type="principled"><rgb name="base_color" value="0.2 0.8 0.1"/><float name="metallic" value="0.7"/>'
+             '<float name="specular" value="0.6"/><texture type="checkerboard" name="clearcoat"/><float name="spec_trans" value="0.4"/>'
+             '<float name="main_specular_sampling_rate" value="1"/></bsdf>')
+    assert p == Principled(base_color=(0.2, 0.8, 0.1), metallic=0.7, specular=0.6, clearcoat=TextureRef(0), spec_trans=0.4)
+    t = bsdf('<bsdf type="principledthin"><float name="eta" value="1.33"/><float name="diff_trans" value="1.4"/>'
+             '<texture type="checkerboard" name="base_color"/></bsdf>')
+    assert t == PrincipledThin(eta=1.33, diff_trans=1.4, base_color=TextureRef(0))
+    assert bsdf('<bsdf type="twosided"><bsdf type="principled"><float name="spec_trans" value="0"/></bsdf></bsdf>').two_sided
+    for xml, message in [
+        ('<bsdf type="principled"><float name="eta" value="1.5"/><float name="specular" value="0.5"/></bsdf>',
+         "give either 'eta' or 'specular', not both"),
+        ('<bsdf type="principled"><float name="clearcoat_sampling_rate" value="0"/></bsdf>',
+         "parameter 'clearcoat_sampling_rate' of principled: sampling rates other than 1 are not supported"),
+        ('<bsdf type="principledthin"><texture type="checkerboard" name="eta"/></bsdf>', "a textured eta is not supported"),
+        ('<bsdf type="twosided"><bsdf type="principled"><float name="spec_trans" value="0.1"/></bsdf></bsdf>',
+         "twosided cannot wrap a transmissive BSDF"),
+        ('<bsdf type="twosided"><bsdf type="principledthin"/></bsdf>', "twosided cannot wrap a transmissive BSDF"),
+        ('<bsdf type="principled">' + "".join(f'<texture type="checkerboard" name="{n}"/>' for n in
+                                              ("metallic", "sheen", "clearcoat", "spec_tint", "flatness")) + '</bsdf>',
+         "at most four of metallic, .* may be textures"),
+        ('<bsdf type="principled"><float name="subsurface" value="0.5"/></bsdf>', "unsupported parameter 'subsurface'"),
+    ]:
+        with pytest.raises(SceneFileError, match=message):
+            bsdf(xml)
 
 
 # ---- textures and emitters ---------------------------------------------------------------------------

@@ -17,7 +17,7 @@ import warp as wp
 from grisx.scene.bsdf import cosine_hemisphere_pdf, make_bsdf, sample_cosine_hemisphere
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.lights import emitter_radiance, environment_eval, environment_pdf, light_pdf_emitter, sample_light
-from grisx.scene.material import MATERIAL_ROUGH_DIELECTRIC, PERTURB_NONE
+from grisx.scene.material import MATERIAL_PRINCIPLED, MATERIAL_PRINCIPLED_THIN, MATERIAL_ROUGH_DIELECTRIC, PERTURB_NONE
 from grisx.scene.caustics import canonical_lobe, caustic_owned
 from grisx.scene.scene import SceneData, SurfaceInteraction, intersect, light_occluded, spawn_origin, surface_material
 from grisx.theory.mis import technique_mis
@@ -208,7 +208,9 @@ def _make_trace_path(kinds: frozenset[int], caustic_chain: int, bounds: bool) ->
             # record: a view-independent first vertex (cosine-weighted continuation), where the BSDF allows
             view_free = int(0)
             # (not about a normal or bump map's normal: re-evaluating it needs the hit's triangle, which the records do not keep)
-            if record != 0 and depth == 0 and bsdf.has_delta_lobe(m) == 0 and m.kind != MATERIAL_ROUGH_DIELECTRIC and m.perturb == PERTURB_NONE and wo[2] != 0.0:
+            # (nor through a rough transmission lobe: rough dielectrics, and the principled kinds whose spec_trans / diff_trans may cross)
+            crosses = m.kind == MATERIAL_ROUGH_DIELECTRIC or m.kind == MATERIAL_PRINCIPLED or m.kind == MATERIAL_PRINCIPLED_THIN
+            if record != 0 and depth == 0 and bsdf.has_delta_lobe(m) == 0 and not crosses and m.perturb == PERTURB_NONE and wo[2] != 0.0:
                 view_free = 1
                 out.recorded = 1
             # ---- next-event estimation ----
