@@ -70,6 +70,10 @@ Lobes (equations in ``grisx.scene.microfacet``):
 
 * **Null** (``null``): the ray goes on, wi = −wo, weight 1 (delta, pdf 1).
 
+* **Principled** (``principled``, ``principledthin``): Mitsuba 3's Disney principled BSDFs, in their own
+  module (:mod:`grisx.scene.principled`), dispatched beside the reflective kinds (their back side is their
+  own: black, the inside of the transmission, or the sheet's other face, unless ``twosided`` mirrors it).
+
 **Wrappers** (applied outside in: mask, then the perturbed frame, then two-sided):
 
 * **Mask** (``mask``, opacity α at the hit): the nested BSDF with probability α

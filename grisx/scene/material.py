@@ -15,6 +15,8 @@ record                 Mitsuba plugin              lobes (see ``grisx.scene.bsdf
 ``Plastic``            ``plastic``                 delta coating reflection + diffuse base
 ``RoughPlastic``       ``roughplastic``            microfacet coating reflection + diffuse base
 ``Null``               ``null``                    none: the ray passes through (a delta lobe)
+``Principled``         ``principled``              Disney's principled BSDF (Burley 2012, 2015)
+``PrincipledThin``     ``principledthin``          its thin-sheet sibling (no bending)
 =====================  ==========================  =========================================
 
 Three **wrappers** hold one of those records, as Mitsuba's plugins nest one BSDF:
