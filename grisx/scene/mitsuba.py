@@ -1426,7 +1426,9 @@ class _Loader:
                 raise self.ctx.error(bsdfs[0], f"a normalmap or bumpmap on an analytic {t} is not supported "
                                                f"(its shading frame needs a mesh's uv parametrization: use an obj, ply or serialized mesh)")
             if t in ("sphere", "disk", "cylinder") and emission is None and is_anisotropic(self.scene.materials[mid]):
-                raise self.ctx.error(bsdfs[0], f"an anisotropic roughconductor (alpha_u != alpha_v) on an analytic {t} is not "
+                what = "an anisotropic roughconductor (alpha_u != alpha_v)" if isinstance(unwrap(self.scene.materials[mid])[0], RoughConductor) \
+                    else "a principled BSDF with 'anisotropic'"
+                raise self.ctx.error(bsdfs[0], f"{what} on an analytic {t} is not "
                                                f"supported (its tangent needs a mesh's uv parametrization: use an obj, ply or serialized mesh)")
         else:  # Mitsuba's default: diffuse 0.5, but black on an emitter (an emitting shape reflects nothing)
             mid = self.default_material("default_emitter" if emission is not None else "default")

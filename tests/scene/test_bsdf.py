@@ -65,6 +65,7 @@ from grisx.scene.material import (
     NormalMap,
     Null,
     Principled,
+    PrincipledThin,
     MATERIAL_MASK,
     MATERIAL_NORMALMAP,
     MATERIAL_NULL,
@@ -941,6 +942,12 @@ ALL_KINDS_CASES = [
     Plastic(two_sided=True, nonlinear=True, diffuse_reflectance=1.0),
     RoughPlastic(alpha=0.02),
     RoughPlastic(alpha=1.0, distribution="beckmann", int_ior=1.0, ext_ior=1.33, two_sided=True),
+    # principled corners: roughness 0 (α clamped to 0.001), black base (tint white), η = 1 nudged, full anisotropy, GTR1 at 0.001
+    Principled(base_color=0.0, roughness=0.0, metallic=1.0, anisotropic=1.0, clearcoat=1.0, clearcoat_gloss=1.0, sheen=1.0, sheen_tint=1.0),
+    Principled(spec_trans=1.0, eta=1.0, roughness=0.0, spec_tint=1.0, flatness=1.0),
+    Principled(spec_trans=0.5, specular=0.0, roughness=1.0),
+    PrincipledThin(spec_trans=1.0, diff_trans=2.0, roughness=0.0, anisotropic=1.0, base_color=0.0, eta=1.0),
+    PrincipledThin(diff_trans=2.0, roughness=1.0, sheen=1.0, flatness=1.0),
 ]
 EDGE_DIRS = np.array([[0, 0, 1], [0, 0, -1], [1, 0, 0], [0, -1, 0], [0.6, 0, 0.8], [-0.6, 0, -0.8]], dtype=np.float64)
 

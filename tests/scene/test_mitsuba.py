@@ -453,6 +453,8 @@ def test_principled_bsdfs():
     ]:
         with pytest.raises(SceneFileError, match=message):
             bsdf(xml)
+    with pytest.raises(SceneFileError, match="a principled BSDF with 'anisotropic' on an analytic sphere is not supported"):
+        load_mitsuba(doc('<shape type="sphere"><bsdf type="principled"><float name="anisotropic" value="0.5"/></bsdf></shape>'))
 
 
 # ---- textures and emitters ---------------------------------------------------------------------------
