@@ -684,11 +684,15 @@ def _resolve_wrappers(scene: SceneData, m: Material, si: SurfaceInteraction) -> 
         m.alpha_v = surface_texture_1(scene, m.alpha_v_texture, si)
     if m.anisotropic != 0:
         m.tangent = shading_tangent(scene, si)
-    if m.lobe_textures[0] >= 0:  # a principled BSDF's textured lobe weights (Mitsuba's eval_1 of each)
-        for j in range(4):
-            t = m.lobe_textures[j]
-            if t >= 0:
-                m = principled_set_slot(m, t % 16, surface_texture_1(scene, t // 16, si))
+    # a principled BSDF's textured lobe weights (Mitsuba's eval_1 of each); a loop, not unrolled: one texture
+    # lookup in the code of every kernel that resolves a material, not four
+    j = int(0)
+    while j < 4:
+        t = m.lobe_textures[j]
+        if t < 0:
+            break
+        m = principled_set_slot(m, t % 16, surface_texture_1(scene, t // 16, si))
+        j += 1
     if m.blend_texture >= 0 or m.blend_weight > 0.0:
         w = m.blend_weight
         if m.blend_texture >= 0:
