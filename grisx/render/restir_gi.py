@@ -385,7 +385,7 @@ def make_restir_gi_kernels(kinds: frozenset[int], moving: bool = False) -> Any:
     @wp.func
     def path_traced_here(scene: SceneData, si: SurfaceInteraction) -> bool:
         """Visible points ReSTIR GI leaves to the path tracer: delta lobes (mirrors, glass, a plastic's coat: no
-        source pdf over the hemisphere reaches them), and rough dielectrics."""
+        source pdf over the hemisphere reaches them), rough dielectrics and the principled kinds (transmission)."""
         m = surface_material(scene, si)
         if bsdf.has_delta_lobe(m) != 0:
             return True

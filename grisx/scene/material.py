@@ -582,8 +582,9 @@ class Principled(_PrincipledLobes):
     (:mod:`grisx.scene.principled`). Parameters and defaults are Mitsuba's; ``base_color`` an RGB or a texture,
     every other weight a number or a :class:`TextureRef` (at most four textured besides base_color, roughness and
     anisotropic). ``eta`` (interior/exterior index) or ``specular`` (η = 2/(1 − √(0.08 specular)) − 1) — not both;
-    ``has_*``: whether Mitsuba was given the parameter (its ``get_flag``), which the loader sets; only
-    ``has_spec_trans`` changes a value (the pdf seen from inside, and η = 1 or specular = 0 nudged to 1.001 or 1e-3)."""
+    ``has_*``: whether Mitsuba was given the parameter (its ``get_flag``); None derives it from the value as Mitsuba
+    does (a texture, or a number other than 0). Only ``has_spec_trans`` changes a value (the pdf seen from inside,
+    and η = 1 or specular = 0 nudged to 1.001 or 1e-3); ``has_anisotropic`` turns the lobe to the shading tangent."""
 
     metallic: Weight = 0.0
     eta: float | None = None
