@@ -940,9 +940,9 @@ def _pack_principled(desc: Principled | PrincipledThin, m: Material, where: str)
     has_spec_trans = principled_has(desc, "spec_trans")
     m.nonlinear = 1 if has_spec_trans and not thin else 0
     if thin:
-        eta = float(desc.eta)
-        if isinstance(desc.eta, TextureRef) or not math.isfinite(eta) or eta <= 0.0:
-            raise InvalidParameterError(f"{where}: eta must be a finite positive number, got {desc.eta!r}")
+        if isinstance(desc.eta, TextureRef):
+            raise InvalidParameterError(f"{where}: a textured eta is not supported (give a number), got {desc.eta!r}")
+        eta = _positive(desc.eta, f"{where}: eta")
     elif desc.eta is not None and desc.specular is not None:
         raise InvalidParameterError(f"{where}: give either eta or specular, not both (as in Mitsuba 3)")
     elif desc.eta is not None:

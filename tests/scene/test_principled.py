@@ -258,5 +258,9 @@ def test_records_pack_as_mitsuba_constructs_them():
     assert material_kinds([Principled(anisotropic=0.0)]) == {MATERIAL_PRINCIPLED}
     with pytest.raises(InvalidParameterError, match="either eta or specular"):
         _pack_one(Principled(eta=1.5, specular=0.5), 0)
+    with pytest.raises(InvalidParameterError, match="a textured eta is not supported"):
+        _pack_one(PrincipledThin(eta=TextureRef(0)), 0)
+    with pytest.raises(InvalidParameterError, match="eta must be a finite positive number"):
+        _pack_one(PrincipledThin(eta=0.0), 0)
     with pytest.raises(InvalidParameterError, match="at most four"):
         _pack_one(Principled(**{n: TextureRef(1) for n in ("metallic", "spec_trans", "sheen", "clearcoat", "flatness")}), 0)
