@@ -46,6 +46,7 @@ CASES = [
     ("glass-tinted-sheen", Principled(base_color=(0.3, 0.6, 0.8), spec_trans=0.7, roughness=0.4, sheen=0.9, clearcoat=0.3,
                                       specular=0.4), {}),
     ("flat-eta", Principled(base_color=(0.5, 0.5, 0.5), flatness=1.0, roughness=0.6, eta=1.7, spec_tint=1.0), {}),
+    ("two-sided", Principled(base_color=(0.3, 0.5, 0.7), metallic=0.5, clearcoat=0.5, sheen=0.4, roughness=0.35, two_sided=True), {}),
     ("thin-defaults", PrincipledThin(), {}),
     ("thin-full", PrincipledThin(base_color=(0.7, 0.1, 0.1), roughness=0.4, spec_trans=0.5, diff_trans=0.8, sheen=0.5,
                                  sheen_tint=0.5, spec_tint=0.6, flatness=0.3, eta=1.33), {}),
@@ -65,7 +66,7 @@ def mitsuba_dict(desc) -> dict:
             d[f.name] = {"type": "rgb", "value": list(np.broadcast_to(np.asarray(v, float), (3,)))}
         elif v != f.default or f.name in ("roughness", "eta"):
             d[f.name] = float(v)
-    return d
+    return {"type": "twosided", "bsdf": d} if getattr(desc, "two_sided", False) and isinstance(desc, Principled) else d
 
 
 def _mitsuba():
