@@ -68,7 +68,14 @@ Lobes (equations in ``grisx.scene.microfacet``):
   as the rough conductor's, the diffuse lobe by cosine; pdf is the mixture and
   weight = eval/pdf (Mitsuba 3's ``RoughPlastic``).
 
-* **Null** (``null``): the ray goes on, wi = −wo, weight 1 (delta, pdf 1).
+* **Polarized plastic** (``pplastic``, Mitsuba 3's unpolarized branch): no coating model, the sum
+  f cos θ_i = spec · F(wo·h) D G2 / (4 cos θ_o) + ρ (1 − F(cos θ_o))(1 − F(cos θ_i)) cos θ_i / π;
+  the glossy lobe chosen with the constant probability ``specular_weight``, the base by cosine;
+  pdf the mixture, weight = eval/pdf. It shares the rough plastic's coat term and lobe mixture and
+  the smooth plastic's two Fresnel crossings.
+
+* **Null** (``null``): the ray goes on, wi = −wo, weight ``transmittance`` (1; a ``polarizer`` of an
+  unpolarized variant ½ T, a ``retarder`` T) (delta, pdf 1).
 
 **Wrappers** (applied outside in: mask, then the perturbed frame, then two-sided):
 
@@ -141,6 +148,7 @@ from grisx.scene.material import (
     MATERIAL_NORMALMAP,
     MATERIAL_NULL,
     MATERIAL_PLASTIC,
+    MATERIAL_PPLASTIC,
     MATERIAL_ROUGH_CONDUCTOR,
     MATERIAL_ROUGH_PLASTIC,
     MATERIAL_ROUGH_DIELECTRIC,
@@ -201,6 +209,9 @@ __all__ = [
     "rough_plastic_sample",
     "rough_plastic_eval",
     "rough_plastic_pdf",
+    "pplastic_sample",
+    "pplastic_eval",
+    "pplastic_pdf",
     "null_sample",
     "shadow_terminator",
     "tangent_azimuth",
@@ -595,13 +606,19 @@ def _weighted_sample(wi: wp.vec3, pdf: float, value: wp.vec3) -> BsdfSample:
 
 
 @wp.func
+def _smooth_crossings(m: Material, wo: wp.vec3, wi: wp.vec3) -> float:
+    """(1 − F(cos θ_o))(1 − F(cos θ_i)) cos θ_i / π: a Lambertian lobe seen through a smooth interface, in and out."""
+    f_o = fresnel_dielectric(wo[2], m.eta[0]).f
+    f_i = fresnel_dielectric(wi[2], m.eta[0]).f
+    return (1.0 - f_o) * (1.0 - f_i) * wi[2] * _INV_PI
+
+
+@wp.func
 def plastic_eval(m: Material, wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
     """The diffuse lobe ρ'(1 − F(cos θ_o))(1 − F(cos θ_i)) cos θ_i / π (the coating's mirror is a delta)."""
     if wo[2] <= 0.0 or wi[2] <= 0.0:
         return wp.vec3(0.0, 0.0, 0.0)
-    f_o = fresnel_dielectric(wo[2], m.eta[0]).f
-    f_i = fresnel_dielectric(wi[2], m.eta[0]).f
-    return _plastic_base(m) * ((1.0 - f_o) * (1.0 - f_i) * wi[2] * _INV_PI)
+    return _plastic_base(m) * _smooth_crossings(m, wo, wi)
 
 
 @wp.func
@@ -634,15 +651,40 @@ def plastic_sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2) -> BsdfS
 
 
 @wp.func
+def _coat_glossy(m: Material, wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
+    """spec · F(wo·h) D G2 / (4 cos θ_o): the microfacet reflection of a dielectric coat (roughplastic, pplastic)."""
+    h = wp.normalize(wo + wi)
+    return m.specular_reflectance * (fresnel_dielectric(wp.dot(wo, h), m.eta[0]).f * _glossy_dg(m, wo, wi, h))
+
+
+@wp.func
+def _glossy_diffuse_pdf(m: Material, wo: wp.vec3, wi: wp.vec3, ps: float) -> float:
+    """ps · (the microfacet reflection's pdf) + (1 − ps) cos θ_i / π, wo and wi above the surface."""
+    return ps * _glossy_pdf(m, wo, wi) + (1.0 - ps) * cosine_hemisphere_pdf(wi)
+
+
+@wp.func
+def _glossy_diffuse_direction(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2, ps: float) -> wp.vec3:
+    """A microfacet reflection with probability ps, else a cosine-weighted direction (the density: ``_glossy_diffuse_pdf``)."""
+    if u_lobe < ps:
+        return reflect(wo, sample_microfacet(wo, _alpha(m), m.distribution, m.sample_visible, u))
+    return sample_cosine_hemisphere(u)
+
+
+@wp.func
+def _rough_plastic_prob(m: Material, wo: wp.vec3) -> float:
+    # P_s of the rough coat: its reflected fraction 1 − T(cos θ_o)
+    return _plastic_specular_prob(m, 1.0 - rough_table_lookup(m.external_transmittance, wo[2]))
+
+
+@wp.func
 def rough_plastic_eval(m: Material, wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
     """spec · F(wo·h) D G2 / (4 cos θ_o) + ρ' T(cos θ_o) T(cos θ_i) cos θ_i / π."""
     if wo[2] <= 0.0 or wi[2] <= 0.0:
         return wp.vec3(0.0, 0.0, 0.0)
-    h = wp.normalize(wo + wi)
-    glossy = m.specular_reflectance * (fresnel_dielectric(wp.dot(wo, h), m.eta[0]).f * _glossy_dg(m, wo, wi, h))
     t_o = rough_table_lookup(m.external_transmittance, wo[2])
     t_i = rough_table_lookup(m.external_transmittance, wi[2])
-    return glossy + _plastic_base(m) * (t_o * t_i * wi[2] * _INV_PI)
+    return _coat_glossy(m, wo, wi) + _plastic_base(m) * (t_o * t_i * wi[2] * _INV_PI)
 
 
 @wp.func
@@ -650,8 +692,7 @@ def rough_plastic_pdf(m: Material, wo: wp.vec3, wi: wp.vec3) -> float:
     """P_s · (the rough conductor's pdf) + (1 − P_s) cos θ_i / π, P_s of the reflected fraction 1 − T(cos θ_o)."""
     if wo[2] <= 0.0 or wi[2] <= 0.0:
         return 0.0
-    ps = _plastic_specular_prob(m, 1.0 - rough_table_lookup(m.external_transmittance, wo[2]))
-    return ps * _glossy_pdf(m, wo, wi) + (1.0 - ps) * cosine_hemisphere_pdf(wi)
+    return _glossy_diffuse_pdf(m, wo, wi, _rough_plastic_prob(m, wo))
 
 
 @wp.func
@@ -659,13 +700,40 @@ def rough_plastic_sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2) ->
     """A microfacet reflection with probability P_s, else a cosine-weighted direction; weight = eval/pdf of the mixture."""
     if wo[2] <= 0.0:
         return _no_sample()
-    ps = _plastic_specular_prob(m, 1.0 - rough_table_lookup(m.external_transmittance, wo[2]))
-    wi = wp.vec3(0.0, 0.0, 1.0)
-    if u_lobe < ps:
-        wi = reflect(wo, sample_microfacet(wo, _alpha(m), m.distribution, m.sample_visible, u))
-    else:
-        wi = sample_cosine_hemisphere(u)
+    wi = _glossy_diffuse_direction(m, wo, u_lobe, u, _rough_plastic_prob(m, wo))
     return _weighted_sample(wi, rough_plastic_pdf(m, wo, wi), rough_plastic_eval(m, wo, wi))
+
+
+# ---- plugins2 (issue 38): pplastic, as Mitsuba 3's unpolarized variants evaluate it (pplastic.cpp) ----
+
+
+@wp.func
+def pplastic_eval(m: Material, wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
+    """spec · F(wo·h) D G2 / (4 cos θ_o) + ρ (1 − F(cos θ_o))(1 − F(cos θ_i)) cos θ_i / π (no coating: no 1/η², no
+    internal reflection)."""
+    if wo[2] <= 0.0 or wi[2] <= 0.0:
+        return wp.vec3(0.0, 0.0, 0.0)
+    return _coat_glossy(m, wo, wi) + m.reflectance * _smooth_crossings(m, wo, wi)
+
+
+@wp.func
+def pplastic_pdf(m: Material, wo: wp.vec3, wi: wp.vec3) -> float:
+    """w · (the microfacet reflection's pdf) + (1 − w) cos θ_i / π with the constant w = ``specular_weight``."""
+    if wo[2] <= 0.0 or wi[2] <= 0.0:
+        return 0.0
+    return _glossy_diffuse_pdf(m, wo, wi, m.specular_weight)
+
+
+@wp.func
+def pplastic_sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2) -> BsdfSample:
+    """A microfacet reflection with probability ``specular_weight``, else a cosine-weighted direction; weight = eval/pdf."""
+    if wo[2] <= 0.0:
+        return _no_sample()
+    wi = _glossy_diffuse_direction(m, wo, u_lobe, u, m.specular_weight)
+    return _weighted_sample(wi, pplastic_pdf(m, wo, wi), pplastic_eval(m, wo, wi))
+
+
+# ---- end plugins2 ----
 
 
 # ---- null, and the wrappers' pieces (null.cpp, mask.cpp, normalmap.cpp, bumpmap.cpp) ----
@@ -810,14 +878,17 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
     has_mask = MATERIAL_MASK in key
     has_perturb = MATERIAL_NORMALMAP in key or MATERIAL_BUMPMAP in key
     has_anisotropic = MATERIAL_ANISOTROPIC in key
-    has_reflective = has_diffuse or has_conductor or has_rough_conductor or has_plastic or has_rough_plastic
-    has_evaluable = has_diffuse or has_rough_conductor or has_plastic or has_rough_plastic
+    has_pplastic = MATERIAL_PPLASTIC in key  # plugins2
+    has_reflective = has_diffuse or has_conductor or has_rough_conductor or has_plastic or has_rough_plastic or has_pplastic
+    has_evaluable = has_diffuse or has_rough_conductor or has_plastic or has_rough_plastic or has_pplastic
 
     @wp.func
     def kind_sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2) -> BsdfSample:
         if wp.static(has_null):
             if m.kind == MATERIAL_NULL:
-                return null_sample(wo, 1.0)
+                s0 = null_sample(wo, 1.0)
+                s0.weight = m.transmittance  # null: 1; polarizer (unpolarized): ½ transmittance
+                return s0
         if wp.static(has_dielectric):
             if m.kind == MATERIAL_DIELECTRIC:
                 return dielectric_sample(m, wo, u_lobe, u)
@@ -849,6 +920,9 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
             if wp.static(has_rough_plastic):
                 if m.kind == MATERIAL_ROUGH_PLASTIC:
                     s = rough_plastic_sample(m, w, u_lobe, u)
+            if wp.static(has_pplastic):
+                if m.kind == MATERIAL_PPLASTIC:
+                    s = pplastic_sample(m, w, u_lobe, u)
             if flip:
                 s.wi = wp.vec3(s.wi[0], s.wi[1], -s.wi[2])
         return s
@@ -877,6 +951,9 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
             if wp.static(has_rough_plastic):
                 if m.kind == MATERIAL_ROUGH_PLASTIC:
                     r = rough_plastic_eval(m, a, b)
+            if wp.static(has_pplastic):
+                if m.kind == MATERIAL_PPLASTIC:
+                    r = pplastic_eval(m, a, b)
         return r  # delta kinds: 0
 
     @wp.func
@@ -903,6 +980,9 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
             if wp.static(has_rough_plastic):
                 if m.kind == MATERIAL_ROUGH_PLASTIC:
                     p = rough_plastic_pdf(m, a, b)
+            if wp.static(has_pplastic):
+                if m.kind == MATERIAL_PPLASTIC:
+                    p = pplastic_pdf(m, a, b)
         return p  # delta kinds: 0
 
     # ---- the tangent: an anisotropic lobe turned about the normal to the shading frame's s ----
@@ -1016,8 +1096,8 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
             if m.kind == MATERIAL_DIELECTRIC or m.kind == MATERIAL_ROUGH_DIELECTRIC:
                 f = average_fresnel_dielectric(m.eta[0])
                 return m.reflectance * f + m.transmittance * (1.0 - f)
-        if wp.static(has_plastic or has_rough_plastic):
-            if m.kind == MATERIAL_PLASTIC or m.kind == MATERIAL_ROUGH_PLASTIC:
+        if wp.static(has_plastic or has_rough_plastic or has_pplastic):
+            if m.kind == MATERIAL_PLASTIC or m.kind == MATERIAL_ROUGH_PLASTIC or m.kind == MATERIAL_PPLASTIC:
                 f = average_fresnel_dielectric(m.eta[0])  # the coating's F̄ over the base's ρ (it guides, it is not estimated)
                 return m.specular_reflectance * f + m.reflectance * (1.0 - f)
         if wp.static(has_thin_dielectric):
@@ -1040,7 +1120,7 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
                 return 0.0  # the null lobe beside the nested ones: as a plastic's coat, unreconnectable
         if m.kind == MATERIAL_DIFFUSE:
             return 1.0
-        if m.kind == MATERIAL_ROUGH_CONDUCTOR or m.kind == MATERIAL_ROUGH_DIELECTRIC or m.kind == MATERIAL_ROUGH_PLASTIC:
+        if m.kind == MATERIAL_ROUGH_CONDUCTOR or m.kind == MATERIAL_ROUGH_DIELECTRIC or m.kind == MATERIAL_ROUGH_PLASTIC or m.kind == MATERIAL_PPLASTIC:
             return wp.min(m.alpha, m.alpha_v)  # anisotropic: as smooth as its smoothest direction
         return 0.0  # smooth kinds, and plastic: its coating's delta lobe makes a path through it unreconnectable
 

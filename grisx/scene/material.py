@@ -15,7 +15,16 @@ record                 Mitsuba plugin              lobes (see ``grisx.scene.bsdf
 ``Plastic``            ``plastic``                 delta coating reflection + diffuse base
 ``RoughPlastic``       ``roughplastic``            microfacet coating reflection + diffuse base
 ``Null``               ``null``                    none: the ray passes through (a delta lobe)
+``PolarizedPlastic``   ``pplastic`` (RGB variant)  microfacet reflection + Fresnel-weighted Lambertian base
+``Polarizer``          ``polarizer`` (RGB)         the null lobe, weight ½ transmittance
+``Retarder``           ``retarder`` (RGB)          the null lobe, weight transmittance
 =====================  ==========================  =========================================
+
+Mitsuba's polarization plugins are read as its RGB (unpolarized) variants evaluate them, which is
+exact for unpolarized transport: ``pplastic``'s non-polarized branch, a polarizer that passes half
+the light whatever its angle, a retarder that passes all of it (``pplastic.cpp``, ``polarizer.cpp``,
+``retarder.cpp``). They add no field to ``Material``: ``pplastic`` fills the plastic fields, and the
+null kind's sample weight is ``transmittance`` (1 for ``null``).
 
 Three **wrappers** hold one of those records, as Mitsuba's plugins nest one BSDF:
 
@@ -120,6 +129,7 @@ __all__ = [
     "MATERIAL_NORMALMAP",
     "MATERIAL_BUMPMAP",
     "MATERIAL_ANISOTROPIC",
+    "MATERIAL_PPLASTIC",
     "MATERIAL_WRAPPERS",
     "PERTURB_NONE",
     "PERTURB_NORMALMAP",
@@ -136,6 +146,9 @@ __all__ = [
     "Plastic",
     "RoughPlastic",
     "Null",
+    "PolarizedPlastic",
+    "Polarizer",
+    "Retarder",
     "BlendBSDF",
     "Mask",
     "NormalMap",
@@ -167,6 +180,10 @@ MATERIAL_NORMALMAP = wp.constant(10)
 MATERIAL_BUMPMAP = wp.constant(11)
 #: a feature pseudo-kind: some rough material is anisotropic (α_u ≠ α_v), so the BSDF needs the shading frame's tangent
 MATERIAL_ANISOTROPIC = wp.constant(12)
+# ---- plugins2 (issue 38): kinds of Mitsuba's polarization-family plugins read as their RGB variants do ----
+#: Mitsuba's ``pplastic`` in an unpolarized variant: a microfacet coat reflection beside a smooth-Fresnel-weighted Lambertian base
+MATERIAL_PPLASTIC = wp.constant(20)
+# ---- end plugins2 ----
 #: the wrapper pseudo-kinds
 MATERIAL_WRAPPERS: tuple[int, ...] = (MATERIAL_MASK, MATERIAL_NORMALMAP, MATERIAL_BUMPMAP)
 #: Material.perturb values: no perturbation, a normal map, a bump map
@@ -189,6 +206,7 @@ MATERIAL_KINDS: tuple[int, ...] = (
     MATERIAL_NORMALMAP,
     MATERIAL_BUMPMAP,
     MATERIAL_ANISOTROPIC,
+    MATERIAL_PPLASTIC,
 )
 #: Mitsuba plugin name of each kind
 #: microfacet distributions of the rough records → grisx.scene.microfacet's MICROFACET_* ids
@@ -208,6 +226,7 @@ MATERIAL_KIND_NAMES: dict[int, str] = {
     MATERIAL_NORMALMAP: "normalmap",
     MATERIAL_BUMPMAP: "bumpmap",
     MATERIAL_ANISOTROPIC: "anisotropic",
+    MATERIAL_PPLASTIC: "pplastic",
 }
 
 #: every kind a kernel can be compiled for
@@ -399,9 +418,10 @@ class Dielectric:
 
 @dataclasses.dataclass(frozen=True)
 class RoughDielectric:
-    """Mitsuba ``roughdielectric``: microfacet reflection + refraction (Walter et al. 2007), ggx or beckmann."""
+    """Mitsuba ``roughdielectric``: microfacet reflection + refraction (Walter et al. 2007), ggx or beckmann.
+    ``alpha``: a number, or a :class:`TextureRef` whose luminance at the hit is the roughness (clamped to 1e-4 as Mitsuba)."""
 
-    alpha: float = 0.1
+    alpha: float | TextureRef = 0.1
     distribution: str = "ggx"
     int_ior: float = 1.5046
     ext_ior: float = 1.000277
@@ -480,6 +500,61 @@ class Null:
     bump_frequency: float = 0.0
 
 
+# ---- plugins2 (issue 38): pplastic and polarizer, as Mitsuba 3's unpolarized (RGB) variants evaluate them ----
+
+
+@dataclasses.dataclass(frozen=True)
+class PolarizedPlastic:
+    """Mitsuba ``pplastic`` as its unpolarized variants evaluate it (``pplastic.cpp``, the non-polarized branch).
+
+    Not a coated model (no light trapped under a coating, no 1/η²): the sum of a microfacet reflection and a
+    Lambertian base attenuated by two smooth refractions,
+    f cos θ_i = spec · F(wo·h) D G2 / (4 cos θ_o) + ρ (1 − F(cos θ_o)) (1 − F(cos θ_i)) cos θ_i / π,
+    with F the dielectric Fresnel term of η = int_ior/ext_ior. The glossy lobe is sampled with the constant
+    probability s̄/(d̄ + s̄) of the two reflectances' means (``diffuse_mean`` for a texture, as
+    :class:`Plastic`), the base by cosine. ``alpha`` (a number or a texture), or ``alpha_u``/``alpha_v``
+    (anisotropic, numbers or textures, as :class:`RoughConductor`); ``distribution`` defaults to Beckmann, as
+    Mitsuba's. Packed into the plastic fields (``reflectance`` = ρ, ``specular_reflectance``, ``specular_weight``,
+    ``eta``); no field of its own."""
+
+    diffuse_reflectance: RGB | float | TextureRef = (0.5, 0.5, 0.5)
+    specular_reflectance: RGB | float = (1.0, 1.0, 1.0)
+    int_ior: float = 1.49
+    ext_ior: float = 1.000277
+    alpha: float | TextureRef = 0.1
+    distribution: str = "beckmann"
+    sample_visible: bool = True
+    alpha_u: float | TextureRef | None = None
+    alpha_v: float | TextureRef | None = None
+    diffuse_mean: float | None = None
+    two_sided: bool = False
+    bump_amplitude: float = 0.0
+    bump_frequency: float = 0.0
+
+
+@dataclasses.dataclass(frozen=True)
+class Polarizer:
+    """Mitsuba ``polarizer`` as its unpolarized variants evaluate it (``polarizer.cpp``): a null interaction
+    (wi = −wo, a delta lobe of probability 1) that passes ½ · ``transmittance`` of the light, whatever the
+    polarizer's angle ``theta`` (ignored: unpolarized light loses half its power to any linear polarizer; two
+    crossed polarizers pass ¼, not 0, as in Mitsuba's RGB variants). Packed as a ``null`` material whose
+    ``transmittance`` field holds the ½ · transmittance (``null`` itself: 1)."""
+
+    transmittance: RGB | float = (1.0, 1.0, 1.0)
+    two_sided: bool = False  # ignored: a null interaction looks the same from both sides
+    bump_amplitude: float = 0.0
+    bump_frequency: float = 0.0
+
+
+@dataclasses.dataclass(frozen=True)
+class Retarder(Polarizer):
+    """Mitsuba ``retarder`` as its unpolarized variants evaluate it (``retarder.cpp``): a null interaction that passes
+    ``transmittance`` (a wave plate changes only the polarization state; its ``theta`` and ``delta`` are ignored)."""
+
+
+# ---- end plugins2 ----
+
+
 @dataclasses.dataclass(frozen=True)
 class Mask:
     """Mitsuba ``mask``: ``bsdf`` where the surface is opaque, a null interaction elsewhere.
@@ -540,7 +615,7 @@ class BlendBSDF:
 _WRAPPER_KIND: dict[type, int] = {Mask: MATERIAL_MASK, NormalMap: MATERIAL_NORMALMAP, BumpMap: MATERIAL_BUMPMAP}
 
 MaterialDesc = (Diffuse | Conductor | RoughConductor | Dielectric | RoughDielectric | ThinDielectric | Plastic | RoughPlastic | Null
-                | BlendBSDF | Mask | NormalMap | BumpMap)
+                | BlendBSDF | Mask | NormalMap | BumpMap | PolarizedPlastic | Polarizer | Retarder)
 
 
 def unwrap(desc: Any) -> tuple[Any, list[Any]]:
@@ -562,6 +637,9 @@ _KIND_OF: dict[type, int] = {
     RoughPlastic: MATERIAL_ROUGH_PLASTIC,
     Null: MATERIAL_NULL,
     BlendBSDF: MATERIAL_DIFFUSE,
+    PolarizedPlastic: MATERIAL_PPLASTIC,  # plugins2
+    Polarizer: MATERIAL_NULL,  # plugins2: a null lobe of weight ½ transmittance
+    Retarder: MATERIAL_NULL,  # plugins2: a null lobe of weight transmittance
 }
 
 
@@ -579,7 +657,8 @@ class Material:
     renderer (resolved at the hit by ``grisx.scene.scene.surface_material``), ``alpha_u_texture`` /
     ``alpha_v_texture`` (texture ids whose luminance at the hit replaces α_u / α_v, or −1), ``distribution``: MICROFACET_GGX or MICROFACET_BECKMANN. ``eta``, ``k``: conductor complex index per channel; for
     dielectrics ``eta`` = int_ior/ext_ior in every channel and ``k`` = 0.
-    ``transmittance``: ``specular_transmittance`` of dielectrics. ``two_sided``:
+    ``transmittance``: ``specular_transmittance`` of dielectrics; the null lobe's weight of the null kind (1 for
+    ``null``, ½ T for ``polarizer``, T for ``retarder``). ``two_sided``:
     1 if the frame is mirrored on the back side. ``bump_amplitude``,
     ``bump_frequency``: procedural normal perturbation (0 = none), applied by
     the scene to the shading normal before any BSDF call. Plastics only:
@@ -653,10 +732,10 @@ def material_kinds(descs: Iterable[MaterialDesc]) -> set[int]:
 
 
 def is_anisotropic(desc: MaterialDesc) -> bool:
-    """Whether ``desc`` (inside its wrappers) may have α_u ≠ α_v: a rough conductor given different alpha_u and
-    alpha_v (numbers or textures); such a BSDF turns to the shading frame's tangent."""
+    """Whether ``desc`` (inside its wrappers) may have α_u ≠ α_v: a rough conductor or a pplastic given different
+    alpha_u and alpha_v (numbers or textures); such a BSDF turns to the shading frame's tangent."""
     inner, _ = unwrap(desc)
-    return isinstance(inner, RoughConductor) and inner.alpha_u is not None and inner.alpha_u != inner.alpha_v
+    return isinstance(inner, (RoughConductor, PolarizedPlastic)) and inner.alpha_u is not None and inner.alpha_u != inner.alpha_v
 
 
 def _rgb(value: RGB | float, what: str, *, nonneg: bool = True) -> RGB:
@@ -702,8 +781,8 @@ def _texture_id(value: TextureRef, where: str, name: str) -> int:
     return int(value.texture_id)
 
 
-def _pack_plastic(desc: Plastic, m: Material, where: str, device: str | wp.context.Device | None) -> None:
-    # plastic.cpp / roughplastic.cpp, parameters_changed(): 1/η², Fdr, the lobe sampling weight
+def _pack_plastic(desc: Plastic | PolarizedPlastic, m: Material, where: str, device: str | wp.context.Device | None) -> None:
+    # plastic.cpp / roughplastic.cpp / pplastic.cpp, parameters_changed(): 1/η², Fdr, the lobe sampling weight
     if isinstance(desc.diffuse_reflectance, TextureRef):
         m.texture = _texture_id(desc.diffuse_reflectance, where, "diffuse_reflectance")
         m.reflectance = wp.vec3(1.0, 1.0, 1.0)  # replaced by the texture's value at the hit
@@ -720,9 +799,11 @@ def _pack_plastic(desc: Plastic, m: Material, where: str, device: str | wp.conte
     if d_mean + s_mean <= 0.0:
         raise InvalidParameterError(f"{where}: diffuse_reflectance and specular_reflectance are both black")
     m.specular_weight = s_mean / (d_mean + s_mean)
-    m.nonlinear = 1 if desc.nonlinear else 0
+    m.nonlinear = 1 if getattr(desc, "nonlinear", False) else 0
     eta = _relative_ior(desc, where)
     m.eta = wp.vec3(eta, eta, eta)
+    if isinstance(desc, PolarizedPlastic):
+        return  # pplastic.cpp: no light trapped under a coating, so no internal reflectance
     if not isinstance(desc, RoughPlastic):
         m.internal_reflectance = fresnel_diffuse_reflectance(1.0 / eta)
         return
@@ -780,8 +861,25 @@ def _pack_blend(blend: BlendBSDF, m: Material, where: str) -> None:
         m.reflectance = wp.vec3(*((1.0 - w) * np.asarray(m.reflectance, dtype=np.float64) + w * np.asarray(rho1, dtype=np.float64)))
 
 
-def _pack_anisotropy(desc: RoughConductor, m: Material, where: str) -> None:
-    # roughconductor.cpp: alpha_u / alpha_v (numbers or textures) in place of alpha; anisotropic where they may differ
+def _pack_alpha(desc: Any, m: Material, where: str) -> None:
+    # microfacet.h via roughconductor.cpp, roughdielectric.cpp, pplastic.cpp: alpha a number or a texture (its
+    # luminance at the hit, into both α_u and α_v); roughplastic.cpp reads a number only (its tables depend on it)
+    if isinstance(desc.alpha, TextureRef):
+        if isinstance(desc, RoughPlastic):
+            raise InvalidParameterError(f"{where}: roughplastic's alpha must be a number (as in Mitsuba 3: its "
+                                        f"interface tables are integrated for one roughness)")
+        m.alpha_u_texture = _texture_id(desc.alpha, where, "alpha")
+        m.alpha_v_texture = m.alpha_u_texture
+        m.alpha = 0.1  # the texture's value replaces it at the hit
+    else:
+        m.alpha = _positive(desc.alpha, f"{where}: alpha")
+    m.alpha_v = m.alpha
+    if isinstance(desc, (RoughConductor, PolarizedPlastic)):
+        _pack_anisotropy(desc, m, where)
+
+
+def _pack_anisotropy(desc: RoughConductor | PolarizedPlastic, m: Material, where: str) -> None:
+    # roughconductor.cpp, pplastic.cpp: alpha_u / alpha_v (numbers or textures) in place of alpha; anisotropic where they may differ
     if desc.alpha_u is None and desc.alpha_v is None:
         return
     if desc.alpha_u is None or desc.alpha_v is None:
@@ -850,11 +948,8 @@ def _pack_one(desc: MaterialDesc, index: int, device: str | wp.context.Device | 
         if not math.isfinite(v) or v < 0.0:
             raise InvalidParameterError(f"{where}: {name} must be finite and >= 0, got {v!r}")
         setattr(m, name, v)
-    if isinstance(desc, (RoughConductor, RoughDielectric, RoughPlastic)):
-        m.alpha = _positive(desc.alpha, f"{where}: alpha")
-        m.alpha_v = m.alpha
-        if isinstance(desc, RoughConductor):
-            _pack_anisotropy(desc, m, where)
+    if isinstance(desc, (RoughConductor, RoughDielectric, RoughPlastic, PolarizedPlastic)):
+        _pack_alpha(desc, m, where)
         if desc.distribution not in MICROFACET_DISTRIBUTIONS:
             raise InvalidParameterError(f"{where}: distribution must be one of {', '.join(MICROFACET_DISTRIBUTIONS)}, got {desc.distribution!r}")
         m.distribution = MICROFACET_DISTRIBUTIONS[desc.distribution]
@@ -868,10 +963,15 @@ def _pack_one(desc: MaterialDesc, index: int, device: str | wp.context.Device | 
         if blend is not None:
             _pack_blend(blend, m, where)
         return m
-    if isinstance(desc, Plastic):  # and RoughPlastic
+    if isinstance(desc, (Plastic, PolarizedPlastic)):  # and RoughPlastic
         _pack_plastic(desc, m, where, device)
         return m
     if isinstance(desc, Null):
+        m.transmittance = wp.vec3(1.0, 1.0, 1.0)  # the null lobe's weight
+        return m
+    if isinstance(desc, Polarizer):  # polarizer.cpp (retarder.cpp), unpolarized: the null lobe of weight ½ (1) × transmittance
+        share = 1.0 if isinstance(desc, Retarder) else 0.5
+        m.transmittance = wp.vec3(*(share * v for v in _rgb(desc.transmittance, f"{where}: transmittance")))
         return m
     m.reflectance = wp.vec3(*_rgb(desc.specular_reflectance, f"{where}: specular_reflectance"))
     if isinstance(desc, (Conductor, RoughConductor)):

@@ -201,6 +201,9 @@ from grisx.scene.material import (
     MICROFACET_DISTRIBUTIONS,
     Diffuse,
     Plastic,
+    PolarizedPlastic,
+    Polarizer,
+    Retarder,
     RoughConductor,
     RoughDielectric,
     RoughPlastic,
@@ -360,8 +363,12 @@ def _camel_to_snake(name: str) -> str:
 _WHY_NOT = {
     **dict.fromkeys(("medium", "phase", "volume", "homogeneous", "heterogeneous", "volpath_media"),
                     "participating media are not rendered by grisx (surfaces only)"),
-    **dict.fromkeys(("stokes", "polarizer", "retarder"),
-                    "polarization is not rendered by grisx (RGB radiance only)"),
+    # plugins2: polarizer and retarder load as Mitsuba's RGB variants read them; these do not
+    "stokes": "it outputs Stokes vectors, and Mitsuba 3's RGB variants refuse it too ('This integrator should only be "
+              "used in polarized mode!'); grisx renders unpolarized RGB radiance",
+    "measured_polarized": "a measured polarimetric BRDF (Baek et al. 2020) is not implemented by grisx (Mitsuba 3's RGB "
+                          "variants refuse it too unless one 'wavelength' is given)",
+    "hair": "Chiang et al.'s hair BSDF is not implemented by grisx",
     **dict.fromkeys(("mitchell", "lanczos", "catmullrom"),
                     "grisx films filter with box, gaussian or tent only (a filter with negative lobes would need "
                     "signed camera-sample weights in every renderer)"),
@@ -1034,7 +1041,7 @@ class _Loader:
             return self.records[id(node)]
         t = self._require_type(node, ("diffuse", "conductor", "roughconductor", "dielectric", "roughdielectric", "thindielectric",
                                       "plastic", "roughplastic", "twosided", "null", "mask", "normalmap", "bumpmap",
-                                      "blendbsdf"))
+                                      "blendbsdf", "pplastic", "polarizer", "retarder"))
         p = _Props(self, node)
         if t == "twosided":
             inner = p.take_objects(("bsdf",))
@@ -1080,6 +1087,25 @@ class _Loader:
             rec = BlendBSDF(first, second, weight)
         elif t == "null":
             rec = Null()
+        # ---- plugins2 (issue 38): Mitsuba's polarization plugins as its RGB (unpolarized) variants evaluate them ----
+        elif t in ("polarizer", "retarder"):
+            for name in ("theta", "delta") if t == "retarder" else ("theta",):
+                p.color(name, 0.0, texture=True, kind="unbounded")  # an angle: no effect on unpolarized light
+            if t == "polarizer":
+                p.bool("polarizing", True)  # unpolarized light loses half to a polarizer or a depolarizer alike
+            rec = (Polarizer if t == "polarizer" else Retarder)(transmittance=p.color("transmittance", 1.0))
+        elif t == "pplastic":
+            diffuse = p.color("diffuse_reflectance", 0.5, texture=True)
+            kw = {"diffuse_reflectance": diffuse, "diffuse_mean": self._texture_mean(p, "diffuse_reflectance", diffuse),
+                  "specular_reflectance": p.color("specular_reflectance", 1.0)}
+            if p.has("eta"):  # pplastic.cpp: eta, or int_ior and ext_ior
+                if p.has("int_ior") or p.has("ext_ior"):
+                    raise self.ctx.error(p.values["eta"], "give either 'eta' or 'int_ior'/'ext_ior', not both (as in Mitsuba 3)", "eta")
+                kw["int_ior"], kw["ext_ior"] = p.float("eta"), 1.0
+            else:
+                kw["int_ior"], kw["ext_ior"] = p.ior("int_ior", "polypropylene"), p.ior("ext_ior", "air")
+            rec = self._smooth_or_rough(p, True, kw, PolarizedPlastic, PolarizedPlastic)
+        # ---- end plugins2 ----
         elif t == "diffuse":
             rec = Diffuse(reflectance=p.color("reflectance", 0.5, texture=True))
         elif t in ("conductor", "roughconductor"):
@@ -1165,7 +1191,7 @@ class _Loader:
             return smooth(**kw)
         distribution = p.choice("distribution", "beckmann", tuple(MICROFACET_DISTRIBUTIONS))  # Mitsuba's default
         kw["sample_visible"] = p.bool("sample_visible", True)  # a sampling choice: the expected image is the same
-        if rough_cls is RoughConductor and (p.has("alpha_u") or p.has("alpha_v")):
+        if rough_cls in (RoughConductor, PolarizedPlastic) and (p.has("alpha_u") or p.has("alpha_v")):
             # microfacet.h: both alpha_u and alpha_v (numbers or textures), and then no alpha
             if not (p.has("alpha_u") and p.has("alpha_v")):
                 given = "alpha_u" if p.has("alpha_u") else "alpha_v"
@@ -1174,9 +1200,11 @@ class _Loader:
                 raise self.ctx.error(p.values["alpha"], "give either 'alpha' or 'alpha_u'/'alpha_v', not both", "alpha")
             kw["alpha_u"], kw["alpha_v"] = (self._uv_texture(p, n) if p.values[n].tag in ("texture", "ref") else p.float(n)
                                             for n in ("alpha_u", "alpha_v"))
-        elif rough_cls is RoughConductor and p.has("alpha") and p.values["alpha"].tag in ("texture", "ref"):
-            kw["alpha_u"] = kw["alpha_v"] = self._uv_texture(p, "alpha")  # one texture for both: isotropic
-        return rough_cls(alpha=0.1 if "alpha_u" in kw else p.float("alpha", 0.1), distribution=distribution, **kw)
+        elif p.has("alpha") and p.values["alpha"].tag in ("texture", "ref"):
+            kw["alpha"] = self._uv_texture(p, "alpha")  # one texture for α_u and α_v (roughplastic: refused at packing)
+        if "alpha" not in kw:
+            kw["alpha"] = 0.1 if "alpha_u" in kw else p.float("alpha", 0.1)
+        return rough_cls(distribution=distribution, **kw)
 
     def default_material(self, name: str) -> int:
         """Mitsuba's BSDF for a shape given none: diffuse 0.5, or diffuse 0 if the shape emits (``Shape::Shape``)."""
@@ -1379,7 +1407,7 @@ class _Loader:
                 raise self.ctx.error(bsdfs[0], f"a normalmap or bumpmap on an analytic {t} is not supported "
                                                f"(its shading frame needs a mesh's uv parametrization: use an obj, ply or serialized mesh)")
             if t in ("sphere", "disk", "cylinder") and emission is None and is_anisotropic(self.scene.materials[mid]):
-                raise self.ctx.error(bsdfs[0], f"an anisotropic roughconductor (alpha_u != alpha_v) on an analytic {t} is not "
+                raise self.ctx.error(bsdfs[0], f"an anisotropic {self._type(bsdfs[0])} (alpha_u != alpha_v) on an analytic {t} is not "
                                                f"supported (its tangent needs a mesh's uv parametrization: use an obj, ply or serialized mesh)")
         else:  # Mitsuba's default: diffuse 0.5, but black on an emitter (an emitting shape reflects nothing)
             mid = self.default_material("default_emitter" if emission is not None else "default")

@@ -27,7 +27,7 @@ import pytest
 
 from grisx.imageio import read_exr
 from grisx.render import render
-from grisx.scene.material import BlendBSDF, BumpMap, Diffuse, Mask, NormalMap, Null
+from grisx.scene.material import BlendBSDF, BumpMap, Diffuse, Mask, NormalMap, Null, PolarizedPlastic, Polarizer, RoughDielectric, RoughPlastic
 from grisx.scene.mitsuba import load_mitsuba
 from grisx.scene.texture import Bitmap, Checkerboard
 from grisx.scene.transform import rotate
@@ -120,6 +120,10 @@ CASES: dict[str, Case] = {
     "filter_gaussian_default": Case(32, 16, block=2),  # a filter moves energy between neighbouring pixels: small blocks
     "filter_gaussian_wide": Case(32, 16, block=2),
     "filter_tent": Case(32, 16, block=2),
+    # plugins2 (issue 38): Mitsuba's polarization plugins as its RGB variants evaluate them; textured roughdielectric alpha
+    "pplastic": Case(32, 16),
+    "polarizer": Case(32, 16),
+    "roughdielectric_textured": Case(32, 16),
 }
 
 
@@ -366,3 +370,34 @@ def test_a_blend_with_its_weight_inverted_is_caught():
                           and not hasattr(m.bsdf0.reflectance, "texture_id") else m for m in scene.materials]
     result = agreement(scene, "blendbsdf")
     assert not result.passed, f"a blend with its weight inverted went unnoticed: {result}"
+
+
+# ---- plugins2 (issue 38): the suite catches pplastic read as a coated plastic, a polarizer read as a null, a constant alpha ----
+
+
+def test_pplastic_read_as_the_coated_roughplastic_is_caught():
+    """pplastic is not roughplastic: the same parameters in the coated model (light trapped under the coat, 1/η², a
+    rough interface's transmittance) give another picture."""
+    scene = load_mitsuba(SCENES / "pplastic.xml")
+    scene.materials[:] = [RoughPlastic(alpha=m.alpha if isinstance(m.alpha, float) else 0.2, distribution=m.distribution,
+                                       int_ior=m.int_ior, ext_ior=m.ext_ior, diffuse_reflectance=m.diffuse_reflectance,
+                                       specular_reflectance=m.specular_reflectance)
+                          if isinstance(m, PolarizedPlastic) else m for m in scene.materials]
+    result = agreement(scene, "pplastic")
+    assert not result.passed, f"pplastic read as roughplastic went unnoticed: {result}"
+
+
+def test_a_polarizer_passing_all_light_is_caught():
+    """A polarizer read as a null (weight 1, as if polarization were ignored altogether) instead of ½ transmittance."""
+    scene = load_mitsuba(SCENES / "polarizer.xml")
+    scene.materials[:] = [Null() if type(m) is Polarizer else m for m in scene.materials]
+    result = agreement(scene, "polarizer")
+    assert not result.passed, f"polarizers passing all light went unnoticed: {result}"
+
+
+def test_a_roughdielectric_with_a_constant_alpha_is_caught():
+    """The checkerboard's alpha replaced by the constant 0.1 that packing leaves where the texture is not looked up."""
+    scene = load_mitsuba(SCENES / "roughdielectric_textured.xml")
+    scene.materials[:] = [dataclasses.replace(m, alpha=0.1) if isinstance(m, RoughDielectric) else m for m in scene.materials]
+    result = agreement(scene, "roughdielectric_textured")
+    assert not result.passed, f"a roughdielectric's alpha texture ignored went unnoticed: {result}"
