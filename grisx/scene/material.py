@@ -130,6 +130,7 @@ __all__ = [
     "MATERIAL_BUMPMAP",
     "MATERIAL_ANISOTROPIC",
     "MATERIAL_PPLASTIC",
+    "MATERIAL_BLEND",
     "MATERIAL_WRAPPERS",
     "PERTURB_NONE",
     "PERTURB_NORMALMAP",
@@ -150,6 +151,8 @@ __all__ = [
     "Polarizer",
     "Retarder",
     "BlendBSDF",
+    "BlendPartner",
+    "is_general_blend",
     "Mask",
     "NormalMap",
     "BumpMap",
@@ -183,6 +186,9 @@ MATERIAL_ANISOTROPIC = wp.constant(12)
 # ---- plugins2 (issue 38): kinds of Mitsuba's polarization-family plugins read as their RGB variants do ----
 #: Mitsuba's ``pplastic`` in an unpolarized variant: a microfacet coat reflection beside a smooth-Fresnel-weighted Lambertian base
 MATERIAL_PPLASTIC = wp.constant(20)
+#: a wrapper pseudo-kind: some material is a ``blendbsdf`` of two BSDFs other than two Lambertian ones (its second BSDF
+#: rides in ``Material.blend_partner``; the dispatch mixes the two)
+MATERIAL_BLEND = wp.constant(21)
 # ---- end plugins2 ----
 #: the wrapper pseudo-kinds
 MATERIAL_WRAPPERS: tuple[int, ...] = (MATERIAL_MASK, MATERIAL_NORMALMAP, MATERIAL_BUMPMAP)
@@ -207,6 +213,7 @@ MATERIAL_KINDS: tuple[int, ...] = (
     MATERIAL_BUMPMAP,
     MATERIAL_ANISOTROPIC,
     MATERIAL_PPLASTIC,
+    MATERIAL_BLEND,
 )
 #: Mitsuba plugin name of each kind
 #: microfacet distributions of the rough records → grisx.scene.microfacet's MICROFACET_* ids
@@ -227,6 +234,7 @@ MATERIAL_KIND_NAMES: dict[int, str] = {
     MATERIAL_BUMPMAP: "bumpmap",
     MATERIAL_ANISOTROPIC: "anisotropic",
     MATERIAL_PPLASTIC: "pplastic",
+    MATERIAL_BLEND: "blendbsdf",
 }
 
 #: every kind a kernel can be compiled for
@@ -595,13 +603,19 @@ class BumpMap:
 
 @dataclasses.dataclass(frozen=True)
 class BlendBSDF:
-    """Mitsuba ``blendbsdf`` of two diffuse BSDFs: (1 − w) f₀ + w f₁ with w = ``weight`` (a number, or a texture's
-    luminance, clamped to [0, 1]). Two Lambertian lobes blend into one of reflectance (1 − w) ρ₀ + w ρ₁, sampled
-    and evaluated exactly as Mitsuba's mixture (the lobes share their density), so that is how it is packed;
-    ``bsdf0``'s reflectance may be a texture, ``bsdf1``'s is a colour. Blends of other BSDFs are not supported."""
+    """Mitsuba ``blendbsdf``: (1 − w) f₀ + w f₁ with w = ``weight`` (a number, or a texture's luminance, clamped to
+    [0, 1]).
 
-    bsdf0: Diffuse
-    bsdf1: Diffuse
+    Two diffuse BSDFs (one- or two-sided alike, ``bsdf1``'s reflectance a colour) blend into one Lambertian lobe of
+    reflectance (1 − w) ρ₀ + w ρ₁, sampled and evaluated exactly as Mitsuba's mixture (the lobes share their
+    density), so that is how they are packed. Any other pair (plugins2) is packed as ``bsdf0`` with ``bsdf1`` in
+    :class:`BlendPartner` (``Material.blend_partner``), mixed by the dispatch (``MATERIAL_BLEND``): sampled by
+    choosing f₁ with probability w, eval and pdf the weighted mixtures. ``bsdf0`` may carry textures; ``bsdf1``
+    must be untextured and isotropic, and neither may be a wrapper or another blend (put a ``mask``, ``normalmap``
+    or ``bumpmap`` around the blend)."""
+
+    bsdf0: Any
+    bsdf1: Any
     weight: float | TextureRef = 0.5
 
     @property
@@ -643,6 +657,33 @@ _KIND_OF: dict[type, int] = {
 }
 
 
+# ---- plugins2 (issue 38): the second BSDF of a general blendbsdf ----
+
+
+@wp.struct
+class BlendPartner:
+    """The second BSDF of a general ``blendbsdf``: the fields of :class:`Material` that its BSDF reads (untextured,
+    isotropic; :func:`grisx.scene.bsdf.make_bsdf` rebuilds a Material of them with the hit's own frame fields)."""
+
+    kind: int
+    reflectance: wp.vec3
+    alpha: float
+    distribution: int
+    sample_visible: int
+    eta: wp.vec3
+    k: wp.vec3
+    transmittance: wp.vec3
+    two_sided: int
+    specular_reflectance: wp.vec3
+    specular_weight: float
+    internal_reflectance: float
+    nonlinear: int
+    external_transmittance: wp.array(dtype=float)
+
+
+# ---- end plugins2 ----
+
+
 @wp.struct
 class Material:
     """One material as kernels see it (index = material id).
@@ -672,7 +713,10 @@ class Material:
     shading normal (resolved at the hit by ``grisx.scene.scene.surface_material``). A blend of
     two diffuse BSDFs whose weight or first reflectance is a texture: ``blend_weight`` (or
     ``blend_texture``, its texture id or −1) and ``blend_reflectance`` (ρ₁); the hit's
-    reflectance is (1 − w) ρ₀ + w ρ₁ (a constant blend is packed as a diffuse of that reflectance).
+    reflectance is (1 − w) ρ₀ + w ρ₁ (a constant blend is packed as a diffuse of that reflectance). A general
+    blend (plugins2): the first BSDF's fields, ``blend_weight`` (resolved at the hit from ``blend_texture``) and
+    ``blend_partner``, one :class:`BlendPartner` (an empty array for every other material: one array field, no
+    per-kind cost).
     """
 
     kind: int
@@ -707,11 +751,21 @@ class Material:
     blend_weight: float
     blend_texture: int
     blend_reflectance: wp.vec3
+    blend_partner: wp.array(dtype=BlendPartner)
+
+
+def is_general_blend(desc: Any) -> bool:
+    """Whether ``desc`` is a :class:`BlendBSDF` that is not one Lambertian lobe (plugins2: two BSDFs, mixed by the dispatch)."""
+    return isinstance(desc, BlendBSDF) and not (
+        isinstance(desc.bsdf0, Diffuse) and isinstance(desc.bsdf1, Diffuse) and desc.bsdf0.two_sided == desc.bsdf1.two_sided
+        and not isinstance(desc.bsdf1.reflectance, TextureRef))
 
 
 def material_kind(desc: MaterialDesc) -> int:
-    """MATERIAL_* kind of one record (of the BSDF inside a wrapper)."""
+    """MATERIAL_* kind of one record (of the BSDF inside a wrapper; a general blend's first BSDF's)."""
     inner, _ = unwrap(desc)
+    if is_general_blend(inner):
+        return material_kind(inner.bsdf0)
     kind = _KIND_OF.get(type(inner))
     if kind is None:
         names = ', '.join(t.__name__ for t in [*_KIND_OF, *_WRAPPER_KIND])
@@ -728,6 +782,8 @@ def material_kinds(descs: Iterable[MaterialDesc]) -> set[int]:
         kinds.update(_WRAPPER_KIND[type(w)] for w in unwrap(d)[1])
         if is_anisotropic(d):
             kinds.add(MATERIAL_ANISOTROPIC)
+        if is_general_blend(unwrap(d)[0]):  # plugins2: the second BSDF's kind compiled in too
+            kinds.update((MATERIAL_BLEND, material_kind(unwrap(d)[0].bsdf1)))
     return kinds
 
 
@@ -735,6 +791,8 @@ def is_anisotropic(desc: MaterialDesc) -> bool:
     """Whether ``desc`` (inside its wrappers) may have α_u ≠ α_v: a rough conductor or a pplastic given different
     alpha_u and alpha_v (numbers or textures); such a BSDF turns to the shading frame's tangent."""
     inner, _ = unwrap(desc)
+    if is_general_blend(inner):
+        inner = inner.bsdf0  # the second BSDF must be isotropic
     return isinstance(inner, (RoughConductor, PolarizedPlastic)) and inner.alpha_u is not None and inner.alpha_u != inner.alpha_v
 
 
@@ -781,6 +839,17 @@ def _texture_id(value: TextureRef, where: str, name: str) -> int:
     return int(value.texture_id)
 
 
+def _unit_or_texture(value: float | TextureRef, where: str, what: str) -> tuple[float | None, int]:
+    """A mask's opacity or a blend's weight: ``(value clamped to [0, 1], -1)`` for a number (Mitsuba's ``eval_opacity`` /
+    ``eval_weight`` clamp too), ``(None, texture id)`` for a texture looked up at the hit."""
+    if isinstance(value, TextureRef):
+        return None, _texture_id(value, where, what)
+    v = float(value)
+    if not math.isfinite(v):
+        raise InvalidParameterError(f"{where}: {what} must be finite, got {value!r}")
+    return min(max(v, 0.0), 1.0), -1
+
+
 def _pack_plastic(desc: Plastic | PolarizedPlastic, m: Material, where: str, device: str | wp.context.Device | None) -> None:
     # plastic.cpp / roughplastic.cpp / pplastic.cpp, parameters_changed(): 1/η², Fdr, the lobe sampling weight
     if isinstance(desc.diffuse_reflectance, TextureRef):
@@ -824,13 +893,9 @@ def _pack_wrappers(wrappers: list[Any], m: Material, where: str) -> None:
             raise InvalidParameterError(f"{where}: a mask inside a normalmap or bumpmap is not supported (put the mask outside)")
         seen.add(type(w))
         if isinstance(w, Mask):
-            if isinstance(w.opacity, TextureRef):
-                m.opacity_texture = _texture_id(w.opacity, where, "opacity")
-            else:
-                v = float(w.opacity)
-                if not math.isfinite(v):
-                    raise InvalidParameterError(f"{where}: mask opacity must be finite, got {w.opacity!r}")
-                m.opacity = min(max(v, 0.0), 1.0)  # clamped, as Mitsuba's eval_opacity
+            v, m.opacity_texture = _unit_or_texture(w.opacity, where, "mask opacity")
+            if v is not None:
+                m.opacity = v
             continue
         if not isinstance(w.normalmap if isinstance(w, NormalMap) else w.texture, TextureRef):
             raise InvalidParameterError(f"{where}: {name} needs a texture, got {w!r}")
@@ -846,14 +911,10 @@ def _pack_wrappers(wrappers: list[Any], m: Material, where: str) -> None:
 def _pack_blend(blend: BlendBSDF, m: Material, where: str) -> None:
     # blendbsdf.cpp of two Lambertian lobes: one lobe of the blended reflectance, folded now where nothing varies
     rho1 = wp.vec3(*_rgb(blend.bsdf1.reflectance, f"{where}: the second BSDF's reflectance"))
-    if isinstance(blend.weight, TextureRef):
-        m.blend_texture = _texture_id(blend.weight, where, "weight")
+    w, m.blend_texture = _unit_or_texture(blend.weight, where, "blendbsdf weight")
+    if w is None:
         m.blend_reflectance = rho1
         return
-    w = float(blend.weight)
-    if not math.isfinite(w):
-        raise InvalidParameterError(f"{where}: blendbsdf weight must be finite, got {blend.weight!r}")
-    w = min(max(w, 0.0), 1.0)  # clamped, as Mitsuba's eval_weight
     if m.texture >= 0:
         m.blend_weight = w
         m.blend_reflectance = rho1
@@ -900,19 +961,41 @@ def _pack_anisotropy(desc: RoughConductor | PolarizedPlastic, m: Material, where
         m.alpha_v_texture = m.alpha_u_texture
 
 
+def _pack_general_blend(blend: BlendBSDF, wrappers: list[Any], index: int, device: str | wp.context.Device | None) -> Material:
+    # blendbsdf.cpp of any two BSDFs (plugins2): the first packed with the blend's wrappers, the second beside it
+    where = f"material {index} (blendbsdf)"
+    for b in (blend.bsdf0, blend.bsdf1):
+        if type(b) in _WRAPPER_KIND or isinstance(b, BlendBSDF) or type(b) not in _KIND_OF:
+            raise InvalidParameterError(f"{where}: a blendbsdf of {type(b).__name__} is not supported (blend two plain "
+                                        f"BSDFs; put a mask, normalmap or bumpmap around the blendbsdf)")
+    first = blend.bsdf0
+    for w in reversed(wrappers):
+        first = dataclasses.replace(w, bsdf=first)
+    m = _pack_one(first, index, device)
+    p = _pack_one(blend.bsdf1, index, device)
+    if p.texture >= 0 or p.alpha_u_texture >= 0 or p.alpha_v_texture >= 0 or p.anisotropic != 0:
+        raise InvalidParameterError(f"{where}: the second BSDF of a blendbsdf must be untextured and isotropic (got a "
+                                    f"{MATERIAL_KIND_NAMES[p.kind]} with a texture or alpha_u != alpha_v); swap the two "
+                                    f"and the weight w for 1 - w if the first one is not")
+    bp = BlendPartner()
+    for name in BlendPartner.vars:
+        setattr(bp, name, getattr(p, name))
+    m.blend_partner = wp.array([bp], dtype=BlendPartner, device=device)
+    m.blend_partner.partner_tables = [bp.external_transmittance]  # the struct holds a pointer only
+    w, m.blend_texture = _unit_or_texture(blend.weight, where, "blendbsdf weight")
+    m.blend_weight = 0.0 if w is None else w  # a texture's value replaces it at the hit
+    return m
+
+
 def _pack_one(desc: MaterialDesc, index: int, device: str | wp.context.Device | None = None) -> Material:
     kind = material_kind(desc)
     where = f"material {index} ({MATERIAL_KIND_NAMES[kind]})"
     desc, wrappers = unwrap(desc)
+    if is_general_blend(desc):  # plugins2
+        return _pack_general_blend(desc, wrappers, index, device)
     blend = None
     if isinstance(desc, BlendBSDF):
-        blend, desc = desc, desc.bsdf0
-        if not (isinstance(blend.bsdf0, Diffuse) and isinstance(blend.bsdf1, Diffuse)):
-            raise InvalidParameterError(f"{where}: blendbsdf is supported between two diffuse BSDFs only, got "
-                                        f"{type(blend.bsdf0).__name__} and {type(blend.bsdf1).__name__}")
-        if blend.bsdf0.two_sided != blend.bsdf1.two_sided or isinstance(blend.bsdf1.reflectance, TextureRef):
-            raise InvalidParameterError(f"{where}: blendbsdf needs both diffuse BSDFs one- or two-sided alike and the "
-                                        f"second one's reflectance a colour")
+        blend, desc = desc, desc.bsdf0  # two Lambertian lobes (is_general_blend is false): one lobe
     m = Material()
     m.blend_weight = 0.0
     m.blend_texture = -1
@@ -994,4 +1077,5 @@ def pack_materials(descs: Sequence[MaterialDesc], device: str | wp.context.Devic
     out = wp.array(packed, dtype=Material, device=device)
     # the struct holds only a pointer to each roughplastic's table: the array keeps the tables alive
     out.material_tables = [m.external_transmittance for m in packed if m.kind == MATERIAL_ROUGH_PLASTIC]
+    out.material_tables += [m.blend_partner for m in packed if m.blend_partner is not None]  # plugins2
     return out

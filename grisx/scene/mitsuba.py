@@ -81,7 +81,7 @@ Transforms ``<transform name="to_world">``
     ``prb``, ``prb_basic``, ``prbvolpath`` and Mitsuba 0.x's ``bdpt``,
     ``pssmlt``, ``mlt``, ``erpt`` (unbiased estimators of the same image) as
     path tracing, with a :class:`~grisx.errors.GrisxWarning` saying so.
-    ``stokes`` (polarization) is refused.
+    ``stokes`` is refused (Stokes vectors; Mitsuba's RGB variants refuse it too).
 ``shape``
     ``rectangle``, ``cube`` (``face_normals``), ``sphere`` (``center``,
     ``radius``), ``cylinder`` (``p0``, ``p1``, ``radius``), ``disk``, ``obj`` (``filename``, ``face_normals``, ``flip_tex_coords`` [true]),
@@ -122,9 +122,16 @@ Transforms ``<transform name="to_world">``
     ``scale`` [1]), both with ``flip_invalid_normals`` and
     ``use_shadowing_function`` [true], around one BSDF (at most one mask, outermost,
     and one normalmap or bumpmap; a twosided goes inside a normalmap or bumpmap);
-    ``blendbsdf`` of two ``diffuse`` BSDFs (``weight``: a number or a texture, mesh
-    attributes included; the first reflectance may be a texture). ``principled`` and
-    ``principledthin`` are refused.
+    ``blendbsdf`` (``weight``: a number or a texture, mesh attributes included) of two
+    ``diffuse`` BSDFs (the first reflectance may be a texture), or of any two plain BSDFs, the
+    second untextured and isotropic (:class:`~grisx.scene.material.BlendBSDF`); ``pplastic``
+    (``diffuse_reflectance``, ``specular_reflectance``, ``int_ior``/``ext_ior`` or ``eta``,
+    ``alpha`` or ``alpha_u``/``alpha_v``, numbers or textures, ``distribution``,
+    ``sample_visible``), ``polarizer`` (``transmittance``; ``theta``, ``polarizing`` accepted) and
+    ``retarder`` (``transmittance``; ``theta``, ``delta`` accepted) as Mitsuba's RGB variants
+    evaluate them. ``principled`` and ``principledthin`` are refused; so are ``hair`` and
+    ``measured_polarized`` (not implemented) and the ``stokes`` integrator (Mitsuba's RGB variants
+    refuse it too).
 ``emitter``
     ``area`` (inside a shape, or top-level with an ``id`` that one shape
     references; ``radiance``, required: a colour or a bitmap looked up at the
@@ -1076,10 +1083,7 @@ class _Loader:
             inner = p.take_objects(("bsdf",))
             if len(inner) != 2:
                 raise self.ctx.error(node, f"blendbsdf needs exactly two nested BSDFs, got {len(inner)}")
-            first, second = (self.bsdf_record(n) for n in inner)
-            if not (isinstance(first, Diffuse) and isinstance(second, Diffuse)):
-                raise self.ctx.error(node, f"blendbsdf is supported between two diffuse BSDFs only (their blend is one "
-                                           f"Lambertian lobe), got {type(first).__name__} and {type(second).__name__}")
+            first, second = (self.bsdf_record(n) for n in inner)  # any two BSDFs (plugins2); packing checks the pair
             if "weight" not in p.values:
                 raise self.ctx.error(node, "missing required parameter 'weight'", "weight")
             weight = self._uv_texture(p, "weight", attributes=True) if p.values["weight"].tag in ("texture", "ref") \

@@ -124,6 +124,7 @@ CASES: dict[str, Case] = {
     "pplastic": Case(32, 16),
     "polarizer": Case(32, 16),
     "roughdielectric_textured": Case(32, 16),
+    "blendbsdf_general": Case(32, 16),
 }
 
 
@@ -401,3 +402,11 @@ def test_a_roughdielectric_with_a_constant_alpha_is_caught():
     scene.materials[:] = [dataclasses.replace(m, alpha=0.1) if isinstance(m, RoughDielectric) else m for m in scene.materials]
     result = agreement(scene, "roughdielectric_textured")
     assert not result.passed, f"a roughdielectric's alpha texture ignored went unnoticed: {result}"
+
+
+def test_a_general_blend_with_its_bsdfs_swapped_is_caught():
+    """blendbsdf's first BSDF weighs 1 − w and its second w (blendbsdf.cpp), not the other way round."""
+    scene = load_mitsuba(SCENES / "blendbsdf_general.xml")
+    scene.materials[:] = [dataclasses.replace(m, bsdf0=m.bsdf1, bsdf1=m.bsdf0) if isinstance(m, BlendBSDF) else m for m in scene.materials]
+    result = agreement(scene, "blendbsdf_general")
+    assert not result.passed, f"a blendbsdf with its two BSDFs swapped went unnoticed: {result}"

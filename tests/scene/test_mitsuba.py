@@ -435,6 +435,9 @@ def test_null_mask_normalmap_bumpmap():
     assert bl == BlendBSDF(Diffuse(), Diffuse((0.1, 0.2, 0.3)), 0.25)
     assert bsdf('<bsdf type="blendbsdf"><texture type="checkerboard" name="weight"/><bsdf type="diffuse"/><bsdf type="diffuse"/></bsdf>').weight \
         == TextureRef(0)
+    # any two plain BSDFs (plugins2): the second one untextured and isotropic
+    gb = bsdf('<bsdf type="blendbsdf"><float name="weight" value="0.4"/><bsdf type="plastic"/><bsdf type="conductor"/></bsdf>')
+    assert gb == BlendBSDF(Plastic(int_ior=1.49, ext_ior=1.000277), Conductor(eta=(0.0,) * 3, k=(1.0,) * 3), 0.4)
     for xml, message in [
         ('<bsdf type="mask"/>', "mask needs exactly one nested BSDF, got 0"),
         ('<bsdf type="normalmap"><bsdf type="diffuse"/></bsdf>', "normalmap needs a texture named 'normalmap'"),
@@ -444,8 +447,10 @@ def test_null_mask_normalmap_bumpmap():
         ('<bsdf type="normalmap"><texture type="checkerboard" name="normalmap"/><bsdf type="mask"><bsdf type="diffuse"/></bsdf></bsdf>',
          "a mask inside a normalmap or bumpmap is not supported"),
         ('<bsdf type="twosided"><bsdf type="mask"><bsdf type="dielectric"/></bsdf></bsdf>', "twosided cannot wrap a transmissive BSDF"),
-        ('<bsdf type="blendbsdf"><float name="weight" value="0.5"/><bsdf type="diffuse"/><bsdf type="plastic"/></bsdf>',
-         "blendbsdf is supported between two diffuse BSDFs only"),
+        ('<bsdf type="blendbsdf"><float name="weight" value="0.5"/><bsdf type="diffuse"/><bsdf type="mask"><bsdf type="plastic"/>'
+         '</bsdf></bsdf>', "a blendbsdf of Mask is not supported"),
+        ('<bsdf type="blendbsdf"><float name="weight" value="0.5"/><bsdf type="diffuse"/><bsdf type="roughdielectric">'
+         '<texture type="checkerboard" name="alpha"/></bsdf></bsdf>', "second BSDF of a blendbsdf must be untextured"),
         ('<bsdf type="blendbsdf"><bsdf type="diffuse"/><bsdf type="diffuse"/></bsdf>', "missing required parameter 'weight'"),
         ('<bsdf type="principled"/>', "the Disney principled BSDF .* is not implemented by grisx"),
     ]:
