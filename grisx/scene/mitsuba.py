@@ -113,7 +113,7 @@ Transforms ``<transform name="to_world">``
     ``beckmann`` [default, as Mitsuba] or ``ggx``, ``sample_visible``);
     ``dielectric`` / ``roughdielectric`` (``int_ior`` [bk7], ``ext_ior`` [air]
     as numbers or Mitsuba's named IORs, ``specular_reflectance``,
-    ``specular_transmittance``; rough: ``alpha``, ``distribution``,
+    ``specular_transmittance``; rough: ``alpha`` (a number or a texture), ``distribution``,
     ``sample_visible``); ``thindielectric`` (``int_ior``, ``ext_ior``,
     ``specular_reflectance``, ``specular_transmittance``); ``twosided`` around
     one non-transmissive BSDF; ``null``; the wrappers ``mask`` (``opacity``
@@ -1188,6 +1188,8 @@ class _Loader:
             raise self.ctx.error(node, "twosided around a normalmap or bumpmap is not supported (put the twosided inside it)")
         if isinstance(rec, (Dielectric, RoughDielectric, ThinDielectric)):
             raise self.ctx.error(node, "twosided cannot wrap a transmissive BSDF (as in Mitsuba)")
+        if isinstance(rec, BlendBSDF):  # both blended BSDFs seen from either side
+            return dataclasses.replace(rec, bsdf0=self._two_sided(node, rec.bsdf0), bsdf1=self._two_sided(node, rec.bsdf1))
         return dataclasses.replace(rec, two_sided=True)
 
     def _smooth_or_rough(self, p: _Props, rough: bool, kw: dict[str, Any], smooth: type, rough_cls: type) -> Any:

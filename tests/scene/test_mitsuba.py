@@ -438,6 +438,9 @@ def test_null_mask_normalmap_bumpmap():
     # any two plain BSDFs (plugins2): the second one untextured and isotropic
     gb = bsdf('<bsdf type="blendbsdf"><float name="weight" value="0.4"/><bsdf type="plastic"/><bsdf type="conductor"/></bsdf>')
     assert gb == BlendBSDF(Plastic(int_ior=1.49, ext_ior=1.000277), Conductor(eta=(0.0,) * 3, k=(1.0,) * 3), 0.4)
+    tb = bsdf('<bsdf type="twosided"><bsdf type="blendbsdf"><float name="weight" value="0.4"/><bsdf type="diffuse"/>'
+              '<bsdf type="conductor"/></bsdf></bsdf>')  # twosided around a blend: both BSDFs two-sided
+    assert tb.bsdf0.two_sided and tb.bsdf1.two_sided and tb.two_sided
     for xml, message in [
         ('<bsdf type="mask"/>', "mask needs exactly one nested BSDF, got 0"),
         ('<bsdf type="normalmap"><bsdf type="diffuse"/></bsdf>', "normalmap needs a texture named 'normalmap'"),
