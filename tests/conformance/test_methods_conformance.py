@@ -115,6 +115,20 @@ def test_delta_lobes_beside_smooth_ones_agree_with_mitsuba(method, params, runs)
     assert result.passed, f"{method} {params} on plastic: {result}"
 
 
+# plugins2 (issue 38): Mitsuba's pplastic, polarizer/retarder, a textured roughdielectric alpha and a blend with a delta
+# BSDF beside density ones, under ReSTIR PT's shifts, and the blend's delta conductor under the methods that compose
+# ReSTIR DI (which cannot weigh a delta lobe, as the smooth plastic's coat above)
+@pytest.mark.parametrize(("method", "params", "case"), [("restir-pt", {}, "blendbsdf_general"), ("restir-pt", {}, "pplastic"),
+                                                       ("restir-pt", {}, "polarizer"), ("restir-pt", {}, "roughdielectric_textured"),
+                                                       ("restcv", {}, "blendbsdf_general"),
+                                                       ("restir-gi", {"direct": "restir-di"}, "blendbsdf_general")],
+                         ids=["restir-pt-blendbsdf", "restir-pt-pplastic", "restir-pt-polarizer", "restir-pt-roughdielectric-textured",
+                              "restcv-blendbsdf", "restir-gi-direct-restir-di-blendbsdf"])
+def test_plugins2_bsdfs_agree_with_mitsuba_under_reuse(method, params, case):
+    result = agreement(method, case, params)
+    assert result.passed, f"{method} {params} on {case}: {result}"
+
+
 def test_a_biased_method_disagrees_with_mitsuba():
     # ReSTIR PT with its shift Jacobians taken as 1 (the ablation the papers warn about)
     result = agreement("restir-pt", "max_depth_4_rr_1", {"shift": "reconnection", "jacobian": False}, k=BIASED_K)
