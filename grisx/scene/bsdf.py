@@ -1067,56 +1067,76 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
     @wp.func
     def blend_sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2) -> BsdfSample:
         if wp.static(has_blend):
+            # f₁ when u_lobe <= w, else f₀, the lobe number rescaled (blendbsdf.cpp); the sample's weight is then
+            # (P f_c/p_c·p_c + (1 − P) f_o)/(P p_c + (1 − P) p_o) for the chosen BSDF's probability P = w or 1 − w
+            # (one-sample MIS over the two), its pdf the mixture P p_c + (1 − P) p_o. A delta sample (p_c its lobe's
+            # probability, f_o, p_o the other BSDF's at its direction) takes the same weight, as in Mitsuba 3.9.1,
+            # and the probability P p_c as its pdf. One call site per lobe function: the chosen BSDF is a variable.
+            c = m
+            o = m
+            prob = float(1.0)
+            ul = u_lobe
             if blended(m):
-                # blendbsdf.cpp: f₁ when u_lobe <= w, else f₀, the lobe number rescaled; the sample's weight is then
-                # (P f_c/p_c·p_c + (1 − P) f_o)/(P p_c + (1 − P) p_o) for the chosen BSDF's probability P = w or 1 − w
-                # (one-sample MIS over the two), its pdf the mixture P p_c + (1 − P) p_o. A delta sample (p_c its lobe's
-                # probability, f_o, p_o the other BSDF's at its direction) takes the same weight, as in Mitsuba 3.9.1,
-                # and the probability P p_c as its pdf.
                 w = m.blend_weight
-                p = partner(m)
-                s = _no_sample()
-                prob = float(0.0)
-                first = u_lobe > w or w <= 0.0
-                if first:
+                if u_lobe > w or w <= 0.0:
                     prob = 1.0 - w
-                    s = oriented_sample(m, wo, wp.min((u_lobe - w) / prob, 0.99999994), u)
+                    ul = wp.min((u_lobe - w) / prob, 0.99999994)
+                    o = partner(m)
                 else:
                     prob = w
-                    s = oriented_sample(p, wo, wp.min(u_lobe / w, 0.99999994), u)
-                if s.valid == 0:
-                    return s
-                e_o = wp.vec3(0.0, 0.0, 0.0)
-                p_o = float(0.0)
-                if first:
-                    e_o = oriented_eval(p, wo, s.wi)
-                    p_o = oriented_pdf(p, wo, s.wi)
-                else:
-                    e_o = oriented_eval(m, wo, s.wi)
-                    p_o = oriented_pdf(m, wo, s.wi)
+                    ul = wp.min(u_lobe / w, 0.99999994)
+                    c = partner(m)
+            s = oriented_sample(c, wo, ul, u)
+            if prob < 1.0 and s.valid != 0:  # the other BSDF weighs 1 − P > 0
+                p_o = oriented_pdf(o, wo, s.wi)
                 pdf = prob * s.pdf + (1.0 - prob) * p_o
                 if not (pdf > 0.0):
                     return _no_sample()
                 chosen = prob * s.pdf
-                s.weight = (s.weight * chosen + e_o * (1.0 - prob)) / pdf
+                s.weight = (s.weight * chosen + oriented_eval(o, wo, s.wi) * (1.0 - prob)) / pdf
                 s.pdf = pdf
                 if s.delta != 0:
                     s.pdf = chosen
-                return s
+            return s
         return oriented_sample(m, wo, u_lobe, u)
+
+    @wp.func
+    def blend_passes(m: Material) -> int:
+        # (1 − w) f₀ + w f₁ is summed in a loop of one pass (no blend) or two: one call site of the lobes
+        if blended(m):
+            return 2
+        return 1
+
+    @wp.func
+    def blend_pass(m: Material, j: int) -> Material:
+        if j == 1:
+            return partner(m)
+        return m
+
+    @wp.func
+    def blend_share(m: Material, j: int) -> float:
+        if not blended(m):
+            return 1.0
+        if j == 1:
+            return m.blend_weight
+        return 1.0 - m.blend_weight
 
     @wp.func
     def blend_eval(m: Material, wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
         if wp.static(has_blend):
-            if blended(m):
-                return oriented_eval(m, wo, wi) * (1.0 - m.blend_weight) + oriented_eval(partner(m), wo, wi) * m.blend_weight
+            r = wp.vec3(0.0, 0.0, 0.0)
+            for j in range(blend_passes(m)):
+                r += oriented_eval(blend_pass(m, j), wo, wi) * blend_share(m, j)
+            return r
         return oriented_eval(m, wo, wi)
 
     @wp.func
     def blend_pdf(m: Material, wo: wp.vec3, wi: wp.vec3) -> float:
         if wp.static(has_blend):
-            if blended(m):
-                return oriented_pdf(m, wo, wi) * (1.0 - m.blend_weight) + oriented_pdf(partner(m), wo, wi) * m.blend_weight
+            p = float(0.0)
+            for j in range(blend_passes(m)):
+                p += oriented_pdf(blend_pass(m, j), wo, wi) * blend_share(m, j)
+            return p
         return oriented_pdf(m, wo, wi)
 
     # ---- wrappers: the perturbed frame (normalmap, bumpmap), then the mask ----
@@ -1209,8 +1229,10 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
     @wp.func
     def blend_albedo(m: Material) -> wp.vec3:
         if wp.static(has_blend):
-            if blended(m):
-                return kind_albedo(m) * (1.0 - m.blend_weight) + kind_albedo(partner(m)) * m.blend_weight
+            a = wp.vec3(0.0, 0.0, 0.0)
+            for j in range(blend_passes(m)):
+                a += kind_albedo(blend_pass(m, j)) * blend_share(m, j)
+            return a
         return kind_albedo(m)
 
     @wp.func

@@ -1643,6 +1643,21 @@ def test_general_blend_weight_check_catches_the_first_bsdfs_pdf_alone(device):
         np.testing.assert_allclose(s["weight"][v], s["eval"][v] / np.maximum(p0, 1e-12)[:, None], rtol=2e-3)
 
 
+def test_general_blend_albedo_roughness_and_delta_flags(device):
+    """The mixture's albedo, the smoother BSDF's roughness, delta only where both BSDFs are."""
+    descs = [BlendBSDF(Diffuse(0.6), Conductor(), 0.25), BlendBSDF(Conductor(), Dielectric(int_ior=1.5, ext_ior=1.0), 0.5),
+             BlendBSDF(RoughConductor(alpha=0.3), Diffuse(0.2), 0.5)]
+    mats = pack_materials(descs, device)
+    albedo = wp.zeros(len(descs), dtype=wp.vec3, device=device)
+    rough = wp.zeros(len(descs), dtype=float, device=device)
+    delta = wp.zeros(len(descs), dtype=int, device=device)
+    wp.launch(_props_kernel, len(descs), inputs=[mats, albedo, rough, delta], device=device)
+    np.testing.assert_allclose(albedo.numpy()[0], 0.75 * 0.6 + 0.25 * 1.0, rtol=1e-5)
+    np.testing.assert_allclose(albedo.numpy()[1], 1.0, rtol=1e-5)
+    np.testing.assert_allclose(rough.numpy(), [0.0, 0.0, 0.3], rtol=1e-6)
+    np.testing.assert_array_equal(delta.numpy(), [0, 1, 0])
+
+
 def test_general_blend_kinds_packing_and_refusals():
     b = BLEND_CASES["roughplastic_conductor"]
     assert material_kinds([b]) == {MATERIAL_ROUGH_PLASTIC, MATERIAL_CONDUCTOR, MATERIAL_BLEND}
