@@ -68,7 +68,14 @@ Lobes (equations in ``grisx.scene.microfacet``):
   as the rough conductor's, the diffuse lobe by cosine; pdf is the mixture and
   weight = eval/pdf (Mitsuba 3's ``RoughPlastic``).
 
-* **Null** (``null``): the ray goes on, wi = −wo, weight 1 (delta, pdf 1).
+* **Polarized plastic** (``pplastic``, Mitsuba 3's unpolarized branch): no coating model, the sum
+  f cos θ_i = spec · F(wo·h) D G2 / (4 cos θ_o) + ρ (1 − F(cos θ_o))(1 − F(cos θ_i)) cos θ_i / π;
+  the glossy lobe chosen with the constant probability ``specular_weight``, the base by cosine;
+  pdf the mixture, weight = eval/pdf. It shares the rough plastic's coat term and lobe mixture and
+  the smooth plastic's two Fresnel crossings.
+
+* **Null** (``null``): the ray goes on, wi = −wo, weight ``transmittance`` (1; a ``polarizer`` of an
+  unpolarized variant ½ T, a ``retarder`` T) (delta, pdf 1).
 
 * **Principled** (``principled``, ``principledthin``): Mitsuba 3's Disney principled BSDFs, in their own
   module (:mod:`grisx.scene.principled`), dispatched beside the reflective kinds (their back side is their
@@ -87,6 +94,17 @@ Lobes (equations in ``grisx.scene.microfacet``):
   G = 2/(1 + √(1 + α_n² tan² θ_i)), α_n² = min(tan² θ_n'/8, 1) (Estevez et al.
   2019, Mitsuba's ``eval_shadow_terminator``), the pdf does not. The tangent of
   the perturbed frame is arbitrary: the nested BSDFs are isotropic.
+
+**Blend** (``blendbsdf`` of two BSDFs other than two Lambertian ones; ``Material.blend_partner``
+holds the second): eval and pdf are (1 − w) f₀ + w f₁ and (1 − w) p₀ + w p₁; sampling picks f₁
+with probability w (else f₀), samples it, and weighs the direction by the mixture,
+weight = (P f_c + (1 − P) f_o)/(P p_c + (1 − P) p_o) with P the choice's probability (one-sample
+MIS, Mitsuba 3's ``blendbsdf.cpp``). A delta sample takes the same formula (f_c/p_c its lobe's
+weight, p_c its probability), as Mitsuba 3.9.1 does: that makes the delta lobe weigh
+P(P r + (1 − P) f_o)/(P + (1 − P) p_o) rather than P r, and grisx follows Mitsuba (with the
+textbook P r, ``tests/conformance``'s blendbsdf_general case reads max block |z| 9.05 against
+Mitsuba's render); its pdf is P p_c. The blend sits inside the perturbed frame and outside the
+tangent turn; it costs one array field in ``Material`` and compiles only for ``MATERIAL_BLEND``.
 
 **Two-sided.** Reflection-only kinds are one-sided, as Mitsuba's: seen from
 the back (cos θ_o ≤ 0) they are black and sample nothing. With
@@ -115,7 +133,8 @@ dielectrics (from outside), F̄ specular_reflectance + (1 − F̄) ρ for plasti
 through its delta lobe cannot be reconnected), α for rough kinds and 1 for diffuse.
 
 References: W. Jakob et al., Mitsuba 3 ``src/bsdfs/{diffuse,conductor,
-roughconductor,dielectric,roughdielectric,twosided,plastic,roughplastic,null,mask,normalmap,bumpmap}.cpp``;
+roughconductor,dielectric,roughdielectric,twosided,plastic,roughplastic,null,mask,normalmap,bumpmap,
+pplastic,polarizer,retarder,blendbsdf}.cpp``;
 A. Estevez, P. Lecocq, C. Hellmuth, "A microfacet-based shadowing function to solve the bump
 terminator problem", Ray Tracing Gems (2019), ch. 12; B. Walter et al.,
 "Microfacet models for refraction through rough surfaces", EGSR 2007;
@@ -147,6 +166,8 @@ from grisx.scene.material import (
     MATERIAL_PLASTIC,
     MATERIAL_PRINCIPLED,
     MATERIAL_PRINCIPLED_THIN,
+    MATERIAL_PPLASTIC,
+    MATERIAL_BLEND,
     MATERIAL_ROUGH_CONDUCTOR,
     MATERIAL_ROUGH_PLASTIC,
     MATERIAL_ROUGH_DIELECTRIC,
@@ -207,6 +228,9 @@ __all__ = [
     "rough_plastic_sample",
     "rough_plastic_eval",
     "rough_plastic_pdf",
+    "pplastic_sample",
+    "pplastic_eval",
+    "pplastic_pdf",
     "null_sample",
     "shadow_terminator",
     "tangent_azimuth",
@@ -601,13 +625,19 @@ def _weighted_sample(wi: wp.vec3, pdf: float, value: wp.vec3) -> BsdfSample:
 
 
 @wp.func
+def _smooth_crossings(m: Material, wo: wp.vec3, wi: wp.vec3) -> float:
+    """(1 − F(cos θ_o))(1 − F(cos θ_i)) cos θ_i / π: a Lambertian lobe seen through a smooth interface, in and out."""
+    f_o = fresnel_dielectric(wo[2], m.eta[0]).f
+    f_i = fresnel_dielectric(wi[2], m.eta[0]).f
+    return (1.0 - f_o) * (1.0 - f_i) * wi[2] * _INV_PI
+
+
+@wp.func
 def plastic_eval(m: Material, wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
     """The diffuse lobe ρ'(1 − F(cos θ_o))(1 − F(cos θ_i)) cos θ_i / π (the coating's mirror is a delta)."""
     if wo[2] <= 0.0 or wi[2] <= 0.0:
         return wp.vec3(0.0, 0.0, 0.0)
-    f_o = fresnel_dielectric(wo[2], m.eta[0]).f
-    f_i = fresnel_dielectric(wi[2], m.eta[0]).f
-    return _plastic_base(m) * ((1.0 - f_o) * (1.0 - f_i) * wi[2] * _INV_PI)
+    return _plastic_base(m) * _smooth_crossings(m, wo, wi)
 
 
 @wp.func
@@ -640,15 +670,40 @@ def plastic_sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2) -> BsdfS
 
 
 @wp.func
+def _coat_glossy(m: Material, wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
+    """spec · F(wo·h) D G2 / (4 cos θ_o): the microfacet reflection of a dielectric coat (roughplastic, pplastic)."""
+    h = wp.normalize(wo + wi)
+    return m.specular_reflectance * (fresnel_dielectric(wp.dot(wo, h), m.eta[0]).f * _glossy_dg(m, wo, wi, h))
+
+
+@wp.func
+def _glossy_diffuse_pdf(m: Material, wo: wp.vec3, wi: wp.vec3, ps: float) -> float:
+    """ps · (the microfacet reflection's pdf) + (1 − ps) cos θ_i / π, wo and wi above the surface."""
+    return ps * _glossy_pdf(m, wo, wi) + (1.0 - ps) * cosine_hemisphere_pdf(wi)
+
+
+@wp.func
+def _glossy_diffuse_direction(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2, ps: float) -> wp.vec3:
+    """A microfacet reflection with probability ps, else a cosine-weighted direction (the density: ``_glossy_diffuse_pdf``)."""
+    if u_lobe < ps:
+        return reflect(wo, sample_microfacet(wo, _alpha(m), m.distribution, m.sample_visible, u))
+    return sample_cosine_hemisphere(u)
+
+
+@wp.func
+def _rough_plastic_prob(m: Material, wo: wp.vec3) -> float:
+    # P_s of the rough coat: its reflected fraction 1 − T(cos θ_o)
+    return _plastic_specular_prob(m, 1.0 - rough_table_lookup(m.external_transmittance, wo[2]))
+
+
+@wp.func
 def rough_plastic_eval(m: Material, wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
     """spec · F(wo·h) D G2 / (4 cos θ_o) + ρ' T(cos θ_o) T(cos θ_i) cos θ_i / π."""
     if wo[2] <= 0.0 or wi[2] <= 0.0:
         return wp.vec3(0.0, 0.0, 0.0)
-    h = wp.normalize(wo + wi)
-    glossy = m.specular_reflectance * (fresnel_dielectric(wp.dot(wo, h), m.eta[0]).f * _glossy_dg(m, wo, wi, h))
     t_o = rough_table_lookup(m.external_transmittance, wo[2])
     t_i = rough_table_lookup(m.external_transmittance, wi[2])
-    return glossy + _plastic_base(m) * (t_o * t_i * wi[2] * _INV_PI)
+    return _coat_glossy(m, wo, wi) + _plastic_base(m) * (t_o * t_i * wi[2] * _INV_PI)
 
 
 @wp.func
@@ -656,8 +711,7 @@ def rough_plastic_pdf(m: Material, wo: wp.vec3, wi: wp.vec3) -> float:
     """P_s · (the rough conductor's pdf) + (1 − P_s) cos θ_i / π, P_s of the reflected fraction 1 − T(cos θ_o)."""
     if wo[2] <= 0.0 or wi[2] <= 0.0:
         return 0.0
-    ps = _plastic_specular_prob(m, 1.0 - rough_table_lookup(m.external_transmittance, wo[2]))
-    return ps * _glossy_pdf(m, wo, wi) + (1.0 - ps) * cosine_hemisphere_pdf(wi)
+    return _glossy_diffuse_pdf(m, wo, wi, _rough_plastic_prob(m, wo))
 
 
 @wp.func
@@ -665,13 +719,40 @@ def rough_plastic_sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2) ->
     """A microfacet reflection with probability P_s, else a cosine-weighted direction; weight = eval/pdf of the mixture."""
     if wo[2] <= 0.0:
         return _no_sample()
-    ps = _plastic_specular_prob(m, 1.0 - rough_table_lookup(m.external_transmittance, wo[2]))
-    wi = wp.vec3(0.0, 0.0, 1.0)
-    if u_lobe < ps:
-        wi = reflect(wo, sample_microfacet(wo, _alpha(m), m.distribution, m.sample_visible, u))
-    else:
-        wi = sample_cosine_hemisphere(u)
+    wi = _glossy_diffuse_direction(m, wo, u_lobe, u, _rough_plastic_prob(m, wo))
     return _weighted_sample(wi, rough_plastic_pdf(m, wo, wi), rough_plastic_eval(m, wo, wi))
+
+
+# ---- plugins2 (issue 38): pplastic, as Mitsuba 3's unpolarized variants evaluate it (pplastic.cpp) ----
+
+
+@wp.func
+def pplastic_eval(m: Material, wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
+    """spec · F(wo·h) D G2 / (4 cos θ_o) + ρ (1 − F(cos θ_o))(1 − F(cos θ_i)) cos θ_i / π (no coating: no 1/η², no
+    internal reflection)."""
+    if wo[2] <= 0.0 or wi[2] <= 0.0:
+        return wp.vec3(0.0, 0.0, 0.0)
+    return _coat_glossy(m, wo, wi) + m.reflectance * _smooth_crossings(m, wo, wi)
+
+
+@wp.func
+def pplastic_pdf(m: Material, wo: wp.vec3, wi: wp.vec3) -> float:
+    """w · (the microfacet reflection's pdf) + (1 − w) cos θ_i / π with the constant w = ``specular_weight``."""
+    if wo[2] <= 0.0 or wi[2] <= 0.0:
+        return 0.0
+    return _glossy_diffuse_pdf(m, wo, wi, m.specular_weight)
+
+
+@wp.func
+def pplastic_sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2) -> BsdfSample:
+    """A microfacet reflection with probability ``specular_weight``, else a cosine-weighted direction; weight = eval/pdf."""
+    if wo[2] <= 0.0:
+        return _no_sample()
+    wi = _glossy_diffuse_direction(m, wo, u_lobe, u, m.specular_weight)
+    return _weighted_sample(wi, pplastic_pdf(m, wo, wi), pplastic_eval(m, wo, wi))
+
+
+# ---- end plugins2 ----
 
 
 # ---- null, and the wrappers' pieces (null.cpp, mask.cpp, normalmap.cpp, bumpmap.cpp) ----
@@ -824,15 +905,20 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
         from grisx.scene import principled as pr  # noqa: PLC0415 (it imports this module's records)
     else:
         pr = None
-    has_reflective = (has_diffuse or has_conductor or has_rough_conductor or has_plastic or has_rough_plastic or has_principled
-                      or has_principled_thin)
-    has_evaluable = has_diffuse or has_rough_conductor or has_plastic or has_rough_plastic or has_principled or has_principled_thin
+    has_pplastic = MATERIAL_PPLASTIC in key  # plugins2
+    has_blend = MATERIAL_BLEND in key  # plugins2
+    has_reflective = (has_diffuse or has_conductor or has_rough_conductor or has_plastic or has_rough_plastic or has_pplastic
+                      or has_principled or has_principled_thin)
+    has_evaluable = (has_diffuse or has_rough_conductor or has_plastic or has_rough_plastic or has_pplastic or has_principled
+                     or has_principled_thin)
 
     @wp.func
     def kind_sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2) -> BsdfSample:
         if wp.static(has_null):
             if m.kind == MATERIAL_NULL:
-                return null_sample(wo, 1.0)
+                s0 = null_sample(wo, 1.0)
+                s0.weight = m.transmittance  # null: 1; polarizer (unpolarized): ½ transmittance
+                return s0
         if wp.static(has_dielectric):
             if m.kind == MATERIAL_DIELECTRIC:
                 return dielectric_sample(m, wo, u_lobe, u)
@@ -870,6 +956,9 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
             if wp.static(has_principled_thin):
                 if m.kind == MATERIAL_PRINCIPLED_THIN:
                     s = pr.principled_thin_sample(m, w, u_lobe, u)
+            if wp.static(has_pplastic):
+                if m.kind == MATERIAL_PPLASTIC:
+                    s = pplastic_sample(m, w, u_lobe, u)
             if flip:
                 s.wi = wp.vec3(s.wi[0], s.wi[1], -s.wi[2])
         return s
@@ -904,6 +993,9 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
             if wp.static(has_principled_thin):
                 if m.kind == MATERIAL_PRINCIPLED_THIN:
                     r = pr.principled_thin_eval(m, a, b)
+            if wp.static(has_pplastic):
+                if m.kind == MATERIAL_PPLASTIC:
+                    r = pplastic_eval(m, a, b)
         return r  # delta kinds: 0
 
     @wp.func
@@ -936,6 +1028,9 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
             if wp.static(has_principled_thin):
                 if m.kind == MATERIAL_PRINCIPLED_THIN:
                     p = pr.principled_thin_pdf(m, a, b)
+            if wp.static(has_pplastic):
+                if m.kind == MATERIAL_PPLASTIC:
+                    p = pplastic_pdf(m, a, b)
         return p  # delta kinds: 0
 
     # ---- the tangent: an anisotropic lobe turned about the normal to the shading frame's s ----
@@ -973,6 +1068,111 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
             m.tangent = to_local(f, m.tangent)
         return m
 
+    # ---- plugins2: a general blendbsdf, (1 − w) f₀ + w f₁ (blendbsdf.cpp), inside the perturbed frame ----
+
+    @wp.func
+    def blended(m: Material) -> bool:
+        return m.blend_partner.shape[0] > 0
+
+    @wp.func
+    def partner(m: Material) -> Material:
+        # the second BSDF as a Material: its own BSDF fields, the hit's frame fields (tangent, perturbation) of m
+        p = m.blend_partner[0]
+        r = m
+        r.kind = p.kind
+        r.reflectance = p.reflectance
+        r.texture = -1
+        r.alpha = p.alpha
+        r.alpha_v = p.alpha
+        r.anisotropic = 0
+        r.distribution = p.distribution
+        r.sample_visible = p.sample_visible
+        r.eta = p.eta
+        r.k = p.k
+        r.transmittance = p.transmittance
+        r.two_sided = p.two_sided
+        r.specular_reflectance = p.specular_reflectance
+        r.specular_weight = p.specular_weight
+        r.internal_reflectance = p.internal_reflectance
+        r.nonlinear = p.nonlinear
+        r.external_transmittance = p.external_transmittance
+        return r
+
+    @wp.func
+    def blend_sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2) -> BsdfSample:
+        if wp.static(has_blend):
+            # f₁ when u_lobe <= w, else f₀, the lobe number rescaled (blendbsdf.cpp); the sample's weight is then
+            # (P f_c/p_c·p_c + (1 − P) f_o)/(P p_c + (1 − P) p_o) for the chosen BSDF's probability P = w or 1 − w
+            # (one-sample MIS over the two), its pdf the mixture P p_c + (1 − P) p_o. A delta sample (p_c its lobe's
+            # probability, f_o, p_o the other BSDF's at its direction) takes the same weight, as in Mitsuba 3.9.1,
+            # and the probability P p_c as its pdf. One call site per lobe function: the chosen BSDF is a variable.
+            c = m
+            o = m
+            prob = float(1.0)
+            ul = u_lobe
+            if blended(m):
+                w = m.blend_weight
+                if u_lobe > w or w <= 0.0:
+                    prob = 1.0 - w
+                    ul = wp.min((u_lobe - w) / prob, 0.99999994)
+                    o = partner(m)
+                else:
+                    prob = w
+                    ul = wp.min(u_lobe / w, 0.99999994)
+                    c = partner(m)
+            s = oriented_sample(c, wo, ul, u)
+            if prob < 1.0 and s.valid != 0:  # the other BSDF weighs 1 − P > 0
+                p_o = oriented_pdf(o, wo, s.wi)
+                pdf = prob * s.pdf + (1.0 - prob) * p_o
+                if not (pdf > 0.0):
+                    return _no_sample()
+                chosen = prob * s.pdf
+                s.weight = (s.weight * chosen + oriented_eval(o, wo, s.wi) * (1.0 - prob)) / pdf
+                s.pdf = pdf
+                if s.delta != 0:
+                    s.pdf = chosen
+            return s
+        return oriented_sample(m, wo, u_lobe, u)
+
+    @wp.func
+    def blend_passes(m: Material) -> int:
+        # (1 − w) f₀ + w f₁ is summed in a loop of one pass (no blend) or two: one call site of the lobes
+        if blended(m):
+            return 2
+        return 1
+
+    @wp.func
+    def blend_pass(m: Material, j: int) -> Material:
+        if j == 1:
+            return partner(m)
+        return m
+
+    @wp.func
+    def blend_share(m: Material, j: int) -> float:
+        if not blended(m):
+            return 1.0
+        if j == 1:
+            return m.blend_weight
+        return 1.0 - m.blend_weight
+
+    @wp.func
+    def blend_eval(m: Material, wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
+        if wp.static(has_blend):
+            r = wp.vec3(0.0, 0.0, 0.0)
+            for j in range(blend_passes(m)):
+                r += oriented_eval(blend_pass(m, j), wo, wi) * blend_share(m, j)
+            return r
+        return oriented_eval(m, wo, wi)
+
+    @wp.func
+    def blend_pdf(m: Material, wo: wp.vec3, wi: wp.vec3) -> float:
+        if wp.static(has_blend):
+            p = float(0.0)
+            for j in range(blend_passes(m)):
+                p += oriented_pdf(blend_pass(m, j), wo, wi) * blend_share(m, j)
+            return p
+        return oriented_pdf(m, wo, wi)
+
     # ---- wrappers: the perturbed frame (normalmap, bumpmap), then the mask ----
 
     @wp.func
@@ -981,7 +1181,7 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
             if m.perturb != PERTURB_NONE:
                 n = _perturbed_normal(m, wo)
                 f = frame_from_normal(n)
-                s = oriented_sample(perturbed_tangent(m, f), to_local(f, wo), u_lobe, u)
+                s = blend_sample(perturbed_tangent(m, f), to_local(f, wo), u_lobe, u)
                 wi = to_world(f, s.wi)
                 if s.valid == 0 or s.wi[2] * wi[2] <= 0.0:
                     return _no_sample()
@@ -989,7 +1189,7 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
                 if (m.perturb_flags & 2) != 0:
                     s.weight = s.weight * shadow_terminator(n, wi)
                 return s
-        return oriented_sample(m, wo, u_lobe, u)
+        return blend_sample(m, wo, u_lobe, u)
 
     @wp.func
     def frame_eval(m: Material, wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
@@ -998,11 +1198,11 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
                 f = frame_from_normal(_perturbed_normal(m, wo))
                 if wi[2] * wp.dot(wi, f.n) <= 0.0:
                     return wp.vec3(0.0, 0.0, 0.0)
-                v = oriented_eval(perturbed_tangent(m, f), to_local(f, wo), to_local(f, wi))
+                v = blend_eval(perturbed_tangent(m, f), to_local(f, wo), to_local(f, wi))
                 if (m.perturb_flags & 2) != 0:
                     v = v * shadow_terminator(f.n, wi)
                 return v
-        return oriented_eval(m, wo, wi)
+        return blend_eval(m, wo, wi)
 
     @wp.func
     def frame_pdf(m: Material, wo: wp.vec3, wi: wp.vec3) -> float:
@@ -1011,8 +1211,8 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
                 f = frame_from_normal(_perturbed_normal(m, wo))
                 if wi[2] * wp.dot(wi, f.n) <= 0.0:
                     return 0.0
-                return oriented_pdf(perturbed_tangent(m, f), to_local(f, wo), to_local(f, wi))
-        return oriented_pdf(m, wo, wi)
+                return blend_pdf(perturbed_tangent(m, f), to_local(f, wo), to_local(f, wi))
+        return blend_pdf(m, wo, wi)
 
     @wp.func
     def sample(m: Material, wo: wp.vec3, u_lobe: float, u: wp.vec2) -> BsdfSample:
@@ -1049,8 +1249,8 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
             if m.kind == MATERIAL_DIELECTRIC or m.kind == MATERIAL_ROUGH_DIELECTRIC:
                 f = average_fresnel_dielectric(m.eta[0])
                 return m.reflectance * f + m.transmittance * (1.0 - f)
-        if wp.static(has_plastic or has_rough_plastic):
-            if m.kind == MATERIAL_PLASTIC or m.kind == MATERIAL_ROUGH_PLASTIC:
+        if wp.static(has_plastic or has_rough_plastic or has_pplastic):
+            if m.kind == MATERIAL_PLASTIC or m.kind == MATERIAL_ROUGH_PLASTIC or m.kind == MATERIAL_PPLASTIC:
                 f = average_fresnel_dielectric(m.eta[0])  # the coating's F̄ over the base's ρ (it guides, it is not estimated)
                 return m.specular_reflectance * f + m.reflectance * (1.0 - f)
         if wp.static(has_thin_dielectric):
@@ -1064,19 +1264,25 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
         return wp.vec3(0.0, 0.0, 0.0)
 
     @wp.func
-    def albedo(m: Material) -> wp.vec3:
-        if wp.static(has_mask):
-            return kind_albedo(m) * m.opacity  # what passes through is not reflected
+    def blend_albedo(m: Material) -> wp.vec3:
+        if wp.static(has_blend):
+            a = wp.vec3(0.0, 0.0, 0.0)
+            for j in range(blend_passes(m)):
+                a += kind_albedo(blend_pass(m, j)) * blend_share(m, j)
+            return a
         return kind_albedo(m)
 
     @wp.func
-    def roughness(m: Material) -> float:
+    def albedo(m: Material) -> wp.vec3:
         if wp.static(has_mask):
-            if _masked(m):
-                return 0.0  # the null lobe beside the nested ones: as a plastic's coat, unreconnectable
+            return blend_albedo(m) * m.opacity  # what passes through is not reflected
+        return blend_albedo(m)
+
+    @wp.func
+    def kind_roughness(m: Material) -> float:
         if m.kind == MATERIAL_DIFFUSE:
             return 1.0
-        if m.kind == MATERIAL_ROUGH_CONDUCTOR or m.kind == MATERIAL_ROUGH_DIELECTRIC or m.kind == MATERIAL_ROUGH_PLASTIC:
+        if m.kind == MATERIAL_ROUGH_CONDUCTOR or m.kind == MATERIAL_ROUGH_DIELECTRIC or m.kind == MATERIAL_ROUGH_PLASTIC or m.kind == MATERIAL_PPLASTIC:
             return wp.min(m.alpha, m.alpha_v)  # anisotropic: as smooth as its smoothest direction
         if wp.static(has_principled or has_principled_thin):
             if m.kind == MATERIAL_PRINCIPLED or m.kind == MATERIAL_PRINCIPLED_THIN:
@@ -1084,20 +1290,42 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
         return 0.0  # smooth kinds, and plastic: its coating's delta lobe makes a path through it unreconnectable
 
     @wp.func
-    def is_delta(m: Material) -> int:
+    def roughness(m: Material) -> float:
+        if wp.static(has_mask):
+            if _masked(m):
+                return 0.0  # the null lobe beside the nested ones: as a plastic's coat, unreconnectable
+        if wp.static(has_blend):
+            if blended(m):
+                return wp.min(kind_roughness(m), kind_roughness(partner(m)))  # as smooth as its smoother BSDF
+        return kind_roughness(m)
+
+    @wp.func
+    def kind_is_delta(m: Material) -> int:
         if m.kind == MATERIAL_CONDUCTOR or m.kind == MATERIAL_DIELECTRIC or m.kind == MATERIAL_THIN_DIELECTRIC or m.kind == MATERIAL_NULL:
             return 1
         return 0
 
     @wp.func
+    def is_delta(m: Material) -> int:
+        if wp.static(has_blend):
+            if blended(m):
+                return kind_is_delta(m) * kind_is_delta(partner(m))  # all lobes delta only if both BSDFs are
+        return kind_is_delta(m)
+
+    @wp.func
     def has_delta_lobe(m: Material) -> int:
         """1 where some lobe is a delta (all-delta kinds, a smooth plastic's coat beside its diffuse base, a mask's
-        null lobe): eval and pdf miss that lobe, so only BSDF sampling reaches what it reflects."""
-        if is_delta(m) != 0 or m.kind == MATERIAL_PLASTIC:
+        null lobe, a delta BSDF in a blend): eval and pdf miss that lobe, so only BSDF sampling reaches what it reflects."""
+        if kind_is_delta(m) != 0 or m.kind == MATERIAL_PLASTIC:
             return 1
         if wp.static(has_mask):
             if _masked(m):
                 return 1
+        if wp.static(has_blend):
+            if blended(m):
+                p = partner(m)
+                if kind_is_delta(p) != 0 or p.kind == MATERIAL_PLASTIC:
+                    return 1
         return 0
 
     funcs = BsdfFuncs(kinds=key, sample=sample, eval=eval, pdf=pdf, albedo=albedo, roughness=roughness, is_delta=is_delta,

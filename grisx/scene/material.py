@@ -17,7 +17,16 @@ record                 Mitsuba plugin              lobes (see ``grisx.scene.bsdf
 ``Null``               ``null``                    none: the ray passes through (a delta lobe)
 ``Principled``         ``principled``              Disney's principled BSDF (Burley 2012, 2015)
 ``PrincipledThin``     ``principledthin``          its thin-sheet sibling (no bending)
+``PolarizedPlastic``   ``pplastic`` (RGB variant)  microfacet reflection + Fresnel-weighted Lambertian base
+``Polarizer``          ``polarizer`` (RGB)         the null lobe, weight ½ transmittance
+``Retarder``           ``retarder`` (RGB)          the null lobe, weight transmittance
 =====================  ==========================  =========================================
+
+Mitsuba's polarization plugins are read as its RGB (unpolarized) variants evaluate them, which is
+exact for unpolarized transport: ``pplastic``'s non-polarized branch, a polarizer that passes half
+the light whatever its angle, a retarder that passes all of it (``pplastic.cpp``, ``polarizer.cpp``,
+``retarder.cpp``). They add no field to ``Material``: ``pplastic`` fills the plastic fields, and the
+null kind's sample weight is ``transmittance`` (1 for ``null``).
 
 Three **wrappers** hold one of those records, as Mitsuba's plugins nest one BSDF:
 
@@ -122,6 +131,8 @@ __all__ = [
     "MATERIAL_NORMALMAP",
     "MATERIAL_BUMPMAP",
     "MATERIAL_ANISOTROPIC",
+    "MATERIAL_PPLASTIC",
+    "MATERIAL_BLEND",
     "MATERIAL_WRAPPERS",
     "MATERIAL_PRINCIPLED",
     "MATERIAL_PRINCIPLED_THIN",
@@ -140,9 +151,14 @@ __all__ = [
     "Plastic",
     "RoughPlastic",
     "Null",
+    "PolarizedPlastic",
+    "Polarizer",
+    "Retarder",
     "BlendBSDF",
     "Principled",
     "PrincipledThin",
+    "BlendPartner",
+    "is_general_blend",
     "Mask",
     "NormalMap",
     "BumpMap",
@@ -178,6 +194,13 @@ MATERIAL_ANISOTROPIC = wp.constant(12)
 #: Mitsuba 3's ``principled`` and ``principledthin`` (Disney's principled BSDF, Burley 2012, 2015)
 MATERIAL_PRINCIPLED = wp.constant(16)
 MATERIAL_PRINCIPLED_THIN = wp.constant(17)
+# ---- plugins2 (issue 38): kinds of Mitsuba's polarization-family plugins read as their RGB variants do ----
+#: Mitsuba's ``pplastic`` in an unpolarized variant: a microfacet coat reflection beside a smooth-Fresnel-weighted Lambertian base
+MATERIAL_PPLASTIC = wp.constant(20)
+#: a wrapper pseudo-kind: some material is a ``blendbsdf`` of two BSDFs other than two Lambertian ones (its second BSDF
+#: rides in ``Material.blend_partner``; the dispatch mixes the two)
+MATERIAL_BLEND = wp.constant(21)
+# ---- end plugins2 ----
 #: the wrapper pseudo-kinds
 MATERIAL_WRAPPERS: tuple[int, ...] = (MATERIAL_MASK, MATERIAL_NORMALMAP, MATERIAL_BUMPMAP)
 #: Material.perturb values: no perturbation, a normal map, a bump map
@@ -202,6 +225,8 @@ MATERIAL_KINDS: tuple[int, ...] = (
     MATERIAL_ANISOTROPIC,
     MATERIAL_PRINCIPLED,
     MATERIAL_PRINCIPLED_THIN,
+    MATERIAL_PPLASTIC,
+    MATERIAL_BLEND,
 )
 #: Mitsuba plugin name of each kind
 #: microfacet distributions of the rough records → grisx.scene.microfacet's MICROFACET_* ids
@@ -223,6 +248,8 @@ MATERIAL_KIND_NAMES: dict[int, str] = {
     MATERIAL_ANISOTROPIC: "anisotropic",
     MATERIAL_PRINCIPLED: "principled",
     MATERIAL_PRINCIPLED_THIN: "principledthin",
+    MATERIAL_PPLASTIC: "pplastic",
+    MATERIAL_BLEND: "blendbsdf",
 }
 
 #: every kind a kernel can be compiled for
@@ -414,9 +441,10 @@ class Dielectric:
 
 @dataclasses.dataclass(frozen=True)
 class RoughDielectric:
-    """Mitsuba ``roughdielectric``: microfacet reflection + refraction (Walter et al. 2007), ggx or beckmann."""
+    """Mitsuba ``roughdielectric``: microfacet reflection + refraction (Walter et al. 2007), ggx or beckmann.
+    ``alpha``: a number, or a :class:`TextureRef` whose luminance at the hit is the roughness (clamped to 1e-4 as Mitsuba)."""
 
-    alpha: float = 0.1
+    alpha: float | TextureRef = 0.1
     distribution: str = "ggx"
     int_ior: float = 1.5046
     ext_ior: float = 1.000277
@@ -495,6 +523,61 @@ class Null:
     bump_frequency: float = 0.0
 
 
+# ---- plugins2 (issue 38): pplastic and polarizer, as Mitsuba 3's unpolarized (RGB) variants evaluate them ----
+
+
+@dataclasses.dataclass(frozen=True)
+class PolarizedPlastic:
+    """Mitsuba ``pplastic`` as its unpolarized variants evaluate it (``pplastic.cpp``, the non-polarized branch).
+
+    Not a coated model (no light trapped under a coating, no 1/η²): the sum of a microfacet reflection and a
+    Lambertian base attenuated by two smooth refractions,
+    f cos θ_i = spec · F(wo·h) D G2 / (4 cos θ_o) + ρ (1 − F(cos θ_o)) (1 − F(cos θ_i)) cos θ_i / π,
+    with F the dielectric Fresnel term of η = int_ior/ext_ior. The glossy lobe is sampled with the constant
+    probability s̄/(d̄ + s̄) of the two reflectances' means (``diffuse_mean`` for a texture, as
+    :class:`Plastic`), the base by cosine. ``alpha`` (a number or a texture), or ``alpha_u``/``alpha_v``
+    (anisotropic, numbers or textures, as :class:`RoughConductor`); ``distribution`` defaults to Beckmann, as
+    Mitsuba's. Packed into the plastic fields (``reflectance`` = ρ, ``specular_reflectance``, ``specular_weight``,
+    ``eta``); no field of its own."""
+
+    diffuse_reflectance: RGB | float | TextureRef = (0.5, 0.5, 0.5)
+    specular_reflectance: RGB | float = (1.0, 1.0, 1.0)
+    int_ior: float = 1.49
+    ext_ior: float = 1.000277
+    alpha: float | TextureRef = 0.1
+    distribution: str = "beckmann"
+    sample_visible: bool = True
+    alpha_u: float | TextureRef | None = None
+    alpha_v: float | TextureRef | None = None
+    diffuse_mean: float | None = None
+    two_sided: bool = False
+    bump_amplitude: float = 0.0
+    bump_frequency: float = 0.0
+
+
+@dataclasses.dataclass(frozen=True)
+class Polarizer:
+    """Mitsuba ``polarizer`` as its unpolarized variants evaluate it (``polarizer.cpp``): a null interaction
+    (wi = −wo, a delta lobe of probability 1) that passes ½ · ``transmittance`` of the light, whatever the
+    polarizer's angle ``theta`` (ignored: unpolarized light loses half its power to any linear polarizer; two
+    crossed polarizers pass ¼, not 0, as in Mitsuba's RGB variants). Packed as a ``null`` material whose
+    ``transmittance`` field holds the ½ · transmittance (``null`` itself: 1)."""
+
+    transmittance: RGB | float = (1.0, 1.0, 1.0)
+    two_sided: bool = False  # ignored: a null interaction looks the same from both sides
+    bump_amplitude: float = 0.0
+    bump_frequency: float = 0.0
+
+
+@dataclasses.dataclass(frozen=True)
+class Retarder(Polarizer):
+    """Mitsuba ``retarder`` as its unpolarized variants evaluate it (``retarder.cpp``): a null interaction that passes
+    ``transmittance`` (a wave plate changes only the polarization state; its ``theta`` and ``delta`` are ignored)."""
+
+
+# ---- end plugins2 ----
+
+
 @dataclasses.dataclass(frozen=True)
 class Mask:
     """Mitsuba ``mask``: ``bsdf`` where the surface is opaque, a null interaction elsewhere.
@@ -535,13 +618,19 @@ class BumpMap:
 
 @dataclasses.dataclass(frozen=True)
 class BlendBSDF:
-    """Mitsuba ``blendbsdf`` of two diffuse BSDFs: (1 − w) f₀ + w f₁ with w = ``weight`` (a number, or a texture's
-    luminance, clamped to [0, 1]). Two Lambertian lobes blend into one of reflectance (1 − w) ρ₀ + w ρ₁, sampled
-    and evaluated exactly as Mitsuba's mixture (the lobes share their density), so that is how it is packed;
-    ``bsdf0``'s reflectance may be a texture, ``bsdf1``'s is a colour. Blends of other BSDFs are not supported."""
+    """Mitsuba ``blendbsdf``: (1 − w) f₀ + w f₁ with w = ``weight`` (a number, or a texture's luminance, clamped to
+    [0, 1]).
 
-    bsdf0: Diffuse
-    bsdf1: Diffuse
+    Two diffuse BSDFs (one- or two-sided alike, ``bsdf1``'s reflectance a colour) blend into one Lambertian lobe of
+    reflectance (1 − w) ρ₀ + w ρ₁, sampled and evaluated exactly as Mitsuba's mixture (the lobes share their
+    density), so that is how they are packed. Any other pair (plugins2) is packed as ``bsdf0`` with ``bsdf1`` in
+    :class:`BlendPartner` (``Material.blend_partner``), mixed by the dispatch (``MATERIAL_BLEND``): sampled by
+    choosing f₁ with probability w, eval and pdf the weighted mixtures. ``bsdf0`` may carry textures; ``bsdf1``
+    must be untextured and isotropic, and neither may be a wrapper or another blend (put a ``mask``, ``normalmap``
+    or ``bumpmap`` around the blend)."""
+
+    bsdf0: Any
+    bsdf1: Any
     weight: float | TextureRef = 0.5
 
     @property
@@ -613,7 +702,7 @@ class PrincipledThin(_PrincipledLobes):
 _WRAPPER_KIND: dict[type, int] = {Mask: MATERIAL_MASK, NormalMap: MATERIAL_NORMALMAP, BumpMap: MATERIAL_BUMPMAP}
 
 MaterialDesc = (Diffuse | Conductor | RoughConductor | Dielectric | RoughDielectric | ThinDielectric | Plastic | RoughPlastic | Null
-                | BlendBSDF | Mask | NormalMap | BumpMap | Principled | PrincipledThin)
+                | BlendBSDF | Mask | NormalMap | BumpMap | Principled | PrincipledThin | PolarizedPlastic | Polarizer | Retarder)
 
 
 def unwrap(desc: Any) -> tuple[Any, list[Any]]:
@@ -637,7 +726,37 @@ _KIND_OF: dict[type, int] = {
     BlendBSDF: MATERIAL_DIFFUSE,
     Principled: MATERIAL_PRINCIPLED,
     PrincipledThin: MATERIAL_PRINCIPLED_THIN,
+    PolarizedPlastic: MATERIAL_PPLASTIC,  # plugins2
+    Polarizer: MATERIAL_NULL,  # plugins2: a null lobe of weight ½ transmittance
+    Retarder: MATERIAL_NULL,  # plugins2: a null lobe of weight transmittance
 }
+
+
+# ---- plugins2 (issue 38): the second BSDF of a general blendbsdf ----
+
+
+@wp.struct
+class BlendPartner:
+    """The second BSDF of a general ``blendbsdf``: the fields of :class:`Material` that its BSDF reads (untextured,
+    isotropic; :func:`grisx.scene.bsdf.make_bsdf` rebuilds a Material of them with the hit's own frame fields)."""
+
+    kind: int
+    reflectance: wp.vec3
+    alpha: float
+    distribution: int
+    sample_visible: int
+    eta: wp.vec3
+    k: wp.vec3
+    transmittance: wp.vec3
+    two_sided: int
+    specular_reflectance: wp.vec3
+    specular_weight: float
+    internal_reflectance: float
+    nonlinear: int
+    external_transmittance: wp.array(dtype=float)
+
+
+# ---- end plugins2 ----
 
 
 @wp.struct
@@ -654,7 +773,8 @@ class Material:
     renderer (resolved at the hit by ``grisx.scene.scene.surface_material``), ``alpha_u_texture`` /
     ``alpha_v_texture`` (texture ids whose luminance at the hit replaces α_u / α_v, or −1), ``distribution``: MICROFACET_GGX or MICROFACET_BECKMANN. ``eta``, ``k``: conductor complex index per channel; for
     dielectrics ``eta`` = int_ior/ext_ior in every channel and ``k`` = 0.
-    ``transmittance``: ``specular_transmittance`` of dielectrics. ``two_sided``:
+    ``transmittance``: ``specular_transmittance`` of dielectrics; the null lobe's weight of the null kind (1 for
+    ``null``, ½ T for ``polarizer``, T for ``retarder``). ``two_sided``:
     1 if the frame is mirrored on the back side. ``bump_amplitude``,
     ``bump_frequency``: procedural normal perturbation (0 = none), applied by
     the scene to the shading normal before any BSDF call. Plastics only:
@@ -668,9 +788,11 @@ class Material:
     shading normal (resolved at the hit by ``grisx.scene.scene.surface_material``). A blend of
     two diffuse BSDFs whose weight or first reflectance is a texture: ``blend_weight`` (or
     ``blend_texture``, its texture id or −1) and ``blend_reflectance`` (ρ₁); the hit's
-    reflectance is (1 − w) ρ₀ + w ρ₁ (a constant blend is packed as a diffuse of that reflectance).
-    The principled kinds reuse fields whose meaning is otherwise unused for them (``_pack_principled`` lists
-    them) and add one: ``lobe_textures``, up to four textured lobe weights (texture id · 16 + slot, −1 unused),
+    reflectance is (1 − w) ρ₀ + w ρ₁ (a constant blend is packed as a diffuse of that reflectance). A general
+    blend (plugins2): the first BSDF's fields, ``blend_weight`` (resolved at the hit from ``blend_texture``) and
+    ``blend_partner``, one :class:`BlendPartner` (an empty array for every other material: one array field, no
+    per-kind cost). The principled kinds reuse fields whose meaning is otherwise unused for them (``_pack_principled``
+    lists them) and add one: ``lobe_textures``, up to four textured lobe weights (texture id · 16 + slot, −1 unused),
     resolved at the hit into their slots (``grisx.scene.principled.principled_set_slot``).
     """
 
@@ -707,11 +829,21 @@ class Material:
     blend_texture: int
     blend_reflectance: wp.vec3
     lobe_textures: wp.vec4i
+    blend_partner: wp.array(dtype=BlendPartner)
+
+
+def is_general_blend(desc: Any) -> bool:
+    """Whether ``desc`` is a :class:`BlendBSDF` that is not one Lambertian lobe (plugins2: two BSDFs, mixed by the dispatch)."""
+    return isinstance(desc, BlendBSDF) and not (
+        isinstance(desc.bsdf0, Diffuse) and isinstance(desc.bsdf1, Diffuse) and desc.bsdf0.two_sided == desc.bsdf1.two_sided
+        and not isinstance(desc.bsdf1.reflectance, TextureRef))
 
 
 def material_kind(desc: MaterialDesc) -> int:
-    """MATERIAL_* kind of one record (of the BSDF inside a wrapper)."""
+    """MATERIAL_* kind of one record (of the BSDF inside a wrapper; a general blend's first BSDF's)."""
     inner, _ = unwrap(desc)
+    if is_general_blend(inner):
+        return material_kind(inner.bsdf0)
     kind = _KIND_OF.get(type(inner))
     if kind is None:
         names = ', '.join(t.__name__ for t in [*_KIND_OF, *_WRAPPER_KIND])
@@ -728,16 +860,20 @@ def material_kinds(descs: Iterable[MaterialDesc]) -> set[int]:
         kinds.update(_WRAPPER_KIND[type(w)] for w in unwrap(d)[1])
         if is_anisotropic(d):
             kinds.add(MATERIAL_ANISOTROPIC)
+        if is_general_blend(unwrap(d)[0]):  # plugins2: the second BSDF's kind compiled in too
+            kinds.update((MATERIAL_BLEND, material_kind(unwrap(d)[0].bsdf1)))
     return kinds
 
 
 def is_anisotropic(desc: MaterialDesc) -> bool:
-    """Whether ``desc`` (inside its wrappers) may have α_u ≠ α_v: a rough conductor given different alpha_u and
-    alpha_v (numbers or textures); such a BSDF turns to the shading frame's tangent."""
+    """Whether ``desc`` (inside its wrappers) may have α_u ≠ α_v: a rough conductor or a pplastic given different
+    alpha_u and alpha_v (numbers or textures); such a BSDF turns to the shading frame's tangent."""
     inner, _ = unwrap(desc)
     if isinstance(inner, (Principled, PrincipledThin)):
         return principled_has(inner, "anisotropic")
-    return isinstance(inner, RoughConductor) and inner.alpha_u is not None and inner.alpha_u != inner.alpha_v
+    if is_general_blend(inner):
+        inner = inner.bsdf0  # the second BSDF must be isotropic
+    return isinstance(inner, (RoughConductor, PolarizedPlastic)) and inner.alpha_u is not None and inner.alpha_u != inner.alpha_v
 
 
 def _rgb(value: RGB | float, what: str, *, nonneg: bool = True) -> RGB:
@@ -783,8 +919,19 @@ def _texture_id(value: TextureRef, where: str, name: str) -> int:
     return int(value.texture_id)
 
 
-def _pack_plastic(desc: Plastic, m: Material, where: str, device: str | wp.context.Device | None) -> None:
-    # plastic.cpp / roughplastic.cpp, parameters_changed(): 1/η², Fdr, the lobe sampling weight
+def _unit_or_texture(value: float | TextureRef, where: str, what: str) -> tuple[float | None, int]:
+    """A mask's opacity or a blend's weight: ``(value clamped to [0, 1], -1)`` for a number (Mitsuba's ``eval_opacity`` /
+    ``eval_weight`` clamp too), ``(None, texture id)`` for a texture looked up at the hit."""
+    if isinstance(value, TextureRef):
+        return None, _texture_id(value, where, what)
+    v = float(value)
+    if not math.isfinite(v):
+        raise InvalidParameterError(f"{where}: {what} must be finite, got {value!r}")
+    return min(max(v, 0.0), 1.0), -1
+
+
+def _pack_plastic(desc: Plastic | PolarizedPlastic, m: Material, where: str, device: str | wp.context.Device | None) -> None:
+    # plastic.cpp / roughplastic.cpp / pplastic.cpp, parameters_changed(): 1/η², Fdr, the lobe sampling weight
     if isinstance(desc.diffuse_reflectance, TextureRef):
         m.texture = _texture_id(desc.diffuse_reflectance, where, "diffuse_reflectance")
         m.reflectance = wp.vec3(1.0, 1.0, 1.0)  # replaced by the texture's value at the hit
@@ -801,9 +948,11 @@ def _pack_plastic(desc: Plastic, m: Material, where: str, device: str | wp.conte
     if d_mean + s_mean <= 0.0:
         raise InvalidParameterError(f"{where}: diffuse_reflectance and specular_reflectance are both black")
     m.specular_weight = s_mean / (d_mean + s_mean)
-    m.nonlinear = 1 if desc.nonlinear else 0
+    m.nonlinear = 1 if getattr(desc, "nonlinear", False) else 0
     eta = _relative_ior(desc, where)
     m.eta = wp.vec3(eta, eta, eta)
+    if isinstance(desc, PolarizedPlastic):
+        return  # pplastic.cpp: no light trapped under a coating, so no internal reflectance
     if not isinstance(desc, RoughPlastic):
         m.internal_reflectance = fresnel_diffuse_reflectance(1.0 / eta)
         return
@@ -824,13 +973,9 @@ def _pack_wrappers(wrappers: list[Any], m: Material, where: str) -> None:
             raise InvalidParameterError(f"{where}: a mask inside a normalmap or bumpmap is not supported (put the mask outside)")
         seen.add(type(w))
         if isinstance(w, Mask):
-            if isinstance(w.opacity, TextureRef):
-                m.opacity_texture = _texture_id(w.opacity, where, "opacity")
-            else:
-                v = float(w.opacity)
-                if not math.isfinite(v):
-                    raise InvalidParameterError(f"{where}: mask opacity must be finite, got {w.opacity!r}")
-                m.opacity = min(max(v, 0.0), 1.0)  # clamped, as Mitsuba's eval_opacity
+            v, m.opacity_texture = _unit_or_texture(w.opacity, where, "mask opacity")
+            if v is not None:
+                m.opacity = v
             continue
         if not isinstance(w.normalmap if isinstance(w, NormalMap) else w.texture, TextureRef):
             raise InvalidParameterError(f"{where}: {name} needs a texture, got {w!r}")
@@ -846,14 +991,10 @@ def _pack_wrappers(wrappers: list[Any], m: Material, where: str) -> None:
 def _pack_blend(blend: BlendBSDF, m: Material, where: str) -> None:
     # blendbsdf.cpp of two Lambertian lobes: one lobe of the blended reflectance, folded now where nothing varies
     rho1 = wp.vec3(*_rgb(blend.bsdf1.reflectance, f"{where}: the second BSDF's reflectance"))
-    if isinstance(blend.weight, TextureRef):
-        m.blend_texture = _texture_id(blend.weight, where, "weight")
+    w, m.blend_texture = _unit_or_texture(blend.weight, where, "blendbsdf weight")
+    if w is None:
         m.blend_reflectance = rho1
         return
-    w = float(blend.weight)
-    if not math.isfinite(w):
-        raise InvalidParameterError(f"{where}: blendbsdf weight must be finite, got {blend.weight!r}")
-    w = min(max(w, 0.0), 1.0)  # clamped, as Mitsuba's eval_weight
     if m.texture >= 0:
         m.blend_weight = w
         m.blend_reflectance = rho1
@@ -861,8 +1002,25 @@ def _pack_blend(blend: BlendBSDF, m: Material, where: str) -> None:
         m.reflectance = wp.vec3(*((1.0 - w) * np.asarray(m.reflectance, dtype=np.float64) + w * np.asarray(rho1, dtype=np.float64)))
 
 
-def _pack_anisotropy(desc: RoughConductor, m: Material, where: str) -> None:
-    # roughconductor.cpp: alpha_u / alpha_v (numbers or textures) in place of alpha; anisotropic where they may differ
+def _pack_alpha(desc: Any, m: Material, where: str) -> None:
+    # microfacet.h via roughconductor.cpp, roughdielectric.cpp, pplastic.cpp: alpha a number or a texture (its
+    # luminance at the hit, into both α_u and α_v); roughplastic.cpp reads a number only (its tables depend on it)
+    if isinstance(desc.alpha, TextureRef):
+        if isinstance(desc, RoughPlastic):
+            raise InvalidParameterError(f"{where}: roughplastic's alpha must be a number (as in Mitsuba 3: its "
+                                        f"interface tables are integrated for one roughness)")
+        m.alpha_u_texture = _texture_id(desc.alpha, where, "alpha")
+        m.alpha_v_texture = m.alpha_u_texture
+        m.alpha = 0.1  # the texture's value replaces it at the hit
+    else:
+        m.alpha = _positive(desc.alpha, f"{where}: alpha")
+    m.alpha_v = m.alpha
+    if isinstance(desc, (RoughConductor, PolarizedPlastic)):
+        _pack_anisotropy(desc, m, where)
+
+
+def _pack_anisotropy(desc: RoughConductor | PolarizedPlastic, m: Material, where: str) -> None:
+    # roughconductor.cpp, pplastic.cpp: alpha_u / alpha_v (numbers or textures) in place of alpha; anisotropic where they may differ
     if desc.alpha_u is None and desc.alpha_v is None:
         return
     if desc.alpha_u is None or desc.alpha_v is None:
@@ -957,21 +1115,41 @@ def _pack_principled(desc: Principled | PrincipledThin, m: Material, where: str)
             specular = 1.0e-3  # principled.cpp: zero specular is not plausible for transmission
         eta = float(np.float32(2.0) / (np.float32(1.0) - np.sqrt(np.float32(0.08) * np.float32(specular))) - np.float32(1.0))
     m.eta = wp.vec3(eta, eta, eta)
+def _pack_general_blend(blend: BlendBSDF, wrappers: list[Any], index: int, device: str | wp.context.Device | None) -> Material:
+    # blendbsdf.cpp of any two BSDFs (plugins2): the first packed with the blend's wrappers, the second beside it
+    where = f"material {index} (blendbsdf)"
+    for b in (blend.bsdf0, blend.bsdf1):
+        if type(b) in _WRAPPER_KIND or isinstance(b, BlendBSDF) or type(b) not in _KIND_OF:
+            raise InvalidParameterError(f"{where}: a blendbsdf of {type(b).__name__} is not supported (blend two plain "
+                                        f"BSDFs; put a mask, normalmap or bumpmap around the blendbsdf)")
+    first = blend.bsdf0
+    for w in reversed(wrappers):
+        first = dataclasses.replace(w, bsdf=first)
+    m = _pack_one(first, index, device)
+    p = _pack_one(blend.bsdf1, index, device)
+    if p.texture >= 0 or p.alpha_u_texture >= 0 or p.alpha_v_texture >= 0 or p.anisotropic != 0:
+        raise InvalidParameterError(f"{where}: the second BSDF of a blendbsdf must be untextured and isotropic (got a "
+                                    f"{MATERIAL_KIND_NAMES[p.kind]} with a texture or alpha_u != alpha_v); swap the two "
+                                    f"and the weight w for 1 - w if the first one is not")
+    bp = BlendPartner()
+    for name in BlendPartner.vars:
+        setattr(bp, name, getattr(p, name))
+    m.blend_partner = wp.array([bp], dtype=BlendPartner, device=device)
+    m.blend_partner.partner_tables = [bp.external_transmittance]  # the struct holds a pointer only
+    w, m.blend_texture = _unit_or_texture(blend.weight, where, "blendbsdf weight")
+    m.blend_weight = 0.0 if w is None else w  # a texture's value replaces it at the hit
+    return m
 
 
 def _pack_one(desc: MaterialDesc, index: int, device: str | wp.context.Device | None = None) -> Material:
     kind = material_kind(desc)
     where = f"material {index} ({MATERIAL_KIND_NAMES[kind]})"
     desc, wrappers = unwrap(desc)
+    if is_general_blend(desc):  # plugins2
+        return _pack_general_blend(desc, wrappers, index, device)
     blend = None
     if isinstance(desc, BlendBSDF):
-        blend, desc = desc, desc.bsdf0
-        if not (isinstance(blend.bsdf0, Diffuse) and isinstance(blend.bsdf1, Diffuse)):
-            raise InvalidParameterError(f"{where}: blendbsdf is supported between two diffuse BSDFs only, got "
-                                        f"{type(blend.bsdf0).__name__} and {type(blend.bsdf1).__name__}")
-        if blend.bsdf0.two_sided != blend.bsdf1.two_sided or isinstance(blend.bsdf1.reflectance, TextureRef):
-            raise InvalidParameterError(f"{where}: blendbsdf needs both diffuse BSDFs one- or two-sided alike and the "
-                                        f"second one's reflectance a colour")
+        blend, desc = desc, desc.bsdf0  # two Lambertian lobes (is_general_blend is false): one lobe
     m = Material()
     m.blend_weight = 0.0
     m.blend_texture = -1
@@ -1008,11 +1186,8 @@ def _pack_one(desc: MaterialDesc, index: int, device: str | wp.context.Device | 
         if not math.isfinite(v) or v < 0.0:
             raise InvalidParameterError(f"{where}: {name} must be finite and >= 0, got {v!r}")
         setattr(m, name, v)
-    if isinstance(desc, (RoughConductor, RoughDielectric, RoughPlastic)):
-        m.alpha = _positive(desc.alpha, f"{where}: alpha")
-        m.alpha_v = m.alpha
-        if isinstance(desc, RoughConductor):
-            _pack_anisotropy(desc, m, where)
+    if isinstance(desc, (RoughConductor, RoughDielectric, RoughPlastic, PolarizedPlastic)):
+        _pack_alpha(desc, m, where)
         if desc.distribution not in MICROFACET_DISTRIBUTIONS:
             raise InvalidParameterError(f"{where}: distribution must be one of {', '.join(MICROFACET_DISTRIBUTIONS)}, got {desc.distribution!r}")
         m.distribution = MICROFACET_DISTRIBUTIONS[desc.distribution]
@@ -1026,13 +1201,18 @@ def _pack_one(desc: MaterialDesc, index: int, device: str | wp.context.Device | 
         if blend is not None:
             _pack_blend(blend, m, where)
         return m
-    if isinstance(desc, Plastic):  # and RoughPlastic
+    if isinstance(desc, (Plastic, PolarizedPlastic)):  # and RoughPlastic
         _pack_plastic(desc, m, where, device)
         return m
     if isinstance(desc, (Principled, PrincipledThin)):
         _pack_principled(desc, m, where)
         return m
     if isinstance(desc, Null):
+        m.transmittance = wp.vec3(1.0, 1.0, 1.0)  # the null lobe's weight
+        return m
+    if isinstance(desc, Polarizer):  # polarizer.cpp (retarder.cpp), unpolarized: the null lobe of weight ½ (1) × transmittance
+        share = 1.0 if isinstance(desc, Retarder) else 0.5
+        m.transmittance = wp.vec3(*(share * v for v in _rgb(desc.transmittance, f"{where}: transmittance")))
         return m
     m.reflectance = wp.vec3(*_rgb(desc.specular_reflectance, f"{where}: specular_reflectance"))
     if isinstance(desc, (Conductor, RoughConductor)):
@@ -1055,4 +1235,5 @@ def pack_materials(descs: Sequence[MaterialDesc], device: str | wp.context.Devic
     out = wp.array(packed, dtype=Material, device=device)
     # the struct holds only a pointer to each roughplastic's table: the array keeps the tables alive
     out.material_tables = [m.external_transmittance for m in packed if m.kind == MATERIAL_ROUGH_PLASTIC]
+    out.material_tables += [m.blend_partner for m in packed if m.blend_partner is not None]  # plugins2
     return out

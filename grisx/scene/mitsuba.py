@@ -81,7 +81,7 @@ Transforms ``<transform name="to_world">``
     ``prb``, ``prb_basic``, ``prbvolpath`` and Mitsuba 0.x's ``bdpt``,
     ``pssmlt``, ``mlt``, ``erpt`` (unbiased estimators of the same image) as
     path tracing, with a :class:`~grisx.errors.GrisxWarning` saying so.
-    ``stokes`` (polarization) is refused.
+    ``stokes`` is refused (Stokes vectors; Mitsuba's RGB variants refuse it too).
 ``shape``
     ``rectangle``, ``cube`` (``face_normals``), ``sphere`` (``center``,
     ``radius``), ``cylinder`` (``p0``, ``p1``, ``radius``), ``disk``, ``obj`` (``filename``, ``face_normals``, ``flip_tex_coords`` [true]),
@@ -113,7 +113,7 @@ Transforms ``<transform name="to_world">``
     ``beckmann`` [default, as Mitsuba] or ``ggx``, ``sample_visible``);
     ``dielectric`` / ``roughdielectric`` (``int_ior`` [bk7], ``ext_ior`` [air]
     as numbers or Mitsuba's named IORs, ``specular_reflectance``,
-    ``specular_transmittance``; rough: ``alpha``, ``distribution``,
+    ``specular_transmittance``; rough: ``alpha`` (a number or a texture), ``distribution``,
     ``sample_visible``); ``thindielectric`` (``int_ior``, ``ext_ior``,
     ``specular_reflectance``, ``specular_transmittance``); ``twosided`` around
     one non-transmissive BSDF; ``null``; the wrappers ``mask`` (``opacity``
@@ -122,13 +122,21 @@ Transforms ``<transform name="to_world">``
     ``scale`` [1]), both with ``flip_invalid_normals`` and
     ``use_shadowing_function`` [true], around one BSDF (at most one mask, outermost,
     and one normalmap or bumpmap; a twosided goes inside a normalmap or bumpmap);
-    ``blendbsdf`` of two ``diffuse`` BSDFs (``weight``: a number or a texture, mesh
-    attributes included; the first reflectance may be a texture); ``principled`` (``base_color``
+    ``blendbsdf`` (``weight``: a number or a texture, mesh attributes included) of two
+    ``diffuse`` BSDFs (the first reflectance may be a texture), or of any two plain BSDFs, the
+    second untextured and isotropic (:class:`~grisx.scene.material.BlendBSDF`); ``pplastic``
+    (``diffuse_reflectance``, ``specular_reflectance``, ``int_ior``/``ext_ior`` or ``eta``,
+    ``alpha`` or ``alpha_u``/``alpha_v``, numbers or textures, ``distribution``,
+    ``sample_visible``), ``polarizer`` (``transmittance``; ``theta``, ``polarizing`` accepted) and
+    ``retarder`` (``transmittance``; ``theta``, ``delta`` accepted) as Mitsuba's RGB variants
+    evaluate them; ``principled`` (``base_color``
     [0.5]: a colour or a texture; ``roughness`` [0.5], ``anisotropic``, ``metallic``, ``spec_trans``,
     ``spec_tint``, ``sheen``, ``sheen_tint``, ``flatness``, ``clearcoat``, ``clearcoat_gloss`` [0]: numbers or
     textures, at most four of the lobe weights textured besides roughness and anisotropic; ``eta`` or
     ``specular`` [0.5]) and ``principledthin`` (the same without metallic and clearcoat, with ``diff_trans``
-    [0] and ``eta`` [1.5], a number); their sampling rates only at Mitsuba's default 1.
+    [0] and ``eta`` [1.5], a number); their sampling rates only at Mitsuba's default 1. ``hair`` and
+    ``measured_polarized`` are refused (not implemented), and so is the ``stokes`` integrator (Mitsuba's RGB
+    variants refuse it too).
 ``emitter``
     ``area`` (inside a shape, or top-level with an ``id`` that one shape
     references; ``radiance``, required: a colour or a bitmap looked up at the
@@ -207,6 +215,9 @@ from grisx.scene.material import (
     Plastic,
     Principled,
     PrincipledThin,
+    PolarizedPlastic,
+    Polarizer,
+    Retarder,
     RoughConductor,
     RoughDielectric,
     RoughPlastic,
@@ -367,8 +378,12 @@ def _camel_to_snake(name: str) -> str:
 _WHY_NOT = {
     **dict.fromkeys(("medium", "phase", "volume", "homogeneous", "heterogeneous", "volpath_media"),
                     "participating media are not rendered by grisx (surfaces only)"),
-    **dict.fromkeys(("stokes", "polarizer", "retarder"),
-                    "polarization is not rendered by grisx (RGB radiance only)"),
+    # plugins2: polarizer and retarder load as Mitsuba's RGB variants read them; these do not
+    "stokes": "it outputs Stokes vectors, and Mitsuba 3's RGB variants refuse it too ('This integrator should only be "
+              "used in polarized mode!'); grisx renders unpolarized RGB radiance",
+    "measured_polarized": "a measured polarimetric BRDF (Baek et al. 2020) is not implemented by grisx (Mitsuba 3's RGB "
+                          "variants refuse it too unless one 'wavelength' is given)",
+    "hair": "Chiang et al.'s hair BSDF is not implemented by grisx",
     **dict.fromkeys(("mitchell", "lanczos", "catmullrom"),
                     "grisx films filter with box, gaussian or tent only (a filter with negative lobes would need "
                     "signed camera-sample weights in every renderer)"),
@@ -1038,7 +1053,7 @@ class _Loader:
             return self.records[id(node)]
         t = self._require_type(node, ("diffuse", "conductor", "roughconductor", "dielectric", "roughdielectric", "thindielectric",
                                       "plastic", "roughplastic", "twosided", "null", "mask", "normalmap", "bumpmap",
-                                      "blendbsdf", "principled", "principledthin"))
+                                      "blendbsdf", "principled", "principledthin", "pplastic", "polarizer", "retarder"))
         p = _Props(self, node)
         if t == "twosided":
             inner = p.take_objects(("bsdf",))
@@ -1073,10 +1088,7 @@ class _Loader:
             inner = p.take_objects(("bsdf",))
             if len(inner) != 2:
                 raise self.ctx.error(node, f"blendbsdf needs exactly two nested BSDFs, got {len(inner)}")
-            first, second = (self.bsdf_record(n) for n in inner)
-            if not (isinstance(first, Diffuse) and isinstance(second, Diffuse)):
-                raise self.ctx.error(node, f"blendbsdf is supported between two diffuse BSDFs only (their blend is one "
-                                           f"Lambertian lobe), got {type(first).__name__} and {type(second).__name__}")
+            first, second = (self.bsdf_record(n) for n in inner)  # any two BSDFs (plugins2); packing checks the pair
             if "weight" not in p.values:
                 raise self.ctx.error(node, "missing required parameter 'weight'", "weight")
             weight = self._uv_texture(p, "weight", attributes=True) if p.values["weight"].tag in ("texture", "ref") \
@@ -1086,6 +1098,25 @@ class _Loader:
             rec = self._principled(p, t)
         elif t == "null":
             rec = Null()
+        # ---- plugins2 (issue 38): Mitsuba's polarization plugins as its RGB (unpolarized) variants evaluate them ----
+        elif t in ("polarizer", "retarder"):
+            for name in ("theta", "delta") if t == "retarder" else ("theta",):
+                p.color(name, 0.0, texture=True, kind="unbounded")  # an angle: no effect on unpolarized light
+            if t == "polarizer":
+                p.bool("polarizing", True)  # unpolarized light loses half to a polarizer or a depolarizer alike
+            rec = (Polarizer if t == "polarizer" else Retarder)(transmittance=p.color("transmittance", 1.0))
+        elif t == "pplastic":
+            diffuse = p.color("diffuse_reflectance", 0.5, texture=True)
+            kw = {"diffuse_reflectance": diffuse, "diffuse_mean": self._texture_mean(p, "diffuse_reflectance", diffuse),
+                  "specular_reflectance": p.color("specular_reflectance", 1.0)}
+            if p.has("eta"):  # pplastic.cpp: eta, or int_ior and ext_ior
+                if p.has("int_ior") or p.has("ext_ior"):
+                    raise self.ctx.error(p.values["eta"], "give either 'eta' or 'int_ior'/'ext_ior', not both (as in Mitsuba 3)", "eta")
+                kw["int_ior"], kw["ext_ior"] = p.float("eta"), 1.0
+            else:
+                kw["int_ior"], kw["ext_ior"] = p.ior("int_ior", "polypropylene"), p.ior("ext_ior", "air")
+            rec = self._smooth_or_rough(p, True, kw, PolarizedPlastic, PolarizedPlastic)
+        # ---- end plugins2 ----
         elif t == "diffuse":
             rec = Diffuse(reflectance=p.color("reflectance", 0.5, texture=True))
         elif t in ("conductor", "roughconductor"):
@@ -1205,6 +1236,8 @@ class _Loader:
         transmissive = isinstance(rec, PrincipledThin) or (isinstance(rec, Principled) and principled_has(rec, "spec_trans"))
         if isinstance(rec, (Dielectric, RoughDielectric, ThinDielectric)) or transmissive:
             raise self.ctx.error(node, "twosided cannot wrap a transmissive BSDF (as in Mitsuba)")
+        if isinstance(rec, BlendBSDF):  # both blended BSDFs seen from either side
+            return dataclasses.replace(rec, bsdf0=self._two_sided(node, rec.bsdf0), bsdf1=self._two_sided(node, rec.bsdf1))
         return dataclasses.replace(rec, two_sided=True)
 
     def _smooth_or_rough(self, p: _Props, rough: bool, kw: dict[str, Any], smooth: type, rough_cls: type) -> Any:
@@ -1212,7 +1245,7 @@ class _Loader:
             return smooth(**kw)
         distribution = p.choice("distribution", "beckmann", tuple(MICROFACET_DISTRIBUTIONS))  # Mitsuba's default
         kw["sample_visible"] = p.bool("sample_visible", True)  # a sampling choice: the expected image is the same
-        if rough_cls is RoughConductor and (p.has("alpha_u") or p.has("alpha_v")):
+        if rough_cls in (RoughConductor, PolarizedPlastic) and (p.has("alpha_u") or p.has("alpha_v")):
             # microfacet.h: both alpha_u and alpha_v (numbers or textures), and then no alpha
             if not (p.has("alpha_u") and p.has("alpha_v")):
                 given = "alpha_u" if p.has("alpha_u") else "alpha_v"
@@ -1221,9 +1254,11 @@ class _Loader:
                 raise self.ctx.error(p.values["alpha"], "give either 'alpha' or 'alpha_u'/'alpha_v', not both", "alpha")
             kw["alpha_u"], kw["alpha_v"] = (self._uv_texture(p, n) if p.values[n].tag in ("texture", "ref") else p.float(n)
                                             for n in ("alpha_u", "alpha_v"))
-        elif rough_cls is RoughConductor and p.has("alpha") and p.values["alpha"].tag in ("texture", "ref"):
-            kw["alpha_u"] = kw["alpha_v"] = self._uv_texture(p, "alpha")  # one texture for both: isotropic
-        return rough_cls(alpha=0.1 if "alpha_u" in kw else p.float("alpha", 0.1), distribution=distribution, **kw)
+        elif p.has("alpha") and p.values["alpha"].tag in ("texture", "ref"):
+            kw["alpha"] = self._uv_texture(p, "alpha")  # one texture for α_u and α_v (roughplastic: refused at packing)
+        if "alpha" not in kw:
+            kw["alpha"] = 0.1 if "alpha_u" in kw else p.float("alpha", 0.1)
+        return rough_cls(distribution=distribution, **kw)
 
     def default_material(self, name: str) -> int:
         """Mitsuba's BSDF for a shape given none: diffuse 0.5, or diffuse 0 if the shape emits (``Shape::Shape``)."""
@@ -1426,8 +1461,9 @@ class _Loader:
                 raise self.ctx.error(bsdfs[0], f"a normalmap or bumpmap on an analytic {t} is not supported "
                                                f"(its shading frame needs a mesh's uv parametrization: use an obj, ply or serialized mesh)")
             if t in ("sphere", "disk", "cylinder") and emission is None and is_anisotropic(self.scene.materials[mid]):
-                what = "an anisotropic roughconductor (alpha_u != alpha_v)" if isinstance(unwrap(self.scene.materials[mid])[0], RoughConductor) \
-                    else "a principled BSDF with 'anisotropic'"
+                inner = unwrap(self.scene.materials[mid])[0]
+                what = "a principled BSDF with 'anisotropic'" if isinstance(inner, (Principled, PrincipledThin)) \
+                    else f"an anisotropic {self._type(bsdfs[0])} (alpha_u != alpha_v)"
                 raise self.ctx.error(bsdfs[0], f"{what} on an analytic {t} is not "
                                                f"supported (its tangent needs a mesh's uv parametrization: use an obj, ply or serialized mesh)")
         else:  # Mitsuba's default: diffuse 0.5, but black on an emitter (an emitting shape reflects nothing)

@@ -673,7 +673,7 @@ def _perturbed_normal(scene: SceneData, si: SurfaceInteraction, m: Material) -> 
 def _resolve_wrappers(scene: SceneData, m: Material, si: SurfaceInteraction) -> Material:
     """A mask's ``opacity`` (the luminance of its texture at ``si.uv``, clamped to [0, 1]), a normal or bump map's
     ``perturbed_n`` at ``si``, textured α_u / α_v (their textures' luminance), an anisotropic BSDF's ``tangent``
-    (:func:`shading_tangent`), and a diffuse blend's reflectance (1 − w) ρ₀ + w ρ₁."""
+    (:func:`shading_tangent`), and a diffuse blend's reflectance (1 − w) ρ₀ + w ρ₁ (a general blend's weight w)."""
     if m.opacity_texture >= 0:
         m.opacity = wp.clamp(surface_texture_1(scene, m.opacity_texture, si), 0.0, 1.0)
     if m.perturb != PERTURB_NONE:
@@ -697,7 +697,10 @@ def _resolve_wrappers(scene: SceneData, m: Material, si: SurfaceInteraction) -> 
         w = m.blend_weight
         if m.blend_texture >= 0:
             w = wp.clamp(surface_texture_1(scene, m.blend_texture, si), 0.0, 1.0)
-        m.reflectance = m.reflectance * (1.0 - w) + m.blend_reflectance * w
+        if m.blend_partner.shape[0] > 0:  # plugins2: a general blend mixes its two BSDFs in the dispatch, by this weight
+            m.blend_weight = w
+        else:
+            m.reflectance = m.reflectance * (1.0 - w) + m.blend_reflectance * w
     return m
 
 

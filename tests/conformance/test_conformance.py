@@ -27,7 +27,7 @@ import pytest
 
 from grisx.imageio import read_exr
 from grisx.render import render
-from grisx.scene.material import BlendBSDF, BumpMap, Diffuse, Mask, NormalMap, Null, Principled, PrincipledThin
+from grisx.scene.material import BlendBSDF, BumpMap, Diffuse, Mask, NormalMap, Null, PolarizedPlastic, Polarizer, Principled, PrincipledThin, RoughDielectric, RoughPlastic
 from grisx.scene.mitsuba import load_mitsuba
 from grisx.scene.texture import Bitmap, Checkerboard
 from grisx.scene.transform import rotate
@@ -122,6 +122,11 @@ CASES: dict[str, Case] = {
     "filter_gaussian_default": Case(32, 16, block=2),  # a filter moves energy between neighbouring pixels: small blocks
     "filter_gaussian_wide": Case(32, 16, block=2),
     "filter_tent": Case(32, 16, block=2),
+    # plugins2 (issue 38): Mitsuba's polarization plugins as its RGB variants evaluate them; textured roughdielectric alpha
+    "pplastic": Case(32, 16),
+    "polarizer": Case(32, 16),
+    "roughdielectric_textured": Case(32, 16),
+    "blendbsdf_general": Case(32, 16),
 }
 
 
@@ -385,3 +390,40 @@ def test_a_thin_sheet_with_its_diff_trans_not_halved_is_caught():
                           else m for m in scene.materials]
     result = agreement(scene, "principledthin")
     assert not result.passed, f"a thin sheet's diff_trans read unhalved went unnoticed: {result}"
+# ---- plugins2 (issue 38): the suite catches pplastic read as a coated plastic, a polarizer read as a null, a constant alpha ----
+
+
+def test_pplastic_read_as_the_coated_roughplastic_is_caught():
+    """pplastic is not roughplastic: the same parameters in the coated model (light trapped under the coat, 1/η², a
+    rough interface's transmittance) give another picture."""
+    scene = load_mitsuba(SCENES / "pplastic.xml")
+    scene.materials[:] = [RoughPlastic(alpha=m.alpha if isinstance(m.alpha, float) else 0.2, distribution=m.distribution,
+                                       int_ior=m.int_ior, ext_ior=m.ext_ior, diffuse_reflectance=m.diffuse_reflectance,
+                                       specular_reflectance=m.specular_reflectance)
+                          if isinstance(m, PolarizedPlastic) else m for m in scene.materials]
+    result = agreement(scene, "pplastic")
+    assert not result.passed, f"pplastic read as roughplastic went unnoticed: {result}"
+
+
+def test_a_polarizer_passing_all_light_is_caught():
+    """A polarizer read as a null (weight 1, as if polarization were ignored altogether) instead of ½ transmittance."""
+    scene = load_mitsuba(SCENES / "polarizer.xml")
+    scene.materials[:] = [Null() if type(m) is Polarizer else m for m in scene.materials]
+    result = agreement(scene, "polarizer")
+    assert not result.passed, f"polarizers passing all light went unnoticed: {result}"
+
+
+def test_a_roughdielectric_with_a_constant_alpha_is_caught():
+    """The checkerboard's alpha replaced by the constant 0.1 that packing leaves where the texture is not looked up."""
+    scene = load_mitsuba(SCENES / "roughdielectric_textured.xml")
+    scene.materials[:] = [dataclasses.replace(m, alpha=0.1) if isinstance(m, RoughDielectric) else m for m in scene.materials]
+    result = agreement(scene, "roughdielectric_textured")
+    assert not result.passed, f"a roughdielectric's alpha texture ignored went unnoticed: {result}"
+
+
+def test_a_general_blend_with_its_bsdfs_swapped_is_caught():
+    """blendbsdf's first BSDF weighs 1 − w and its second w (blendbsdf.cpp), not the other way round."""
+    scene = load_mitsuba(SCENES / "blendbsdf_general.xml")
+    scene.materials[:] = [dataclasses.replace(m, bsdf0=m.bsdf1, bsdf1=m.bsdf0) if isinstance(m, BlendBSDF) else m for m in scene.materials]
+    result = agreement(scene, "blendbsdf_general")
+    assert not result.passed, f"a blendbsdf with its two BSDFs swapped went unnoticed: {result}"

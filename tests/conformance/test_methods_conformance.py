@@ -68,8 +68,14 @@ def cases(method: str) -> tuple[str, ...]:
     return CASES_BY_DEPTH.get(METHODS[method].reference_max_depth, ())
 
 
+#: methods whose kernels are another method's, run in CI on the cases that exercise what is their own; the other cases
+#: are in the slow tier (``pytest -m slow``). mmis-gather is suffix-restir's final gather with the pixel's own suffixes
+#: and no reuse (the same prefix, suffix and light code, which suffix-restir's cases cover in CI); its cases cost
+#: 45-90 s each on the 2-core CI machine (64 prefixes x 3 suffixes a pixel and frame), ten of them most of CI's time.
+CI_CASES = {"mmis-gather": ("max_depth_4_rr_1", "max_depth_1", "delta_lights")}
 #: (method, case) pairs; a method whose depth no Mitsuba case renders is listed (and skipped) with case None
-PAIRS = [(m, c) for m in RADIANCE for c in (cases(m) or (None,))]
+PAIRS = [pytest.param(m, c, id=f"{m}-{c}", marks=pytest.mark.slow) if c not in CI_CASES.get(m, (c,)) else pytest.param(m, c, id=f"{m}-{c}")
+         for m in RADIANCE for c in (cases(m) or (None,))]
 
 
 def agreement(method: str, case: str, params: dict | None = None, *, runs: int = RUNS, k: float = DEFAULT_K, device: str = "cpu", edit=None):
@@ -113,6 +119,20 @@ def test_delta_lobes_beside_smooth_ones_agree_with_mitsuba(method, params, runs)
     # where the code before the fix fails each case (ReSTIR GI with ReSTIR DI passes at 64 runs, not at 128)
     result = agreement(method, "plastic", params, runs=runs)
     assert result.passed, f"{method} {params} on plastic: {result}"
+
+
+# plugins2 (issue 38): Mitsuba's pplastic, polarizer/retarder, a textured roughdielectric alpha and a blend with a delta
+# BSDF beside density ones, under ReSTIR PT's shifts, and the blend's delta conductor under the methods that compose
+# ReSTIR DI (which cannot weigh a delta lobe, as the smooth plastic's coat above)
+@pytest.mark.parametrize(("method", "params", "case"), [("restir-pt", {}, "blendbsdf_general"), ("restir-pt", {}, "pplastic"),
+                                                       ("restir-pt", {}, "polarizer"), ("restir-pt", {}, "roughdielectric_textured"),
+                                                       ("restcv", {}, "blendbsdf_general"),
+                                                       ("restir-gi", {"direct": "restir-di"}, "blendbsdf_general")],
+                         ids=["restir-pt-blendbsdf", "restir-pt-pplastic", "restir-pt-polarizer", "restir-pt-roughdielectric-textured",
+                              "restcv-blendbsdf", "restir-gi-direct-restir-di-blendbsdf"])
+def test_plugins2_bsdfs_agree_with_mitsuba_under_reuse(method, params, case):
+    result = agreement(method, case, params)
+    assert result.passed, f"{method} {params} on {case}: {result}"
 
 
 def test_a_biased_method_disagrees_with_mitsuba():

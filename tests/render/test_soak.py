@@ -16,7 +16,10 @@ from grisx.render.driver import METHODS, RenderContext, load_scene, method_param
 from grisx.render.pt import PathTracer
 from grisx.testing import DEFAULT_K, z_test
 
-REUSE = sorted(n for n, m in METHODS.items() if m.kind == "radiance" and not m.uses_spp)
+#: methods that keep nothing from frame to frame: their soak is 1,000 independent frames, nothing to drift (slow tier)
+STATELESS = {"mmis-gather": "each frame traces its own prefixes and suffixes; no reservoir outlives a frame"}
+REUSE = [pytest.param(n, marks=pytest.mark.slow) if n in STATELESS else n
+         for n in sorted(n for n, m in METHODS.items() if m.kind == "radiance" and not m.uses_spp)]
 RES = (8, 8)
 FRAMES, BATCH = 1000, 100
 

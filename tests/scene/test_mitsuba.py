@@ -30,6 +30,10 @@ from grisx.scene.material import (
     TextureRef,
     MATERIAL_ANISOTROPIC,
     MATERIAL_ROUGH_CONDUCTOR,
+    MATERIAL_ROUGH_DIELECTRIC,
+    PolarizedPlastic,
+    Polarizer,
+    Retarder,
     material_kinds,
     pack_materials,
 )
@@ -331,7 +335,7 @@ def test_anisotropic_roughconductor():
     assert (packed["alpha_u_texture"], packed["alpha_v_texture"], packed["anisotropic"]) == (0, 1, 1)
     # one texture as alpha: isotropic, its value at the hit in both
     one = bsdf('<bsdf type="roughconductor"><texture type="checkerboard" name="alpha"/></bsdf>')
-    assert one.alpha_u == one.alpha_v == TextureRef(0) and material_kinds([one]) == {MATERIAL_ROUGH_CONDUCTOR}
+    assert one.alpha == TextureRef(0) and one.alpha_u is None and material_kinds([one]) == {MATERIAL_ROUGH_CONDUCTOR}
     packed = pack_materials([one], "cpu").numpy()[0]
     assert (packed["alpha_u_texture"], packed["alpha_v_texture"], packed["anisotropic"]) == (0, 0, 0)
     with pytest.raises(SceneFileError, match=r"<float name=\"alpha_u\"> both 'alpha_u' and 'alpha_v' must be specified"):
@@ -372,6 +376,33 @@ def test_plastics():
         bsdf('<bsdf type="plastic"><float name="int_ior" value="1.2"/><float name="ext_ior" value="1.2"/></bsdf>')
 
 
+def test_pplastic_polarizer_retarder_and_textured_roughdielectric_alpha():
+    """plugins2 (issue 38): Mitsuba's polarization plugins as its RGB variants read them, and roughdielectric's textured alpha."""
+    # pplastic's defaults: polypropylene in air, diffuse 0.5, specular 1, Beckmann α 0.1 (pplastic.cpp)
+    assert bsdf('<bsdf type="pplastic"/>') == PolarizedPlastic(int_ior=1.49, ext_ior=1.000277, alpha=0.1, distribution="beckmann")
+    pp = bsdf('<bsdf type="pplastic"><rgb name="diffuse_reflectance" value="0.05, 0.03, 0.1"/><float name="alpha" value="0.06"/>'
+              '<rgb name="specular_reflectance" value="0"/><float name="eta" value="1.6"/></bsdf>')
+    assert pp == PolarizedPlastic(diffuse_reflectance=(0.05, 0.03, 0.1), alpha=0.06, specular_reflectance=(0.0,) * 3,
+                                  int_ior=1.6, ext_ior=1.0)
+    tex = bsdf('<bsdf type="pplastic"><string name="distribution" value="ggx"/><texture type="checkerboard" name="alpha"/>'
+               '<texture type="checkerboard" name="diffuse_reflectance"/></bsdf>')
+    assert tex.alpha == TextureRef(1) and tex.diffuse_reflectance == TextureRef(0) and tex.diffuse_mean == pytest.approx(0.3)
+    an = bsdf('<bsdf type="pplastic"><float name="alpha_u" value="0.1"/><float name="alpha_v" value="0.3"/></bsdf>')
+    assert (an.alpha_u, an.alpha_v) == (0.1, 0.3) and MATERIAL_ANISOTROPIC in material_kinds([an])
+    with pytest.raises(SceneFileError, match="an anisotropic pplastic .* on an analytic sphere is not supported"):
+        load_mitsuba(doc('<shape type="sphere"><bsdf type="pplastic"><float name="alpha_u" value="0.1"/>'
+                         '<float name="alpha_v" value="0.3"/></bsdf></shape>'))
+    # polarizer and retarder: null lobes of weight ½ T and T; their angles do not act on unpolarized light
+    assert bsdf('<bsdf type="polarizer"><spectrum name="theta" value="90"/></bsdf>') == Polarizer()
+    assert bsdf('<bsdf type="polarizer"><rgb name="transmittance" value="0.5, 0.6, 0.7"/><boolean name="polarizing" '
+                'value="false"/></bsdf>') == Polarizer(transmittance=(0.5, 0.6, 0.7))
+    assert bsdf('<bsdf type="retarder"><float name="theta" value="30"/><float name="delta" value="45"/></bsdf>') == Retarder()
+    # roughdielectric: a texture as alpha (mitsuba-data's bsdf_roughdielectric_textured.xml), isotropic
+    rd = bsdf('<bsdf type="roughdielectric"><texture type="checkerboard" name="alpha"><float name="color0" value="0.0"/>'
+              '<float name="color1" value="0.4"/></texture></bsdf>')
+    assert rd.alpha == TextureRef(0) and rd.distribution == "beckmann" and material_kinds([rd]) == {MATERIAL_ROUGH_DIELECTRIC}
+
+
 def test_twosided_and_shared_references():
     s = load_mitsuba(doc(
         '<bsdf type="diffuse" id="d"><rgb name="reflectance" value="0.1 0.2 0.3"/></bsdf>\n'
@@ -406,6 +437,12 @@ def test_null_mask_normalmap_bumpmap():
     assert bl == BlendBSDF(Diffuse(), Diffuse((0.1, 0.2, 0.3)), 0.25)
     assert bsdf('<bsdf type="blendbsdf"><texture type="checkerboard" name="weight"/><bsdf type="diffuse"/><bsdf type="diffuse"/></bsdf>').weight \
         == TextureRef(0)
+    # any two plain BSDFs (plugins2): the second one untextured and isotropic
+    gb = bsdf('<bsdf type="blendbsdf"><float name="weight" value="0.4"/><bsdf type="plastic"/><bsdf type="conductor"/></bsdf>')
+    assert gb == BlendBSDF(Plastic(int_ior=1.49, ext_ior=1.000277), Conductor(eta=(0.0,) * 3, k=(1.0,) * 3), 0.4)
+    tb = bsdf('<bsdf type="twosided"><bsdf type="blendbsdf"><float name="weight" value="0.4"/><bsdf type="diffuse"/>'
+              '<bsdf type="conductor"/></bsdf></bsdf>')  # twosided around a blend: both BSDFs two-sided
+    assert tb.bsdf0.two_sided and tb.bsdf1.two_sided and tb.two_sided
     for xml, message in [
         ('<bsdf type="mask"/>', "mask needs exactly one nested BSDF, got 0"),
         ('<bsdf type="normalmap"><bsdf type="diffuse"/></bsdf>', "normalmap needs a texture named 'normalmap'"),
@@ -415,8 +452,10 @@ def test_null_mask_normalmap_bumpmap():
         ('<bsdf type="normalmap"><texture type="checkerboard" name="normalmap"/><bsdf type="mask"><bsdf type="diffuse"/></bsdf></bsdf>',
          "a mask inside a normalmap or bumpmap is not supported"),
         ('<bsdf type="twosided"><bsdf type="mask"><bsdf type="dielectric"/></bsdf></bsdf>', "twosided cannot wrap a transmissive BSDF"),
-        ('<bsdf type="blendbsdf"><float name="weight" value="0.5"/><bsdf type="diffuse"/><bsdf type="plastic"/></bsdf>',
-         "blendbsdf is supported between two diffuse BSDFs only"),
+        ('<bsdf type="blendbsdf"><float name="weight" value="0.5"/><bsdf type="diffuse"/><bsdf type="mask"><bsdf type="plastic"/>'
+         '</bsdf></bsdf>', "a blendbsdf of Mask is not supported"),
+        ('<bsdf type="blendbsdf"><float name="weight" value="0.5"/><bsdf type="diffuse"/><bsdf type="roughdielectric">'
+         '<texture type="checkerboard" name="alpha"/></bsdf></bsdf>', "second BSDF of a blendbsdf must be untextured"),
         ('<bsdf type="blendbsdf"><bsdf type="diffuse"/><bsdf type="diffuse"/></bsdf>', "missing required parameter 'weight'"),
     ]:
         with pytest.raises(SceneFileError, match=message):
@@ -583,7 +622,12 @@ ERRORS = [
     (doc('<path value="no/such/folder"/>'), 2, "path", "value", "folder 'no/such/folder' not found"),
     (doc('<shape type="cube">\n<path value="."/></shape>'), 3, "path", None, "only allowed directly inside <scene>"),
     (doc('<shape type="nurbs"/>'), 2, "shape", "type", "unsupported shape type 'nurbs'"),
-    (doc('<shape type="cube">\n<bsdf type="pplastic"/>\n</shape>'), 3, "bsdf", "type", "pplastic"),  # plastic is supported; its polarized sibling is not
+    (doc('<shape type="cube">\n<bsdf type="hair"/>\n</shape>'), 3, "bsdf", "type", "hair BSDF is not implemented"),
+    (doc('<shape type="cube">\n<bsdf type="measured_polarized"/>\n</shape>'), 3, "bsdf", "type", "refuse it too unless one 'wavelength'"),
+    (doc('<shape type="cube"><bsdf type="pplastic">\n<float name="eta" value="1.5"/><float name="int_ior" value="1.5"/></bsdf></shape>'),
+     3, "float", "eta", "either 'eta' or 'int_ior'/'ext_ior'"),
+    (doc('<shape type="cube">\n<bsdf type="roughplastic"><texture type="checkerboard" name="alpha"/></bsdf></shape>'),
+     3, "bsdf", None, "roughplastic's alpha must be a number"),
     (doc('<shape type="cube">\n<bsdf type="diffuse">\n<float name="foo" value="1"/></bsdf></shape>'), 4, "float", "foo", "unsupported parameter 'foo'"),
     (doc('<shape type="cube">\n<float name="radius" value="1"/></shape>'), 3, "float", "radius", "unsupported parameter"),
     (doc('<shape type="cube"><bsdf type="roughconductor">\n<float name="alpha" value="0.1" foo="2"/>'
@@ -607,7 +651,7 @@ ERRORS = [
     (doc('<sensor type="perspective"><film type="hdrfilm">\n<rfilter type="lanczos"/></film></sensor>'), 3, "rfilter", "type", "lanczos"),
     (doc('<sensor type="perspective"><film type="hdrfilm"><rfilter type="tent">\n<float name="radius" value="0"/></rfilter></film></sensor>'),
      3, "float", "radius", "radius must be in (0, 64]"),
-    (doc('<integrator type="stokes"><integrator type="path"/></integrator>'), 2, "integrator", "type", "polarization"),
+    (doc('<integrator type="stokes"><integrator type="path"/></integrator>'), 2, "integrator", "type", "RGB variants refuse it too"),
     (doc('<integrator type="moment"/>'), 2, "integrator", None, "exactly one nested integrator"),
     (doc('<sensor type="radiancemeter"/>'), 2, "sensor", "type", "radiancemeter"),
     (doc('<emitter type="directional">\n<vector name="direction" value="0, 0, 1"/><transform name="to_world"/></emitter>'),
