@@ -90,7 +90,7 @@ from grisx.params import Param
 from grisx.render.base.registry import RenderMethod, create_renderer, register, renderer_params
 from grisx.scene.bsdf import make_bsdf
 from grisx.scene.frame import frame_from_normal, to_local, to_world
-from grisx.scene.gbuffer import GBuffer, gbuffer_kernel
+from grisx.scene.gbuffer import GBuffer
 from grisx.scene.lights import (
     LightSample,
     delta_light_arrival,
@@ -711,7 +711,7 @@ class ReSTIRDI(ScreenSpaceRenderer):
         return make_restir_di_kernels(kinds)
 
     def kernels(self) -> list[Any]:
-        return [gbuffer_kernel, self.k.initial_pass, self.k.temporal_pass, self.k.spatial_pass, self.k.shade_pass]
+        return [self.gbuffer.kernel(self.built), self.k.initial_pass, self.k.temporal_pass, self.k.spatial_pass, self.k.shade_pass]
 
     def prepare(self, frame: int) -> None:
         """The G-buffer (with the visible points) of ``frame`` (the scene must already be at ``frame``)."""

@@ -181,7 +181,7 @@ from grisx.render.base.registry import RenderMethod, composed_direct, create_ren
 from grisx.scene.bsdf import MATERIAL_ROUGH_DIELECTRIC, cosine_hemisphere_pdf, make_bsdf, sample_cosine_hemisphere
 from grisx.scene.material import MATERIAL_PRINCIPLED, MATERIAL_PRINCIPLED_THIN
 from grisx.scene.frame import frame_from_normal, to_local, to_world
-from grisx.scene.gbuffer import GBuffer, GBufferData, gbuffer_kernel
+from grisx.scene.gbuffer import GBuffer, GBufferData
 from grisx.scene.lights import emitter_radiance, environment_eval, luminance
 from grisx.render.base.screen import ScreenFrame, ScreenSpaceRenderer, frame_key, kernel_cache, pixel_key, screen_frame, visible_normal, write_pixel
 from grisx.render.base.trace import STRATEGIES, make_trace_path
@@ -1274,7 +1274,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
 
     def kernels(self) -> list[Any]:
         radiance = self.k.sample_radiance_exact_pass if self.exact_bsdf else self.k.sample_radiance_pass
-        ks = [gbuffer_kernel, self.k.validate_pass, self.k.direct_pass, self.k.initial_pass, radiance, self.k.initial_target_pass,
+        ks = [self.gbuffer.kernel(self.built), self.k.validate_pass, self.k.direct_pass, self.k.initial_pass, radiance, self.k.initial_target_pass,
               self.k.temporal_pass, self.k.spatial_resample_pass, self.k.spatial_mis_pass, self.k.shade_pass]
         return ks + (self.di.kernels() if self.di is not None else [])
 

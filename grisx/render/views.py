@@ -7,7 +7,7 @@ from typing import Any
 import numpy as np
 
 from grisx.render.base.registry import RenderMethod, register
-from grisx.scene.gbuffer import GBuffer, gbuffer_kernel
+from grisx.scene.gbuffer import GBuffer
 from grisx.scene.scene import BuiltScene
 
 __all__ = ["GBufferView", "create_view", "display_image"]
@@ -23,7 +23,7 @@ class GBufferView:
         self.gbuffer = GBuffer(width, height, built.device)
 
     def kernels(self) -> list[Any]:
-        return [gbuffer_kernel]
+        return [self.gbuffer.kernel(self.built)]
 
     def render_frame(self, frame: int) -> np.ndarray:
         with self.timer("gbuffer"):

@@ -22,16 +22,20 @@ seed 004, Sec. 5).
 
 from __future__ import annotations
 
+import functools
+from typing import Any
+
 import warp as wp
 
-from grisx.scene.bsdf import bsdf_albedo, bsdf_roughness
+from grisx.device import specialized_module
+from grisx.scene.bsdf import make_bsdf
 from grisx.scene.camera import CameraData, camera_project, camera_ray, camera_sample_key, sample_camera
 from grisx.scene.lights import emitter_radiance, environment_eval
 from grisx.scene.scene import BuiltScene, SceneData, SurfaceInteraction, intersect, surface_material
 
 wp.set_module_options({"enable_backward": False})
 
-__all__ = ["GBufferData", "GBuffer", "GBUFFER_FIELDS"]
+__all__ = ["GBufferData", "GBuffer", "GBUFFER_FIELDS", "make_gbuffer_kernel"]
 
 #: field name → (Warp dtype, channels in an image dump); ``si`` and ``wo`` (the visible point) are not images
 GBUFFER_FIELDS = {
@@ -70,63 +74,72 @@ class GBufferData:
     wo: wp.array2d(dtype=wp.vec3)  # unit direction from it to the camera (−ray direction)
 
 
-@wp.kernel
-def gbuffer_kernel(
-    scene: SceneData,
-    cam: CameraData,
-    cam_prev: CameraData,
-    transforms: wp.array(dtype=wp.mat44),
-    transforms_prev: wp.array(dtype=wp.mat44),
-    seed: int,
-    frame: int,
-    jitter: int,
-    g: GBufferData,
-):
-    y, x = wp.tid()
-    cs = sample_camera(cam, camera_sample_key(seed, frame, y * cam.width + x), x, y, jitter)
-    ray = camera_ray(cam, cs.pixel[0], cs.pixel[1], cs.lens)
-    si = intersect(scene, ray.o, ray.d, cam.far_clip)
-    g.si[y, x] = si
-    g.wo[y, x] = -ray.d
-    zero3 = wp.vec3(0.0, 0.0, 0.0)
-    if si.valid == 0:
-        g.position[y, x] = zero3
-        g.normal_geo[y, x] = zero3
-        g.normal[y, x] = zero3
-        g.albedo[y, x] = zero3
-        g.roughness[y, x] = 0.0
-        g.material[y, x] = -1
-        g.depth[y, x] = 0.0
-        g.tri[y, x] = -1
-        g.bary[y, x] = wp.vec2(0.0, 0.0)
-        g.motion[y, x] = wp.vec2(0.0, 0.0)
-        g.motion_int[y, x] = wp.vec2i(0, 0)
-        g.emission[y, x] = environment_eval(scene.lights, ray.d)
-        g.hit[y, x] = 0
-        return
-    m = surface_material(scene, si)
-    g.position[y, x] = si.p
-    g.normal_geo[y, x] = si.ng
-    g.normal[y, x] = si.ns
-    g.albedo[y, x] = bsdf_albedo(m)
-    g.roughness[y, x] = bsdf_roughness(m)
-    g.material[y, x] = si.material
-    g.depth[y, x] = wp.transform_point(cam.to_camera, si.p)[2]
-    g.tri[y, x] = si.tri
-    g.bary[y, x] = si.bary
-    g.emission[y, x] = emitter_radiance(scene.lights, si.tri, si.p, si.ng, -ray.d)
-    g.hit[y, x] = 1
-    # ---- motion vector: back through the object's motion, then the previous camera ----
-    p_base = wp.transform_point(wp.inverse(transforms[si.object]), si.p)
-    p_prev = wp.transform_point(transforms_prev[si.object], p_base)
-    proj = camera_project(cam_prev, p_prev)
-    mv = wp.vec2(0.0, 0.0)
-    if proj.valid != 0:
-        mv = proj.pixel - cs.pixel
-    g.motion[y, x] = mv
-    # the previous frame's pixel that holds the point, relative to this one (round(mv) at the pixel centre)
-    q = cs.pixel + mv
-    g.motion_int[y, x] = wp.vec2i(int(wp.floor(q[0])) - x, int(wp.floor(q[1])) - y)
+@functools.cache
+def make_gbuffer_kernel(kinds: frozenset[int]) -> Any:
+    """The G-buffer kernel for the material kinds ``kinds`` (cached): its albedo and roughness are the BSDF's, whose
+    dispatch is compiled for the scene's kinds as the renderers' are (the all-kinds one cost a 1080p frame up to
+    1 ms more on an H200 once principled, pplastic and blends joined it)."""
+    bsdf = make_bsdf(kinds)
+
+    @wp.kernel(module=specialized_module(__name__, kinds))
+    def gbuffer_kernel(
+        scene: SceneData,
+        cam: CameraData,
+        cam_prev: CameraData,
+        transforms: wp.array(dtype=wp.mat44),
+        transforms_prev: wp.array(dtype=wp.mat44),
+        seed: int,
+        frame: int,
+        jitter: int,
+        g: GBufferData,
+    ):
+        y, x = wp.tid()
+        cs = sample_camera(cam, camera_sample_key(seed, frame, y * cam.width + x), x, y, jitter)
+        ray = camera_ray(cam, cs.pixel[0], cs.pixel[1], cs.lens)
+        si = intersect(scene, ray.o, ray.d, cam.far_clip)
+        g.si[y, x] = si
+        g.wo[y, x] = -ray.d
+        zero3 = wp.vec3(0.0, 0.0, 0.0)
+        if si.valid == 0:
+            g.position[y, x] = zero3
+            g.normal_geo[y, x] = zero3
+            g.normal[y, x] = zero3
+            g.albedo[y, x] = zero3
+            g.roughness[y, x] = 0.0
+            g.material[y, x] = -1
+            g.depth[y, x] = 0.0
+            g.tri[y, x] = -1
+            g.bary[y, x] = wp.vec2(0.0, 0.0)
+            g.motion[y, x] = wp.vec2(0.0, 0.0)
+            g.motion_int[y, x] = wp.vec2i(0, 0)
+            g.emission[y, x] = environment_eval(scene.lights, ray.d)
+            g.hit[y, x] = 0
+            return
+        m = surface_material(scene, si)
+        g.position[y, x] = si.p
+        g.normal_geo[y, x] = si.ng
+        g.normal[y, x] = si.ns
+        g.albedo[y, x] = bsdf.albedo(m)
+        g.roughness[y, x] = bsdf.roughness(m)
+        g.material[y, x] = si.material
+        g.depth[y, x] = wp.transform_point(cam.to_camera, si.p)[2]
+        g.tri[y, x] = si.tri
+        g.bary[y, x] = si.bary
+        g.emission[y, x] = emitter_radiance(scene.lights, si.tri, si.p, si.ng, -ray.d)
+        g.hit[y, x] = 1
+        # ---- motion vector: back through the object's motion, then the previous camera ----
+        p_base = wp.transform_point(wp.inverse(transforms[si.object]), si.p)
+        p_prev = wp.transform_point(transforms_prev[si.object], p_base)
+        proj = camera_project(cam_prev, p_prev)
+        mv = wp.vec2(0.0, 0.0)
+        if proj.valid != 0:
+            mv = proj.pixel - cs.pixel
+        g.motion[y, x] = mv
+        # the previous frame's pixel that holds the point, relative to this one (round(mv) at the pixel centre)
+        q = cs.pixel + mv
+        g.motion_int[y, x] = wp.vec2i(int(wp.floor(q[0])) - x, int(wp.floor(q[1])) - y)
+
+    return gbuffer_kernel
 
 
 def _alloc(width: int, height: int, device: wp.context.Device) -> GBufferData:
@@ -148,6 +161,11 @@ class GBuffer:
         self.current = _alloc(self.width, self.height, device)
         self.previous = _alloc(self.width, self.height, device)
 
+    @staticmethod
+    def kernel(built: BuiltScene) -> Any:
+        """The G-buffer kernel for ``built``'s material kinds (what :meth:`fill` launches)."""
+        return make_gbuffer_kernel(built.features.kernel_kinds)
+
     def swap(self) -> None:
         self.current, self.previous = self.previous, self.current
 
@@ -158,10 +176,11 @@ class GBuffer:
         (:func:`~grisx.scene.camera.camera_sample_key`): the points a jittered renderer shades.
         """
         self.swap()
+        kernel = self.kernel(built)
         cam = built.camera_data(frame, self.width, self.height)
         cam_prev = built.camera_data(frame - 1.0, self.width, self.height)
         wp.launch(
-            gbuffer_kernel,
+            kernel,
             dim=(self.height, self.width),
             inputs=[
                 built.data, cam, cam_prev, built.object_transforms, built.object_transforms_prev,
