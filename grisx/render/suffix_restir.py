@@ -284,6 +284,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     bsdf = make_bsdf(kinds)
     path_shift = shifts.shift
     stream = shifts.stream_candidates
+    stream_estimate = shifts.stream_estimate  # the gather's walk needs its light, not a reservoir
     settle = shifts.settle
 
     @wp.func
@@ -685,7 +686,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             d.res = reservoir_empty()
             d.path = path_sample_empty()
             d.estimate = wp.vec3(0.0)
-            d = stream(spec.scene, dom, pkey, walk, 1.0, full_sp, d, random_subkey(gkey, _STREAM_CHOICES + j))
+            d = stream_estimate(spec.scene, dom, pkey, walk, 1.0, full_sp, d, random_subkey(gkey, _STREAM_CHOICES + j))
             L += d.estimate * (1.0 / float(prefixes))  # Σ f/p over its candidates
         accum[y, x] = L
         if z.dom.valid == 0 or z.bounces == 0:

@@ -407,7 +407,8 @@ class PathShiftFuncs:
     ``roughness(scene, material) -> float`` is the hybrid rule's roughness of a material id;
     ``stream_candidates(scene, dom, key, max_bounces, weight_scale, sp, pr, ukey) -> PathReservoir``
     traces one path and streams its candidates (with their reconnection data) into a path
-    reservoir, and ``settle(scene, dom, pr, sp) -> PathReservoir`` finalizes it.
+    reservoir, and ``settle(scene, dom, pr, sp) -> PathReservoir`` finalizes it; ``stream_estimate`` (same
+    arguments) walks the same path for ``estimate`` alone (Σ f/(N p) of its candidates; the reservoir is left as given).
     ``shift_across`` is ``shift`` between the frames of :meth:`~grisx.scene.scene.BuiltScene.across_frames`,
     failing where ``suffix_moved(scene, x) -> bool`` finds the reused suffix in a box of what moved.
     """
@@ -416,6 +417,7 @@ class PathShiftFuncs:
     shift: Any
     roughness: Any
     stream_candidates: Any
+    stream_estimate: Any
     settle: Any
     suffix_moved: Any
     shift_across: Any
@@ -679,171 +681,187 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
         return shift(scene, dst, x, sp)
 
     # ---- sampling paths into a path reservoir (what every path-reuse renderer starts from) ----
-    @wp.func
-    def stream_path_candidates(
-        scene: SceneData,
-        dom: Domain,
-        key: wp.uint32,
-        max_bounces: int,
-        weight_scale: float,
-        sp: ShiftParams,
-        pr: PathReservoir,
-        ukey: wp.uint32,
-    ) -> PathReservoir:
-        """Trace one path from ``dom`` with seed ``key`` and stream every light connection and emitter hit into ``pr``.
+    # ``estimate_only``: the same walk and the same Σ f/(N p), without the reservoir or the candidates' reconnection
+    # data (Suffix ReSTIR's gather walks a prefix for its light alone: two thirds of its prefix pass was that bookkeeping)
+    def make_stream(estimate_only: bool) -> Any:
+        @wp.func
+        def stream_path_candidates(
+            scene: SceneData,
+            dom: Domain,
+            key: wp.uint32,
+            max_bounces: int,
+            weight_scale: float,
+            sp: ShiftParams,
+            pr: PathReservoir,
+            ukey: wp.uint32,
+        ) -> PathReservoir:
+            """Trace one path from ``dom`` with seed ``key`` and stream every light connection and emitter hit into ``pr``.
 
-        Next-event estimation at every non-delta vertex, BSDF sampling, Russian roulette from
-        ``sp.rr_depth`` on (Mitsuba's rule, :func:`~grisx.theory.roulette.roulette_survival`), at
-        most ``max_bounces`` segments after x₁ (< 0: unbounded), candidates of at least
-        ``sp.min_bounces`` (2: indirect light alone, the walk itself unchanged). Each candidate x̄_l gets the
-        RIS weight w_l = ``weight_scale`` · p̂(x̄_l) / p(x̄_l) (seed 000, Eq. 6; m_t is inside p̂,
-        so with ``weight_scale`` = 1/N over N traced paths the MIS weights sum to one) and its
-        reconnection data under ``sp``'s rule. Reservoir decisions use ``random_uniform(ukey, j)``,
-        j = 0, 1, … (one key per traced path). Call :func:`settle` once after the last path.
-        """
-        r = pr.res
-        sel = pr.path
-        estimate = pr.estimate  # Σ f/(N p) over the candidates (seed 002, Listing 1 line 36)
-        ucount = int(0)
-        if dom.valid == 0:
-            return pr
-        v = dom  # the current vertex x_i
-        fthru = wp.vec3(dom.weight, dom.weight, dom.weight)  # f of x₁ … x_i: x₁'s film weight, the BSDF factors so far
-        pdf = float(1.0)  # density of the directions sampled so far (π-scaled measure, roulette included)
-        eta = float(1.0)  # relative index of refraction crossed so far (for the roulette)
-        cur = path_sample_empty()  # the walk's reconnection data (k = 0 until a pair qualifies)
-        cur.key = key
-        suffix_thru = wp.vec3(1.0, 1.0, 1.0)  # f factors after x_k's BSDF
-        i = int(1)
-        while max_bounces < 0 or i <= max_bounces:
-            m = vertex_material(scene, v.material, v.uv, v.tri, v.p, v.ns, v.ng)
-            frame_l = frame_from_normal(v.ns)
-            wo_l = to_local(frame_l, v.wo)
-            rough = bsdf.roughness(m)
-            # -- next-event estimation: candidate x₁ … x_i → light --
-            if bsdf.is_delta(m) == 0 and i >= sp.min_bounces:
-                c = path_dim(i, DIM_NEE)
-                ls = sample_light(scene.lights, v.p, random_uniform(key, c), wp.vec2(random_uniform(key, c + 1), random_uniform(key, c + 2)))
-                if ls.pdf > 0.0 and wp.length_sq(ls.radiance) > 0.0:
-                    wi_l = to_local(frame_l, ls.wi)
-                    fo = bsdf.eval(m, wo_l, wi_l)
-                    if wp.length_sq(fo) > 0.0:
-                        if not light_occluded(scene, v.p, v.ng, ls):
-                            mis = technique_mis(1, ls.delta, 0, ls.pdf, bsdf.pdf(m, wo_l, wi_l))  # Veach Eq. 9.13
-                            s_nee = segment_measure(ls.delta)
-                            fo = fo * s_nee
-                            cand_x = cur
-                            cand_x.length = i
-                            cand_x.end_nee = 1
-                            cand_x.f = wp.cw_mul(fthru, wp.cw_mul(fo, ls.radiance)) * mis  # m_t · f
-                            if cur.rc_index == i:
-                                cand_x.rc_wi = ls.wi
-                                cand_x.suffix = ls.radiance  # m_t is re-evaluated at x_k by the shift
-                                cand_x.end_light_pdf = ls.pdf
-                                cand_x.end_delta = ls.delta
-                            elif cur.rc_index != 0:
-                                cand_x.suffix = wp.cw_mul(suffix_thru, wp.cw_mul(fo, ls.radiance)) * mis
-                            elif rc_pair_ok(sp, rough, 1.0, ls.dist, i + 1):
-                                kind = VERTEX_AREA_LIGHT
-                                lp = ls.p
-                                light_id = ls.tri
-                                sfx = wp.vec3(1.0, 1.0, 1.0)
-                                if ls.is_env != 0:
-                                    kind = VERTEX_ENV
-                                    lp = ls.wi
-                                elif ls.delta != 0:
-                                    # a spot's intensity depends on the direction it is left in: keep which light, not its value
-                                    kind = VERTEX_POINT_LIGHT
-                                    light_id = ls.light - scene.lights.num_emitters
-                                cand_x = _endpoint_light(cand_x, i + 1, kind, lp, ls.n, light_id, wp.dot(ls.n, -ls.wi), ls.dist, sfx, pdf)
-                            else:
-                                cand_x.pdf_replay = pdf * ls.pdf * s_nee
-                            t = path_target(cand_x)
-                            w = ris_weight(weight_scale, t, pdf * ls.pdf * s_nee)  # seed 000, Eq. 6 (m_t is inside t)
-                            estimate += decoupled_contribution(w, t, cand_x.f)  # w f/p̂ = m_t f/(N p)
-                            r = reservoir_update(r, w, t, 0.0, random_uniform(ukey, ucount))
-                            ucount += 1
-                            if r.selected:
-                                sel = cand_x
-            # -- BSDF sampling --
-            c = path_dim(i, DIM_BSDF)
-            bs = bsdf.sample(m, wo_l, random_uniform(key, c), wp.vec2(random_uniform(key, c + 1), random_uniform(key, c + 2)))
-            if bs.valid == 0 or not (bs.pdf > 0.0):
-                break
-            s_bsdf = segment_measure(bs.delta)
-            fac = bs.weight * (bs.pdf * s_bsdf)
-            fthru = wp.cw_mul(fthru, fac)
-            pdf_before = pdf
-            pdf = pdf * bs.pdf * s_bsdf
-            eta = eta * bs.eta
-            # -- Russian roulette (Mitsuba's rule); its decision is part of the path's random sequence --
-            if i >= sp.rr_depth:
-                q = roulette_survival(fthru / pdf, eta)
-                if random_uniform(key, path_dim(i, DIM_RR)) >= q:
+            Next-event estimation at every non-delta vertex, BSDF sampling, Russian roulette from
+            ``sp.rr_depth`` on (Mitsuba's rule, :func:`~grisx.theory.roulette.roulette_survival`), at
+            most ``max_bounces`` segments after x₁ (< 0: unbounded), candidates of at least
+            ``sp.min_bounces`` (2: indirect light alone, the walk itself unchanged). Each candidate x̄_l gets the
+            RIS weight w_l = ``weight_scale`` · p̂(x̄_l) / p(x̄_l) (seed 000, Eq. 6; m_t is inside p̂,
+            so with ``weight_scale`` = 1/N over N traced paths the MIS weights sum to one) and its
+            reconnection data under ``sp``'s rule. Reservoir decisions use ``random_uniform(ukey, j)``,
+            j = 0, 1, … (one key per traced path). Call :func:`settle` once after the last path.
+            """
+            r = pr.res
+            sel = pr.path
+            estimate = pr.estimate  # Σ f/(N p) over the candidates (seed 002, Listing 1 line 36)
+            ucount = int(0)
+            if dom.valid == 0:
+                return pr
+            v = dom  # the current vertex x_i
+            fthru = wp.vec3(dom.weight, dom.weight, dom.weight)  # f of x₁ … x_i: x₁'s film weight, the BSDF factors so far
+            pdf = float(1.0)  # density of the directions sampled so far (π-scaled measure, roulette included)
+            eta = float(1.0)  # relative index of refraction crossed so far (for the roulette)
+            cur = path_sample_empty()  # the walk's reconnection data (k = 0 until a pair qualifies)
+            cur.key = key
+            suffix_thru = wp.vec3(1.0, 1.0, 1.0)  # f factors after x_k's BSDF
+            i = int(1)
+            while max_bounces < 0 or i <= max_bounces:
+                m = vertex_material(scene, v.material, v.uv, v.tri, v.p, v.ns, v.ng)
+                frame_l = frame_from_normal(v.ns)
+                wo_l = to_local(frame_l, v.wo)
+                rough = bsdf.roughness(m)
+                # -- next-event estimation: candidate x₁ … x_i → light --
+                if bsdf.is_delta(m) == 0 and i >= sp.min_bounces:
+                    c = path_dim(i, DIM_NEE)
+                    ls = sample_light(scene.lights, v.p, random_uniform(key, c), wp.vec2(random_uniform(key, c + 1), random_uniform(key, c + 2)))
+                    if ls.pdf > 0.0 and wp.length_sq(ls.radiance) > 0.0:
+                        wi_l = to_local(frame_l, ls.wi)
+                        fo = bsdf.eval(m, wo_l, wi_l)
+                        if wp.length_sq(fo) > 0.0:
+                            if not light_occluded(scene, v.p, v.ng, ls):
+                                mis = technique_mis(1, ls.delta, 0, ls.pdf, bsdf.pdf(m, wo_l, wi_l))  # Veach Eq. 9.13
+                                s_nee = segment_measure(ls.delta)
+                                fo = fo * s_nee
+                                cand_x = cur
+                                cand_x.length = i
+                                cand_x.end_nee = 1
+                                cand_x.f = wp.cw_mul(fthru, wp.cw_mul(fo, ls.radiance)) * mis  # m_t · f
+                                if wp.static(estimate_only):
+                                    pass  # the estimate needs m_t f and the density, not the reconnection data
+                                elif cur.rc_index == i:
+                                    cand_x.rc_wi = ls.wi
+                                    cand_x.suffix = ls.radiance  # m_t is re-evaluated at x_k by the shift
+                                    cand_x.end_light_pdf = ls.pdf
+                                    cand_x.end_delta = ls.delta
+                                elif cur.rc_index != 0:
+                                    cand_x.suffix = wp.cw_mul(suffix_thru, wp.cw_mul(fo, ls.radiance)) * mis
+                                elif rc_pair_ok(sp, rough, 1.0, ls.dist, i + 1):
+                                    kind = VERTEX_AREA_LIGHT
+                                    lp = ls.p
+                                    light_id = ls.tri
+                                    sfx = wp.vec3(1.0, 1.0, 1.0)
+                                    if ls.is_env != 0:
+                                        kind = VERTEX_ENV
+                                        lp = ls.wi
+                                    elif ls.delta != 0:
+                                        # a spot's intensity depends on the direction it is left in: keep which light, not its value
+                                        kind = VERTEX_POINT_LIGHT
+                                        light_id = ls.light - scene.lights.num_emitters
+                                    cand_x = _endpoint_light(cand_x, i + 1, kind, lp, ls.n, light_id, wp.dot(ls.n, -ls.wi), ls.dist, sfx, pdf)
+                                else:
+                                    cand_x.pdf_replay = pdf * ls.pdf * s_nee
+                                t = path_target(cand_x)
+                                w = ris_weight(weight_scale, t, pdf * ls.pdf * s_nee)  # seed 000, Eq. 6 (m_t is inside t)
+                                estimate += decoupled_contribution(w, t, cand_x.f)  # w f/p̂ = m_t f/(N p)
+                                if wp.static(not estimate_only):
+                                    r = reservoir_update(r, w, t, 0.0, random_uniform(ukey, ucount))
+                                    ucount += 1
+                                    if r.selected:
+                                        sel = cand_x
+                # -- BSDF sampling --
+                c = path_dim(i, DIM_BSDF)
+                bs = bsdf.sample(m, wo_l, random_uniform(key, c), wp.vec2(random_uniform(key, c + 1), random_uniform(key, c + 2)))
+                if bs.valid == 0 or not (bs.pdf > 0.0):
                     break
-                pdf = pdf * q
-            if not density_in_range(pdf):
-                break  # beyond float32: ends the path (see _PDF_RANGE)
-            d = wp.normalize(to_world(frame_l, bs.wi))
-            if cur.rc_index == i:
-                cur.rc_wi = d
-            elif cur.rc_index != 0:
-                suffix_thru = wp.cw_mul(suffix_thru, fac)
-            si = intersect(scene, spawn_origin(scene, v.p, v.ng, d), d, 1.0e30)
-            eh = emitter_hit(scene, v.p, d, si)
-            le = eh.radiance
-            lpdf = eh.light_pdf
-            dist = eh.dist
-            # -- emitter reached by BSDF sampling: candidate x₁ … x_{i+1} --
-            if wp.length_sq(le) > 0.0 and i >= sp.min_bounces:
-                mis = technique_mis(0, 0, bs.delta, lpdf, bs.pdf)
-                cand_x = cur
-                cand_x.length = i
-                cand_x.end_nee = 0
-                cand_x.f = wp.cw_mul(fthru, le) * mis  # m_t · f
-                if cur.rc_index == i:
-                    cand_x.suffix = le  # m_t is re-evaluated at x_k by the shift
-                    cand_x.end_light_pdf = lpdf
-                    cand_x.end_delta = 0
-                elif cur.rc_index != 0:
-                    cand_x.suffix = wp.cw_mul(suffix_thru, le) * mis
-                elif rc_pair_ok(sp, rough, 1.0, dist, i + 1):
-                    if si.valid == 0:
-                        cand_x = _endpoint_light(cand_x, i + 1, VERTEX_ENV, d, -d, -1, 1.0, dist, wp.vec3(1.0, 1.0, 1.0), pdf_before)
+                s_bsdf = segment_measure(bs.delta)
+                fac = bs.weight * (bs.pdf * s_bsdf)
+                fthru = wp.cw_mul(fthru, fac)
+                pdf_before = pdf
+                pdf = pdf * bs.pdf * s_bsdf
+                eta = eta * bs.eta
+                # -- Russian roulette (Mitsuba's rule); its decision is part of the path's random sequence --
+                if i >= sp.rr_depth:
+                    q = roulette_survival(fthru / pdf, eta)
+                    if random_uniform(key, path_dim(i, DIM_RR)) >= q:
+                        break
+                    pdf = pdf * q
+                if not density_in_range(pdf):
+                    break  # beyond float32: ends the path (see _PDF_RANGE)
+                d = wp.normalize(to_world(frame_l, bs.wi))
+                if wp.static(not estimate_only):
+                    if cur.rc_index == i:
+                        cur.rc_wi = d
+                    elif cur.rc_index != 0:
+                        suffix_thru = wp.cw_mul(suffix_thru, fac)
+                si = intersect(scene, spawn_origin(scene, v.p, v.ng, d), d, 1.0e30)
+                eh = emitter_hit(scene, v.p, d, si)
+                le = eh.radiance
+                lpdf = eh.light_pdf
+                dist = eh.dist
+                # -- emitter reached by BSDF sampling: candidate x₁ … x_{i+1} --
+                if wp.length_sq(le) > 0.0 and i >= sp.min_bounces:
+                    mis = technique_mis(0, 0, bs.delta, lpdf, bs.pdf)
+                    cand_x = cur
+                    cand_x.length = i
+                    cand_x.end_nee = 0
+                    cand_x.f = wp.cw_mul(fthru, le) * mis  # m_t · f
+                    if wp.static(estimate_only):
+                        pass
+                    elif cur.rc_index == i:
+                        cand_x.suffix = le  # m_t is re-evaluated at x_k by the shift
+                        cand_x.end_light_pdf = lpdf
+                        cand_x.end_delta = 0
+                    elif cur.rc_index != 0:
+                        cand_x.suffix = wp.cw_mul(suffix_thru, le) * mis
+                    elif rc_pair_ok(sp, rough, 1.0, dist, i + 1):
+                        if si.valid == 0:
+                            cand_x = _endpoint_light(cand_x, i + 1, VERTEX_ENV, d, -d, -1, 1.0, dist, wp.vec3(1.0, 1.0, 1.0), pdf_before)
+                        else:
+                            cand_x = _endpoint_light(cand_x, i + 1, VERTEX_AREA_LIGHT, si.p, si.ng, si.tri, wp.dot(si.ng, v.p - si.p) / dist, dist, wp.vec3(1.0, 1.0, 1.0), pdf_before)
                     else:
-                        cand_x = _endpoint_light(cand_x, i + 1, VERTEX_AREA_LIGHT, si.p, si.ng, si.tri, wp.dot(si.ng, v.p - si.p) / dist, dist, wp.vec3(1.0, 1.0, 1.0), pdf_before)
-                else:
-                    cand_x.pdf_replay = pdf
-                t = path_target(cand_x)
-                w = ris_weight(weight_scale, t, pdf)
-                estimate += decoupled_contribution(w, t, cand_x.f)
-                r = reservoir_update(r, w, t, 0.0, random_uniform(ukey, ucount))
-                ucount += 1
-                if r.selected:
-                    sel = cand_x
-            if si.valid == 0 or (max_bounces >= 0 and i >= max_bounces):
-                break
-            # -- advance to x_{i+1}; is (x_i, x_{i+1}) the reconnection pair? --
-            if cur.rc_index == 0 and rc_pair_ok(sp, rough, roughness(scene, si.material), dist, i + 1):
-                cur.rc_index = i + 1
-                cur.rc_kind = VERTEX_SURFACE
-                cur.rc_p = si.p
-                cur.rc_ng = si.ng
-                cur.rc_ns = si.ns
-                cur.rc_uv = si.uv
-                cur.rc_material = si.material
-                cur.rc_tri = si.tri
-                cur.rc_cos = wp.dot(si.ng, v.p - si.p) / dist  # the geometric segment, as the shift measures it
-                cur.rc_dist = dist
-                cur.pdf_replay = pdf_before
-                suffix_thru = wp.vec3(1.0, 1.0, 1.0)
-            v = vertex_from_hit(si, -d)
-            i += 1
-        out = PathReservoir()
-        out.res = r
-        out.path = sel
-        out.estimate = estimate
-        return out
+                        cand_x.pdf_replay = pdf
+                    t = path_target(cand_x)
+                    w = ris_weight(weight_scale, t, pdf)
+                    estimate += decoupled_contribution(w, t, cand_x.f)
+                    if wp.static(not estimate_only):
+                        r = reservoir_update(r, w, t, 0.0, random_uniform(ukey, ucount))
+                        ucount += 1
+                        if r.selected:
+                            sel = cand_x
+                if si.valid == 0 or (max_bounces >= 0 and i >= max_bounces):
+                    break
+                # -- advance to x_{i+1}; is (x_i, x_{i+1}) the reconnection pair? --
+                if wp.static(not estimate_only):
+                    if cur.rc_index == 0 and rc_pair_ok(sp, rough, roughness(scene, si.material), dist, i + 1):
+                        cur.rc_index = i + 1
+                        cur.rc_kind = VERTEX_SURFACE
+                        cur.rc_p = si.p
+                        cur.rc_ng = si.ng
+                        cur.rc_ns = si.ns
+                        cur.rc_uv = si.uv
+                        cur.rc_material = si.material
+                        cur.rc_tri = si.tri
+                        cur.rc_cos = wp.dot(si.ng, v.p - si.p) / dist  # the geometric segment, as the shift measures it
+                        cur.rc_dist = dist
+                        cur.pdf_replay = pdf_before
+                        suffix_thru = wp.vec3(1.0, 1.0, 1.0)
+                v = vertex_from_hit(si, -d)
+                i += 1
+            out = PathReservoir()
+            out.res = r
+            out.path = sel
+            out.estimate = estimate
+            return out
+
+        return stream_path_candidates
+
+    stream_path_candidates = make_stream(False)
+    stream_path_estimate = make_stream(True)
 
     @wp.func
     def settle(scene: SceneData, dom: Domain, pr: PathReservoir, sp: ShiftParams) -> PathReservoir:
@@ -869,7 +887,8 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
         out.estimate = pr.estimate
         return out
 
-    funcs = PathShiftFuncs(kinds=key, shift=shift, roughness=roughness, stream_candidates=stream_path_candidates, settle=settle,
+    funcs = PathShiftFuncs(kinds=key, shift=shift, roughness=roughness, stream_candidates=stream_path_candidates,
+                           stream_estimate=stream_path_estimate, settle=settle,
                            suffix_moved=suffix_moved, shift_across=shift_across)
     return funcs
 
