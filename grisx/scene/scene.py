@@ -670,33 +670,55 @@ def _perturbed_normal(scene: SceneData, si: SurfaceInteraction, m: Material) -> 
 
 
 @wp.func
+def _scalar_texture_slot(m: Material, j: int) -> int:
+    """Texture id of scalar slot ``j`` of :func:`_resolve_wrappers` (−1: none): 0 a mask's opacity, 1 α_u, 2 α_v,
+    3 a blend's weight, 4 … 7 a principled BSDF's textured lobe weights (id · 16 + lobe)."""
+    if j == 0:
+        return m.opacity_texture
+    if j == 1:
+        return m.alpha_u_texture
+    if j == 2:
+        return m.alpha_v_texture
+    if j == 3:
+        return m.blend_texture
+    t = m.lobe_textures[j - 4]
+    if t < 0:
+        return -1
+    return t // 16
+
+
+@wp.func
 def _resolve_wrappers(scene: SceneData, m: Material, si: SurfaceInteraction) -> Material:
     """A mask's ``opacity`` (the luminance of its texture at ``si.uv``, clamped to [0, 1]), a normal or bump map's
     ``perturbed_n`` at ``si``, textured α_u / α_v (their textures' luminance), an anisotropic BSDF's ``tangent``
-    (:func:`shading_tangent`), and a diffuse blend's reflectance (1 − w) ρ₀ + w ρ₁ (a general blend's weight w)."""
-    if m.opacity_texture >= 0:
-        m.opacity = wp.clamp(surface_texture_1(scene, m.opacity_texture, si), 0.0, 1.0)
+    (:func:`shading_tangent`), a principled BSDF's textured lobe weights, and a diffuse blend's reflectance
+    (1 − w) ρ₀ + w ρ₁ (a general blend's weight w)."""
     if m.perturb != PERTURB_NONE:
         m.perturbed_n = _perturbed_normal(scene, si, m)
-    if m.alpha_u_texture >= 0:  # roughconductor.cpp: m_alpha_u->eval_1(si)
-        m.alpha = surface_texture_1(scene, m.alpha_u_texture, si)
-    if m.alpha_v_texture >= 0:
-        m.alpha_v = surface_texture_1(scene, m.alpha_v_texture, si)
     if m.anisotropic != 0:
         m.tangent = shading_tangent(scene, si)
-    # a principled BSDF's textured lobe weights (Mitsuba's eval_1 of each); a loop, not unrolled: one texture
-    # lookup in the code of every kernel that resolves a material, not four
+    # the scalar textures (Mitsuba's eval_1 of each) in one loop, not unrolled: one texture lookup in the code of
+    # every kernel that resolves a material, not eight (each was inlined at every call site: CUDA compile time)
+    w = m.blend_weight
     j = int(0)
-    while j < 4:
-        t = m.lobe_textures[j]
-        if t < 0:
-            break
-        m = principled_set_slot(m, t % 16, surface_texture_1(scene, t // 16, si))
+    while j < 8:
+        t = _scalar_texture_slot(m, j)
+        if t >= 0:
+            value = surface_texture_1(scene, t, si)
+            if j == 0:
+                m.opacity = wp.clamp(value, 0.0, 1.0)
+            elif j == 1:
+                m.alpha = value  # roughconductor.cpp: m_alpha_u->eval_1(si)
+            elif j == 2:
+                m.alpha_v = value
+            elif j == 3:
+                w = wp.clamp(value, 0.0, 1.0)
+            else:
+                m = principled_set_slot(m, m.lobe_textures[j - 4] % 16, value)
+        elif j >= 4:
+            break  # the lobe textures are packed first to last
         j += 1
     if m.blend_texture >= 0 or m.blend_weight > 0.0:
-        w = m.blend_weight
-        if m.blend_texture >= 0:
-            w = wp.clamp(surface_texture_1(scene, m.blend_texture, si), 0.0, 1.0)
         if m.blend_partner.shape[0] > 0:  # plugins2: a general blend mixes its two BSDFs in the dispatch, by this weight
             m.blend_weight = w
         else:
