@@ -179,6 +179,7 @@ from grisx.scene.frame import Frame, frame_from_normal, to_local, to_world
 from grisx.scene.microfacet import (
     fresnel_conductor,
     fresnel_dielectric,
+    half_vector,
     MICROFACET_BECKMANN,
     ggx_d,
     ggx_g1,
@@ -487,11 +488,7 @@ def _half_vector(m: Material, wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
     eta = m.eta[0]
     if wo[2] < 0.0:
         eta = 1.0 / eta
-    scale = eta
-    if wo[2] * wi[2] > 0.0:
-        scale = 1.0
-    h = wp.normalize(wo + wi * scale)
-    return h * wp.sign(h[2])
+    return half_vector(wo, wi, eta)
 
 
 @wp.func

@@ -103,6 +103,7 @@ import warp as wp
 wp.set_module_options({"enable_backward": False})
 
 __all__ = [
+    "half_vector",
     "ALPHA_MIN",
     "FresnelDielectric",
     "ggx_d",
@@ -445,6 +446,17 @@ def fresnel_dielectric(cos_i: float, eta: float) -> FresnelDielectric:
     r.eta_it = eta_it
     r.eta_ti = eta_ti
     return r
+
+
+@wp.func
+def half_vector(wo: wp.vec3, wi: wp.vec3, eta: float) -> wp.vec3:
+    """The generalized half vector m ∝ wo + η wi (Walter et al. 2007, Eq. 16; η = 1 where wo and wi lie on one side),
+    turned to the macro normal's side. ``eta``: the relative index seen from wo's side."""
+    scale = eta
+    if wo[2] * wi[2] > 0.0:
+        scale = 1.0
+    h = wp.normalize(wo + wi * scale)
+    return h * wp.sign(h[2])
 
 
 @wp.func

@@ -53,6 +53,7 @@ from grisx.scene.material import MATERIAL_PRINCIPLED_THIN, Material
 from grisx.scene.microfacet import (
     MICROFACET_GGX,
     fresnel_dielectric,
+    half_vector,
     ggx_g1,
     microfacet_d,
     microfacet_g2,
@@ -228,18 +229,6 @@ def _sheen(m: Material, cos_d: float) -> wp.vec3:
 # ---- principled.cpp ----
 
 
-@wp.func
-def _half(v: wp.vec3, l: wp.vec3, eta_path: float) -> wp.vec3:
-    # principled.cpp: h ∝ V + L (reflection) or V + η L (transmission), turned to the outside
-    s = eta_path
-    if v[2] * l[2] > 0.0:
-        s = 1.0
-    h = wp.normalize(v + l * s)
-    if h[2] < 0.0:
-        h = -h
-    return h
-
-
 @wp.struct
 class _Probs:
     diffuse: float
@@ -302,7 +291,7 @@ def principled_eval(m: Material, wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
     if not front:
         eta_path = 1.0 / eta
     alpha = _dist_alpha(m.alpha_v, roughness)
-    h = _half(wo, wi, eta_path)
+    h = half_vector(wo, wi, eta_path)
     dot_v = wp.dot(wo, h)
     dot_l = wp.dot(wi, h)
     f = fresnel_dielectric(dot_v, eta).f
@@ -355,7 +344,7 @@ def principled_pdf(m: Material, wo: wp.vec3, wi: wp.vec3) -> float:
     cos_l = wi[2]
     is_reflect = cos_v * cos_l > 0.0
     is_refract = cos_v * cos_l < 0.0
-    h = _half(wo, wi, eta_path)
+    h = half_vector(wo, wi, eta_path)
     alpha = _dist_alpha(m.alpha_v, m.alpha)
     dot_v = wp.dot(wo, h)
     dot_l = wp.dot(wi, h)
