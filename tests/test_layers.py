@@ -38,3 +38,31 @@ def test_layers_point_one_way():
         for path in (ROOT / layer).rglob("*.py"):
             bad = [m for m in _imports(path) if not _allowed(m, allowed)]
             assert not bad, f"{path.relative_to(ROOT)} imports {bad}"
+
+
+def _warp_constant_attributes(source: str) -> list[str]:
+    """``name.attr`` inside a ``wp.func``/``wp.kernel`` where ``name`` is also one of Warp's constants (``wp.e``, ``wp.tau``, ...)."""
+    import warp as wp  # noqa: PLC0415
+
+    constants = {n for n in dir(wp) if not n.startswith("_") and isinstance(getattr(wp, n), (int, float))}
+    found = []
+    for fn in ast.walk(ast.parse(source)):
+        if not isinstance(fn, ast.FunctionDef) or not any("wp." in ast.unparse(d) for d in fn.decorator_list):
+            continue
+        for node in ast.walk(fn):
+            if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id in constants:
+                found.append(f"{fn.name}:{node.lineno}: {node.value.id}.{node.attr}")
+    return found
+
+
+def test_warp_code_names_no_variable_after_a_warp_constant():
+    # Warp 1.19 hashes a module before code generation by resolving ``e.dist`` to its constant ``wp.e``, and after it
+    # (once another module that shares the function was built in the process) as the local variable: the same
+    # kernels got two hashes and CI compiled ReSTIR PT's and area ReSTIR's modules twice (about 10 s each)
+    bad = [f"{path.relative_to(ROOT)}:{hit}" for path in ROOT.rglob("*.py") for hit in _warp_constant_attributes(path.read_text())]
+    assert not bad, bad
+
+
+def test_a_local_named_after_a_warp_constant_is_caught():
+    source = "import warp as wp\n@wp.func\ndef f(x: float) -> float:\n    e = Rec()\n    e.dist = x\n    return e.dist\n"
+    assert _warp_constant_attributes(source) == ["f:5: e.dist", "f:6: e.dist"]

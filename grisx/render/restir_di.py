@@ -240,15 +240,15 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
         """f L_e G of light sample ``lp`` at visible point ``si``, whose material ``m`` and shading ``frame`` the caller
         resolved once (the initial pass weighs 33 candidates at one point; resolving textures and normal maps for each
         was most of its time)."""
-        e = LightEval()
-        e.rgb = wp.vec3(0.0, 0.0, 0.0)
-        e.aux = wp.vec3(0.0, 0.0, 0.0)
-        e.target = 0.0
-        e.wi = wp.vec3(0.0, 0.0, 1.0)
-        e.dist = 0.0
-        e.cos_light = 1.0
+        ev = LightEval()
+        ev.rgb = wp.vec3(0.0, 0.0, 0.0)
+        ev.aux = wp.vec3(0.0, 0.0, 0.0)
+        ev.target = 0.0
+        ev.wi = wp.vec3(0.0, 0.0, 1.0)
+        ev.dist = 0.0
+        ev.cos_light = 1.0
         if lp.kind == LIGHT_NONE or si.valid == 0:
-            return e
+            return ev
         le = wp.vec3(0.0, 0.0, 0.0)
         g = float(1.0)
         wi = lp.p
@@ -258,7 +258,7 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
         elif lp.kind == LIGHT_POINT:
             a = delta_light_arrival(scene.lights, lp.index, si.p)  # I(−wi) / d², or a directional light's E
             if a.dist <= 0.0:
-                return e
+                return ev
             wi = a.wi
             dist = a.dist
             le = a.radiance
@@ -266,26 +266,26 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
             d = lp.p - si.p
             dist_sq = wp.dot(d, d)
             if dist_sq <= 0.0:
-                return e
+                return ev
             dist = wp.sqrt(dist_sq)
             wi = d / dist
             cos_light = -wp.dot(lp.n, wi)
             if cos_light <= 0.0:
-                return e
+                return ev
             le = emitter_radiance(scene.lights, lp.index, lp.p, lp.n, -wi)
-            e.cos_light = cos_light
+            ev.cos_light = cos_light
             g = cos_light / dist_sq  # area measure: dω = |cos θ_y| dA / d²
         f = bsdf.eval(m, to_local(frame, wo), to_local(frame, wi))
-        e.rgb = wp.cw_mul(f, le) * g
-        e.target = luminance(e.rgb)
-        if not (e.target > 0.0):  # also NaN
-            e.target = 0.0
-            e.rgb = wp.vec3(0.0, 0.0, 0.0)
+        ev.rgb = wp.cw_mul(f, le) * g
+        ev.target = luminance(ev.rgb)
+        if not (ev.target > 0.0):  # also NaN
+            ev.target = 0.0
+            ev.rgb = wp.vec3(0.0, 0.0, 0.0)
         elif m.kind == MATERIAL_DIFFUSE:
-            e.aux = e.rgb  # the diffuse lobe; grisx's other BSDFs are all glossy lobe (ḟ = 0 there)
-        e.wi = wi
-        e.dist = dist
-        return e
+            ev.aux = ev.rgb  # the diffuse lobe; grisx's other BSDFs are all glossy lobe (ḟ = 0 there)
+        ev.wi = wi
+        ev.dist = dist
+        return ev
 
     @wp.func
     def light_eval(scene: SceneData, si: SurfaceInteraction, wo: wp.vec3, lp: LightPoint) -> LightEval:
@@ -293,27 +293,27 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
         return light_eval_at(scene, si, surface_material(scene, si), frame_from_normal(si.ns), wo, lp)
 
     @wp.func
-    def light_visible(scene: SceneData, si: SurfaceInteraction, e: LightEval, lp: LightPoint) -> bool:
+    def light_visible(scene: SceneData, si: SurfaceInteraction, ev: LightEval, lp: LightPoint) -> bool:
         if lp.kind == LIGHT_TRIANGLE:
             return not segment_occluded(scene, si.p, si.ng, lp.p, lp.n)
-        return not occluded(scene, spawn_origin(scene, si.p, si.ng, e.wi), e.wi, e.dist)
+        return not occluded(scene, spawn_origin(scene, si.p, si.ng, ev.wi), ev.wi, ev.dist)
 
     @wp.func
     def eval_at(scene: SceneData, si: SurfaceInteraction, wo: wp.vec3, lp: LightPoint, visibility: int) -> LightEval:
         """``lp`` seen from a visible point: unshadowed, or zero where occluded when ``visibility`` is set;
         zero across frames where its emitter moved (no such point in the other frame)."""
-        e = light_eval(scene, si, wo, lp)
+        ev = light_eval(scene, si, wo, lp)
         if lp.kind == LIGHT_TRIANGLE and motion_touches(scene, lp.p, lp.p):
-            e.target = 0.0
-            e.rgb = wp.vec3(0.0, 0.0, 0.0)
-            e.aux = wp.vec3(0.0, 0.0, 0.0)
-            return e
-        if e.target > 0.0 and visibility != 0:
-            if not light_visible(scene, si, e, lp):
-                e.target = 0.0
-                e.rgb = wp.vec3(0.0, 0.0, 0.0)
-                e.aux = wp.vec3(0.0, 0.0, 0.0)
-        return e
+            ev.target = 0.0
+            ev.rgb = wp.vec3(0.0, 0.0, 0.0)
+            ev.aux = wp.vec3(0.0, 0.0, 0.0)
+            return ev
+        if ev.target > 0.0 and visibility != 0:
+            if not light_visible(scene, si, ev, lp):
+                ev.target = 0.0
+                ev.rgb = wp.vec3(0.0, 0.0, 0.0)
+                ev.aux = wp.vec3(0.0, 0.0, 0.0)
+        return ev
 
     @wp.func
     def target_at(scene: SceneData, si: SurfaceInteraction, wo: wp.vec3, lp: LightPoint, visibility: int) -> float:
@@ -418,18 +418,18 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
             if s.pdf <= 0.0:
                 continue
             lp = light_point_from_sample(s, ls.num_emitters)
-            e = light_eval_at(scene, si, m, frame_x, wo, lp)
-            if e.target <= 0.0:
+            ev = light_eval_at(scene, si, m, frame_x, wo, lp)
+            if ev.target <= 0.0:
                 continue
             p_light = s.pdf_area  # area density on triangles, solid angle on the environment, pmf for point lights
             p_bsdf = float(0.0)
             if lp.kind == LIGHT_TRIANGLE:
-                p_bsdf = bsdf.pdf(m, wo_l, to_local(frame_x, e.wi)) * e.cos_light / (e.dist * e.dist)
+                p_bsdf = bsdf.pdf(m, wo_l, to_local(frame_x, ev.wi)) * ev.cos_light / (ev.dist * ev.dist)
             elif lp.kind == LIGHT_ENV:
-                p_bsdf = bsdf.pdf(m, wo_l, to_local(frame_x, e.wi))
+                p_bsdf = bsdf.pdf(m, wo_l, to_local(frame_x, ev.wi))
             total = balance_term(c_light, p_light) + balance_term(c_bsdf, p_bsdf)
-            w = ris_weight(balance_mis(1.0, p_light, total), e.target, p_light)  # seed 000, Eq. 6; seed 001, Eq. 15
-            r = reservoir_update(r, w, e.target, 0.0, random_uniform(key, c + 3))
+            w = ris_weight(balance_mis(1.0, p_light, total), ev.target, p_light)  # seed 000, Eq. 6; seed 001, Eq. 15
+            r = reservoir_update(r, w, ev.target, 0.0, random_uniform(key, c + 3))
             if r.selected:
                 sel = lp
         for j in range(n_bsdf):
@@ -451,18 +451,18 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
                 lp.p = d
             if lp.kind == LIGHT_NONE:
                 continue
-            e = light_eval_at(scene, si, m, frame_x, wo, lp)
-            if e.target <= 0.0:
+            ev = light_eval_at(scene, si, m, frame_x, wo, lp)
+            if ev.target <= 0.0:
                 continue
             p_bsdf = bs.pdf
             p_light = environment_pdf(ls, d)
             if lp.kind == LIGHT_TRIANGLE:
-                to_area = e.cos_light / (e.dist * e.dist)
+                to_area = ev.cos_light / (ev.dist * ev.dist)
                 p_bsdf = bs.pdf * to_area
                 p_light = light_pdf_emitter(ls, hit.tri, si.p, hit.p, hit.ng) * to_area
             total = balance_term(c_light, p_light) + balance_term(c_bsdf, p_bsdf)
-            w = ris_weight(balance_mis(1.0, p_bsdf, total), e.target, p_bsdf)
-            r = reservoir_update(r, w, e.target, 0.0, random_uniform(key, c + 3))
+            w = ris_weight(balance_mis(1.0, p_bsdf, total), ev.target, p_bsdf)
+            r = reservoir_update(r, w, ev.target, 0.0, random_uniform(key, c + 3))
             if r.selected:
                 sel = lp
         r = reservoir_finalize(r)
@@ -643,12 +643,12 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
             L += est[y, x]  # ⟨Ḋ_i⟩, ReSTCV's estimate of the auxiliary (seed 002, Sec. 5.3)
         if r.ucw > 0.0:
             si = sf.si[y, x]
-            e = light_eval(scene, si, sf.wo[y, x], lps[y, x])
-            if e.target > 0.0 and light_visible(scene, si, e, lps[y, x]):
+            ev = light_eval(scene, si, sf.wo[y, x], lps[y, x])
+            if ev.target > 0.0 and light_visible(scene, si, ev, lps[y, x]):
                 if wp.static(cv):
-                    L += (e.rgb - e.aux) * r.ucw  # the second-level CV: ⟨D_i − Ḋ_i⟩ = (f − ḟ)(y) · W
+                    L += (ev.rgb - ev.aux) * r.ucw  # the second-level CV: ⟨D_i − Ḋ_i⟩ = (f − ḟ)(y) · W
                 else:
-                    L += e.rgb * r.ucw  # seed 004, Eq. 8: f(y) · W
+                    L += ev.rgb * r.ucw  # seed 004, Eq. 8: f(y) · W
             else:
                 # an occluded sample (possible when unbiased=false) is not handed to the next frame
                 res[y, x] = reservoir_drop(r)

@@ -427,51 +427,51 @@ def make_restir_gi_kernels(kinds: frozenset[int], moving: bool = False) -> Any:
     @wp.func
     def gi_eval(scene: SceneData, si: SurfaceInteraction, wo: wp.vec3, s: GISample, target_mode: int) -> GIEval:
         """Sample ``s`` reconnected to visible point ``si``: f ⟨cos⟩ L_o and p̂ (Eq. 9 or 10); 0 outside the domain."""
-        e = GIEval()
-        e.rgb = wp.vec3(0.0, 0.0, 0.0)
-        e.target = 0.0
-        e.wi = wp.vec3(0.0, 0.0, 1.0)
-        e.dist = 0.0
+        ev = GIEval()
+        ev.rgb = wp.vec3(0.0, 0.0, 0.0)
+        ev.target = 0.0
+        ev.wi = wp.vec3(0.0, 0.0, 1.0)
+        ev.dist = 0.0
         if s.valid == 0 or si.valid == 0:
-            return e
+            return ev
         x1 = domain_point(scene, si, wo)
         d = s.xs - x1
         dist = wp.length(d)
         if dist <= 0.0:
-            return e
+            return ev
         wi = d / dist
-        e.wi = wi
-        e.dist = dist
+        ev.wi = wi
+        ev.dist = dist
         nv = visible_normal(si, wo)
         if wp.dot(nv, wi) <= 0.0 or wp.dot(si.ng, wi) * wp.dot(si.ng, wo) <= 0.0 or wp.dot(s.ns, wi) >= 0.0:
-            return e  # outside the visible point's (shading and geometric) hemisphere, or x_v behind x_s's surface
+            return ev# outside the visible point's (shading and geometric) hemisphere, or x_v behind x_s's surface
         m = surface_material(scene, si)
         frame = frame_from_normal(si.ns)
         f = bsdf.eval(m, to_local(frame, wo), to_local(frame, wi))
         lo = reflected_radiance(scene, s, -wi)
-        e.rgb = wp.cw_mul(f, lo)
-        t = luminance(e.rgb)  # seed 004, Eq. 9
+        ev.rgb = wp.cw_mul(f, lo)
+        t = luminance(ev.rgb)  # seed 004, Eq. 9
         if target_mode != _TARGET_FULL:
             t = luminance(lo)  # seed 004, Eq. 10
         if t > 0.0:  # false for NaN
-            e.target = t
+            ev.target = t
         else:
-            e.rgb = wp.vec3(0.0, 0.0, 0.0)
-        return e
+            ev.rgb = wp.vec3(0.0, 0.0, 0.0)
+        return ev
 
     @wp.func
-    def sample_visible(scene: SceneData, si: SurfaceInteraction, wo: wp.vec3, e: GIEval, s: GISample) -> bool:
+    def sample_visible(scene: SceneData, si: SurfaceInteraction, wo: wp.vec3, ev: GIEval, s: GISample) -> bool:
         """Whether the segment x_v → x_s is free (both ends lifted off their surfaces: ``segment_occluded``)."""
         return not segment_occluded(scene, domain_point(scene, si, wo), visible_normal(si, wo), s.xs, s.ns)
 
     @wp.func
     def target_shifted(scene: SceneData, si: SurfaceInteraction, wo: wp.vec3, s: GISample, target_mode: int, test_visibility: int) -> float:
         """p̂ at ``si`` of a sample reconnected from elsewhere; 0 if x_s is hidden from ``si`` (Alg. 4 l. 12)."""
-        e = gi_eval(scene, si, wo, s, target_mode)
-        if e.target > 0.0 and test_visibility != 0:
-            if not sample_visible(scene, si, wo, e, s):
+        ev = gi_eval(scene, si, wo, s, target_mode)
+        if ev.target > 0.0 and test_visibility != 0:
+            if not sample_visible(scene, si, wo, ev, s):
                 return 0.0
-        return e.target
+        return ev.target
 
     @wp.func
     def reconnection_jacobian(
@@ -533,8 +533,8 @@ def make_restir_gi_kernels(kinds: frozenset[int], moving: bool = False) -> Any:
         """Whether the domain of visible point ``si`` can produce sample ``s`` (Alg. 4 l. 17); always when biased."""
         if unbiased == 0:
             return 1
-        e = gi_eval(scene, si, wo, s, target_mode)
-        if e.target > 0.0 and sample_visible(scene, si, wo, e, s):
+        ev = gi_eval(scene, si, wo, s, target_mode)
+        if ev.target > 0.0 and sample_visible(scene, si, wo, ev, s):
             return 1
         return 0
 
@@ -910,13 +910,13 @@ def make_restir_gi_kernels(kinds: frozenset[int], moving: bool = False) -> Any:
             return
         si = sf.si[y, x]
         wo = sf.wo[y, x]
-        e = gi_eval(scene, si, wo, s, target_mode)
-        if e.target > 0.0 and not sample_visible(scene, si, wo, e, s):
+        ev = gi_eval(scene, si, wo, s, target_mode)
+        if ev.target > 0.0 and not sample_visible(scene, si, wo, ev, s):
             # x_s was found as the first hit, but other pixels test it with a shadow ray: use the same test
             # here, so that every domain's support is decided by one function (else Z could miss a domain)
-            e.target = 0.0
+            ev.target = 0.0
         r = res_out[y, x]
-        r = reservoir_update(r, ris_weight(1.0, e.target, source_pdf[y, x]), e.target, 0.0, 0.0)  # seed 004, Eq. 5
+        r = reservoir_update(r, ris_weight(1.0, ev.target, source_pdf[y, x]), ev.target, 0.0, 0.0)  # seed 004, Eq. 5
         res_out[y, x] = reservoir_finalize(r)  # W = 1/p_q
 
     @wp.kernel(module=module)
@@ -1163,8 +1163,8 @@ def make_restir_gi_kernels(kinds: frozenset[int], moving: bool = False) -> Any:
             L += direct[y, x]
         r = res[y, x]
         if r.ucw > 0.0:
-            e = gi_eval(scene, sf.si[y, x], sf.wo[y, x], samples[y, x], target_mode)
-            L += e.rgb * r.ucw  # seed 004, Eq. 8 (with Eq. 6's W from the spatial reservoir)
+            ev = gi_eval(scene, sf.si[y, x], sf.wo[y, x], samples[y, x], target_mode)
+            L += ev.rgb * r.ucw  # seed 004, Eq. 8 (with Eq. 6's W from the spatial reservoir)
         write_pixel(image, nonfinite, y, x, L)
 
     return types.SimpleNamespace(

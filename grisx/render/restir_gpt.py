@@ -225,17 +225,17 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         if k != PAIR_BASE_I:
             bx = x + e[0]
             by = y + e[1]
-        tau = shift(scene, area_domain(scene, cam, bx, by, c.film).dom, path, sp)
-        jac = tau.jacobian
+        shifted = shift(scene, area_domain(scene, cam, bx, by, c.film).dom, path, sp)
+        jac = shifted.jacobian
         if use_jacobian == 0:
             jac = 1.0
-        t = outer_shift_of(k, jac, tau.valid)  # seed 000, Eq. 21–22
+        t = outer_shift_of(k, jac, shifted.valid)  # seed 000, Eq. 21–22
         if not t.valid:
             return c
-        c.path = tau.path
+        c.path = shifted.path
         c.jacobian = t.jacobian
         c.valid = True
-        c.value = pair_value_at(scene, cam, x, y, orient, c.film, k, tau.path, sp, symmetric)
+        c.value = pair_value_at(scene, cam, x, y, orient, c.film, k, shifted.path, sp, symmetric)
         return c
 
     @wp.func

@@ -291,16 +291,16 @@ def outer_shift_of(k: int, jacobian: float, valid: wp.bool) -> PairShift:
 
 
 @wp.func
-def outer_shift(tau: ShiftResult, k: int) -> PairShift:
+def outer_shift(shifted: ShiftResult, k: int) -> PairShift:
     """T*(x, k) = (τ(x), k) (seed 000, Eq. 21) with |∂T*/∂(x, k)| = |∂τ/∂x| (Eq. 22).
 
-    ``tau`` is the base path's shift to the corresponding pixel of the
+    ``shifted`` is the base path's shift to the corresponding pixel of the
     target pair (pixel i' → i for k = 0, j' → j for k = 1); the indicator is
     carried by the identity γ(k) = k.
     """
-    s = outer_shift_of(k, tau.jacobian, tau.valid)
-    s.x = tau.x
-    s.jacobian = wp.abs(tau.jacobian)  # as given, also where τ failed (the toys read valid)
+    s = outer_shift_of(k, shifted.jacobian, shifted.valid)
+    s.x = shifted.x
+    s.jacobian = wp.abs(shifted.jacobian)  # as given, also where τ failed (the toys read valid)
     return s
 
 

@@ -331,16 +331,19 @@ class EmitterHit:
 @wp.func
 def emitter_hit(scene: SceneData, p: wp.vec3, d: wp.vec3, si: SurfaceInteraction) -> EmitterHit:
     """Emission reached from ``p`` along ``d`` (the environment if ``si`` missed)."""
-    e = EmitterHit()
-    e.dist = _FAR
+    # (not named ``e``: Warp 1.19 resolves ``e.dist`` as its constant ``wp.e`` while hashing a module before
+    # code generation, and not after, so a process that had built another module hashed this one differently
+    # and compiled it a second time)
+    hit = EmitterHit()
+    hit.dist = _FAR
     if si.valid == 0:
-        e.radiance = environment_eval(scene.lights, d)
-        e.light_pdf = environment_pdf(scene.lights, d)
+        hit.radiance = environment_eval(scene.lights, d)
+        hit.light_pdf = environment_pdf(scene.lights, d)
     else:
-        e.radiance = emitter_radiance(scene.lights, si.tri, si.p, si.ng, -d)
-        e.light_pdf = light_pdf_emitter(scene.lights, si.tri, p, si.p, si.ng)
-        e.dist = wp.length(si.p - p)
-    return e
+        hit.radiance = emitter_radiance(scene.lights, si.tri, si.p, si.ng, -d)
+        hit.light_pdf = light_pdf_emitter(scene.lights, si.tri, p, si.p, si.ng)
+        hit.dist = wp.length(si.p - p)
+    return hit
 
 
 @wp.func
