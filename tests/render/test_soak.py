@@ -15,6 +15,7 @@ import pytest
 from grisx.render.driver import METHODS, RenderContext, load_scene, method_params
 from grisx.render.pt import PathTracer
 from grisx.testing import DEFAULT_K, z_test
+from session_cache import shared
 
 #: methods that keep nothing from frame to frame: their soak is 1,000 independent frames, nothing to drift (slow tier)
 STATELESS = {"mmis-gather": "each frame traces its own prefixes and suffixes; no reservoir outlives a frame"}
@@ -31,6 +32,17 @@ def _renderer(method: str, built, seed: int):
     return METHODS[method].create(RenderContext(built, *RES, params, seed, None, method))
 
 
+def _reference(depth: int) -> tuple[np.ndarray, np.ndarray]:
+    """The path tracer's image mean on the soak's cornell-box and its standard error (4096 spp; once per session and depth)."""
+
+    def render() -> tuple[np.ndarray, np.ndarray]:
+        pt = PathTracer(load_scene("cornell-box").build("cpu"), *RES, spp=4096, max_depth=depth, seed=1)
+        pt.add_samples(0, 4096)
+        return pt.mean().reshape(-1, 3).mean(axis=0), np.sqrt(pt.variance_of_mean().reshape(-1, 3).sum(axis=0)) / (RES[0] * RES[1])
+
+    return shared(("test_soak.reference", "cornell-box", depth, RES, 4096, 1), render)
+
+
 @pytest.mark.parametrize("method", REUSE)
 def test_a_thousand_static_frames_stay_finite_and_unbiased(method):
     built = load_scene("cornell-box").build("cpu")
@@ -44,11 +56,7 @@ def test_a_thousand_static_frames_stay_finite_and_unbiased(method):
             means[f // BATCH] = acc / BATCH
             acc[:] = 0.0
     assert r.nonfinite_samples == 0
-    depth = METHODS[method].reference_max_depth or 16
-    pt = PathTracer(built, *RES, spp=4096, max_depth=depth, seed=1)
-    pt.add_samples(0, 4096)
-    ref = pt.mean().reshape(-1, 3).mean(axis=0)
-    ref_se = np.sqrt(pt.variance_of_mean().reshape(-1, 3).sum(axis=0)) / (RES[0] * RES[1])
+    ref, ref_se = _reference(METHODS[method].reference_max_depth or 16)
     se = means.std(axis=0, ddof=1) / np.sqrt(len(means))
     result = z_test(means.mean(axis=0) - ref, np.sqrt(se**2 + ref_se**2), 0.0, k=DEFAULT_K)
     assert result.passed, result
