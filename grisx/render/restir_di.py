@@ -299,10 +299,11 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
         return not occluded(scene, spawn_origin(scene, si.p, si.ng, ev.wi), ev.wi, ev.dist)
 
     @wp.func
-    def eval_at(scene: SceneData, si: SurfaceInteraction, wo: wp.vec3, lp: LightPoint, visibility: int) -> LightEval:
-        """``lp`` seen from a visible point: unshadowed, or zero where occluded when ``visibility`` is set;
-        zero across frames where its emitter moved (no such point in the other frame)."""
-        ev = light_eval(scene, si, wo, lp)
+    def eval_at(scene: SceneData, si: SurfaceInteraction, m: Material, frame: Frame, wo: wp.vec3, lp: LightPoint, visibility: int) -> LightEval:
+        """``lp`` seen from a visible point (its material ``m`` and shading ``frame`` resolved by the caller): unshadowed,
+        or zero where occluded when ``visibility`` is set; zero across frames where its emitter moved (no such point in
+        the other frame)."""
+        ev = light_eval_at(scene, si, m, frame, wo, lp)
         if lp.kind == LIGHT_TRIANGLE and motion_touches(scene, lp.p, lp.p):
             ev.target = 0.0
             ev.rgb = wp.vec3(0.0, 0.0, 0.0)
@@ -318,7 +319,7 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
     @wp.func
     def target_at(scene: SceneData, si: SurfaceInteraction, wo: wp.vec3, lp: LightPoint, visibility: int) -> float:
         """p̂ of ``lp`` at a visible point: unshadowed, or times its visibility when ``visibility`` is set."""
-        return eval_at(scene, si, wo, lp, visibility).target
+        return eval_at(scene, si, surface_material(scene, si), frame_from_normal(si.ns), wo, lp, visibility).target
 
     @wp.func
     def pairwise_step(
@@ -326,6 +327,8 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
         scene_n: SceneData,
         out: Reservoir,
         si: SurfaceInteraction,
+        mat_c: Material,
+        frame_c: Frame,
         wo: wp.vec3,
         r_c: Reservoir,
         y_c: LightPoint,
@@ -340,9 +343,10 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
     ) -> PairwiseStep:
         """Merge neighbour n's reservoir into ``out`` with its pairwise MIS weight (identity shift, J = 1),
         and return its pair's share of the canonical sample's weight (Bitterli 2022, Ch. 9). Each side is
-        evaluated in its own frame's scene: ``scene_n`` is the previous frame's for the history."""
-        e_c_of_n = eval_at(scene, si, wo, y_n, unbiased)
-        e_n_of_c = eval_at(scene_n, si_n, wo_n, y_c, unbiased)
+        evaluated in its own frame's scene: ``scene_n`` is the previous frame's for the history. The canonical
+        point's material and frame come from the caller, which resolves them once for all its neighbours."""
+        e_c_of_n = eval_at(scene, si, mat_c, frame_c, wo, y_n, unbiased)
+        e_n_of_c = eval_at(scene_n, si_n, surface_material(scene_n, si_n), frame_from_normal(si_n.ns), wo_n, y_c, unbiased)
         t_c_of_n = e_c_of_n.target  # p̂_c(y_n)
         t_n_of_c = e_n_of_c.target  # p̂_n(y_c)
         step = PairwiseStep()
@@ -518,7 +522,8 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
         r_p.confidence = confidence_capped(r_p.confidence, history_cap)
         # ---- pairwise MIS between the fresh (canonical) reservoir and the history ----
         step = pairwise_step(
-            scene, scene_prev, reservoir_empty(), si, wo, r_c, y_c, si_p, wo_p, r_p, y_p, 1, r_c.confidence + r_p.confidence, unbiased,
+            scene, scene_prev, reservoir_empty(), si, surface_material(scene, si), frame_from_normal(si.ns), wo, r_c, y_c, si_p, wo_p, r_p,
+            y_p, 1, r_c.confidence + r_p.confidence, unbiased,
             random_uniform(key, 1)
         )
         sel = light_point_none()
@@ -596,6 +601,8 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
         aux_c = wp.vec3(0.0, 0.0, 0.0)
         if wp.static(cv):
             aux_c = own_aux(scene, si, wo, r_c, y_c)
+        m_si = surface_material(scene, si)  # the canonical point's, once for its k neighbours
+        frame_si = frame_from_normal(si.ns)
         for j in range(k):
             nb = domain_pixel(codes[y, x, j], width)
             r_n = res_in[nb.y, nb.x]
@@ -603,7 +610,8 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
             r_n.confidence = confidence_capped(r_n.confidence, history_cap)
             si_n = sf.si[nb.y, nb.x]
             wo_n = sf.wo[nb.y, nb.x]
-            step = pairwise_step(scene, scene, out, si, wo, r_c, y_c, si_n, wo_n, r_n, y_n, k, total, unbiased, random_uniform(key, 4 * slots[y, x, j] + 2))
+            step = pairwise_step(scene, scene, out, si, m_si, frame_si, wo, r_c, y_c, si_n, wo_n, r_n, y_n, k, total, unbiased,
+                                 random_uniform(key, 4 * slots[y, x, j] + 2))
             out = step.res
             m_c += step.canonical
             if out.selected:
