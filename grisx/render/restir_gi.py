@@ -208,8 +208,7 @@ from grisx.scene.scene import (
     motion_touches,
     segment_occluded,
     spawn_origin,
-    surface_material,
-    surface_material_at,
+    make_surface,
 )
 from grisx.theory.gris import ris_weight
 from grisx.theory.mis import support_count, support_count_term, support_mis
@@ -378,6 +377,9 @@ class SampleRadiance:
 def make_restir_gi_kernels(kinds: frozenset[int], moving: bool = False) -> Any:
     """ReSTIR GI's functions and kernels compiled for the material kinds ``kinds`` (cached)."""
     bsdf = make_bsdf(kinds)
+    surface = make_surface(kinds)  # the wrappers of these kinds only
+    surface_material = surface.surface_material
+    surface_material_at = surface.surface_material_at
     trace_path = make_trace_path(kinds, bounds=moving)  # with moving objects, the box of what L_o depends on
     has_rough_dielectric = MATERIAL_ROUGH_DIELECTRIC in kinds
     has_principled = MATERIAL_PRINCIPLED in kinds or MATERIAL_PRINCIPLED_THIN in kinds

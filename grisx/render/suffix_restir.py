@@ -123,7 +123,6 @@ from grisx.render.base.path_shift import (
     segment_measure,
     shift_params,
     vertex_from_hit,
-    vertex_material,
 )
 from grisx.render.base.registry import RenderMethod, create_renderer, register, renderer_params
 from grisx.render.base.reuse import SIMILARITY_DEPTH, SIMILARITY_NORMAL_COS, pixels_similar, spatial_neighbor, temporal_neighbor
@@ -285,6 +284,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     path_shift = shifts.shift
     stream = shifts.stream_candidates
     stream_estimate = shifts.stream_estimate  # the gather's walk needs its light, not a reservoir
+    vertex_material = shifts.vertex_material
     settle = shifts.settle
 
     @wp.func

@@ -92,7 +92,7 @@ from grisx.scene.scene import (
     segment_occluded,
     shading_normal_derivative,
     spawn_origin,
-    surface_material,
+    make_surface,
 )
 from grisx.theory.gris import luminance
 from grisx.theory.manifold import NEWTON_THRESHOLD, ManifoldLinearization, ManifoldSampler, make_manifold_sampler
@@ -337,6 +337,7 @@ class CausticFuncs:
 @functools.cache
 def _make_caustics(kinds: frozenset[int]) -> CausticFuncs:
     bsdf = make_bsdf(kinds)
+    surface_material = make_surface(kinds).surface_material  # the wrappers of these kinds only
     # only a normal or bump map turns a normal whose derivative the shot does not carry: without one, ∂C/∂u is
     # always the differentials', and the four extra shots of the differences are not compiled in at all
     differences = bool(kinds & {MATERIAL_NORMALMAP, MATERIAL_BUMPMAP})

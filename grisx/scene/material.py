@@ -47,7 +47,10 @@ A wrapper may hold another wrapper of a different type (``Mask(NormalMap(...))``
 ``material_kinds`` reports each wrapper present as a pseudo-kind
 (``MATERIAL_MASK``, ``MATERIAL_NORMALMAP``, ``MATERIAL_BUMPMAP``) beside the
 nested kinds, so a dispatch compiles the wrapper code only for scenes that use it;
-likewise ``MATERIAL_ANISOTROPIC`` where some rough conductor has α_u ≠ α_v.
+likewise ``MATERIAL_ANISOTROPIC`` where some rough conductor has α_u ≠ α_v, and
+``MATERIAL_SCALAR_TEXTURES`` where some material resolves scalars at the hit
+(:func:`resolves_scalars`: a textured mask opacity or α, a blend, a principled
+BSDF's textured lobes).
 
 Every record carries ``two_sided`` (set by the loader for Mitsuba's
 ``twosided`` wrapper): a one-sided reflecting BSDF is black seen from the back,
@@ -131,6 +134,7 @@ __all__ = [
     "MATERIAL_NORMALMAP",
     "MATERIAL_BUMPMAP",
     "MATERIAL_ANISOTROPIC",
+    "MATERIAL_SCALAR_TEXTURES",
     "MATERIAL_PPLASTIC",
     "MATERIAL_BLEND",
     "MATERIAL_WRAPPERS",
@@ -171,6 +175,7 @@ __all__ = [
     "material_kind",
     "material_kinds",
     "is_anisotropic",
+    "resolves_scalars",
     "pack_materials",
     "principled_has",
 ]
@@ -190,6 +195,9 @@ MATERIAL_NORMALMAP = wp.constant(10)
 MATERIAL_BUMPMAP = wp.constant(11)
 #: a feature pseudo-kind: some rough material is anisotropic (α_u ≠ α_v), so the BSDF needs the shading frame's tangent
 MATERIAL_ANISOTROPIC = wp.constant(12)
+#: a feature pseudo-kind: some material resolves scalars at the hit (a mask's opacity, a textured α, a blend's
+#: weight, a principled BSDF's textured lobes): ``surface_material`` compiles that loop in only then
+MATERIAL_SCALAR_TEXTURES = wp.constant(13)
 # ---- principled (grisx.scene.principled); ids 16, 17 leave room for kinds added beside them
 #: Mitsuba 3's ``principled`` and ``principledthin`` (Disney's principled BSDF, Burley 2012, 2015)
 MATERIAL_PRINCIPLED = wp.constant(16)
@@ -223,6 +231,7 @@ MATERIAL_KINDS: tuple[int, ...] = (
     MATERIAL_NORMALMAP,
     MATERIAL_BUMPMAP,
     MATERIAL_ANISOTROPIC,
+    MATERIAL_SCALAR_TEXTURES,
     MATERIAL_PRINCIPLED,
     MATERIAL_PRINCIPLED_THIN,
     MATERIAL_PPLASTIC,
@@ -246,6 +255,7 @@ MATERIAL_KIND_NAMES: dict[int, str] = {
     MATERIAL_NORMALMAP: "normalmap",
     MATERIAL_BUMPMAP: "bumpmap",
     MATERIAL_ANISOTROPIC: "anisotropic",
+    MATERIAL_SCALAR_TEXTURES: "scalar textures",
     MATERIAL_PRINCIPLED: "principled",
     MATERIAL_PRINCIPLED_THIN: "principledthin",
     MATERIAL_PPLASTIC: "pplastic",
@@ -860,9 +870,23 @@ def material_kinds(descs: Iterable[MaterialDesc]) -> set[int]:
         kinds.update(_WRAPPER_KIND[type(w)] for w in unwrap(d)[1])
         if is_anisotropic(d):
             kinds.add(MATERIAL_ANISOTROPIC)
+        if resolves_scalars(d):
+            kinds.add(MATERIAL_SCALAR_TEXTURES)
         if is_general_blend(unwrap(d)[0]):  # plugins2: the second BSDF's kind compiled in too
             kinds.update((MATERIAL_BLEND, material_kind(unwrap(d)[0].bsdf1)))
     return kinds
+
+
+def resolves_scalars(desc: MaterialDesc) -> bool:
+    """Whether ``desc`` has scalars that ``surface_material`` resolves at the hit: a mask (its opacity), a blend (its
+    weight, or the mixed reflectance of a diffuse blend), a principled BSDF (textured lobes or roughness), or a
+    textured α / α_u / α_v."""
+    inner, wrappers = unwrap(desc)
+    if any(isinstance(w, Mask) and isinstance(w.opacity, TextureRef) for w in wrappers) or isinstance(inner, BlendBSDF):
+        return True
+    if isinstance(inner, (Principled, PrincipledThin)):  # base_color is the material's texture, resolved apart
+        return any(isinstance(getattr(inner, f.name), TextureRef) for f in dataclasses.fields(inner) if f.name != "base_color")
+    return any(isinstance(getattr(inner, name, None), TextureRef) for name in ("alpha", "alpha_u", "alpha_v"))
 
 
 def is_anisotropic(desc: MaterialDesc) -> bool:

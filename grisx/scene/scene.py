@@ -31,9 +31,10 @@ the code a scene needs (DESIGN.md, "Skip what a scene doesn't need").
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
-from collections.abc import Sequence
-from typing import Any
+from collections.abc import Iterable, Sequence
+from typing import Any, NamedTuple
 
 import numpy as np
 import warp as wp
@@ -55,6 +56,11 @@ from grisx.scene.camera import Camera, CameraData, CameraPath
 from grisx.scene.lights import ConstantEnvironment, DirectionalLight, EnvMap, LightSample, LightSet, PointLight, Projector, build_light_set
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.material import (
+    ALL_MATERIAL_KINDS,
+    MATERIAL_ANISOTROPIC,
+    MATERIAL_BUMPMAP,
+    MATERIAL_NORMALMAP,
+    MATERIAL_SCALAR_TEXTURES,
     MATERIAL_CONDUCTOR,
     MATERIAL_DIELECTRIC,
     MATERIAL_MASK,
@@ -103,6 +109,8 @@ __all__ = [
     "finite_or_dropped",
     "surface_material",
     "surface_material_at",
+    "make_surface",
+    "SurfaceFuncs",
     "surface_texture",
     "surface_texture_1",
     "stored_surface",
@@ -687,59 +695,90 @@ def _scalar_texture_slot(m: Material, j: int) -> int:
     return t // 16
 
 
-@wp.func
-def _resolve_wrappers(scene: SceneData, m: Material, si: SurfaceInteraction) -> Material:
-    """A mask's ``opacity`` (the luminance of its texture at ``si.uv``, clamped to [0, 1]), a normal or bump map's
-    ``perturbed_n`` at ``si``, textured α_u / α_v (their textures' luminance), an anisotropic BSDF's ``tangent``
-    (:func:`shading_tangent`), a principled BSDF's textured lobe weights, and a diffuse blend's reflectance
-    (1 − w) ρ₀ + w ρ₁ (a general blend's weight w)."""
-    if m.perturb != PERTURB_NONE:
-        m.perturbed_n = _perturbed_normal(scene, si, m)
-    if m.anisotropic != 0:
-        m.tangent = shading_tangent(scene, si)
-    # the scalar textures (Mitsuba's eval_1 of each) in one loop, not unrolled: one texture lookup in the code of
-    # every kernel that resolves a material, not eight (each was inlined at every call site: CUDA compile time)
-    w = m.blend_weight
-    j = int(0)
-    while j < 8:
-        t = _scalar_texture_slot(m, j)
-        if t >= 0:
-            value = surface_texture_1(scene, t, si)
-            if j == 0:
-                m.opacity = wp.clamp(value, 0.0, 1.0)
-            elif j == 1:
-                m.alpha = value  # roughconductor.cpp: m_alpha_u->eval_1(si)
-            elif j == 2:
-                m.alpha_v = value
-            elif j == 3:
-                w = wp.clamp(value, 0.0, 1.0)
-            else:
-                m = principled_set_slot(m, m.lobe_textures[j - 4] % 16, value)
-        elif j >= 4:
-            break  # the lobe textures are packed first to last
-        j += 1
-    if m.blend_texture >= 0 or m.blend_weight > 0.0:
-        if m.blend_partner.shape[0] > 0:  # plugins2: a general blend mixes its two BSDFs in the dispatch, by this weight
-            m.blend_weight = w
-        else:
-            m.reflectance = m.reflectance * (1.0 - w) + m.blend_reflectance * w
-    return m
+class SurfaceFuncs(NamedTuple):
+    """``surface_material`` and ``surface_material_at`` compiled for one set of material kinds (:func:`make_surface`)."""
+
+    surface_material: Any
+    surface_material_at: Any
 
 
-@wp.func
-def surface_material(scene: SceneData, si: SurfaceInteraction) -> Material:
-    """The material at ``si`` with its texture (if any) resolved into ``reflectance`` (:func:`surface_texture`), and
-    its wrappers' textures (:func:`_resolve_wrappers`)."""
-    m = scene.materials[si.material]
-    if m.texture >= 0:
-        m.reflectance = surface_texture(scene, m.texture, si)
-    return _resolve_wrappers(scene, m, si)
+@functools.cache
+def _make_surface(kinds: frozenset[int]) -> SurfaceFuncs:
+    # each wrapper's code only where a material of the scene has it: every kernel inlines surface_material at each
+    # of its call sites, and the wrappers were most of a ReSTIR kernel's CUDA compile time (benchmarks/README,
+    # "A compile-time regression")
+    has_perturb = bool(kinds & {MATERIAL_NORMALMAP, MATERIAL_BUMPMAP})
+    has_anisotropic = MATERIAL_ANISOTROPIC in kinds
+    has_scalars = MATERIAL_SCALAR_TEXTURES in kinds
+
+    @wp.func
+    def resolve_wrappers(scene: SceneData, m: Material, si: SurfaceInteraction) -> Material:
+        """A mask's ``opacity`` (the luminance of its texture at ``si.uv``, clamped to [0, 1]), a normal or bump map's
+        ``perturbed_n`` at ``si``, textured α_u / α_v (their textures' luminance), an anisotropic BSDF's ``tangent``
+        (:func:`shading_tangent`), a principled BSDF's textured lobe weights, and a diffuse blend's reflectance
+        (1 − w) ρ₀ + w ρ₁ (a general blend's weight w)."""
+        if wp.static(has_perturb):
+            if m.perturb != PERTURB_NONE:
+                m.perturbed_n = _perturbed_normal(scene, si, m)
+        if wp.static(has_anisotropic):
+            if m.anisotropic != 0:
+                m.tangent = shading_tangent(scene, si)
+        if wp.static(has_scalars):
+            # the scalar textures (Mitsuba's eval_1 of each) in one loop, not unrolled: one texture lookup in the code
+            # of every kernel that resolves a material, not eight
+            w = m.blend_weight
+            j = int(0)
+            while j < 8:
+                t = _scalar_texture_slot(m, j)
+                if t >= 0:
+                    value = surface_texture_1(scene, t, si)
+                    if j == 0:
+                        m.opacity = wp.clamp(value, 0.0, 1.0)
+                    elif j == 1:
+                        m.alpha = value  # roughconductor.cpp: m_alpha_u->eval_1(si)
+                    elif j == 2:
+                        m.alpha_v = value
+                    elif j == 3:
+                        w = wp.clamp(value, 0.0, 1.0)
+                    else:
+                        m = principled_set_slot(m, m.lobe_textures[j - 4] % 16, value)
+                elif j >= 4:
+                    break  # the lobe textures are packed first to last
+                j += 1
+            if m.blend_texture >= 0 or m.blend_weight > 0.0:
+                if m.blend_partner.shape[0] > 0:  # plugins2: a general blend mixes its two BSDFs in the dispatch, by this weight
+                    m.blend_weight = w
+                else:
+                    m.reflectance = m.reflectance * (1.0 - w) + m.blend_reflectance * w
+        return m
+
+    @wp.func
+    def surface_material(scene: SceneData, si: SurfaceInteraction) -> Material:
+        """The material at ``si`` with its texture (if any) resolved into ``reflectance`` (:func:`surface_texture`), and
+        its wrappers' textures (``resolve_wrappers``)."""
+        m = scene.materials[si.material]
+        if m.texture >= 0:
+            m.reflectance = surface_texture(scene, m.texture, si)
+        return resolve_wrappers(scene, m, si)
+
+    @wp.func
+    def surface_material_at(scene: SceneData, material: int, uv: wp.vec2, tri: int, p: wp.vec3, ns: wp.vec3, ng: wp.vec3) -> Material:
+        """The material of a stored surface point (:func:`stored_surface`) with its textures resolved, as at the hit."""
+        return surface_material(scene, stored_surface(scene, material, uv, tri, p, ns, ng))
+
+    return SurfaceFuncs(surface_material, surface_material_at)
 
 
-@wp.func
-def surface_material_at(scene: SceneData, material: int, uv: wp.vec2, tri: int, p: wp.vec3, ns: wp.vec3, ng: wp.vec3) -> Material:
-    """The material of a stored surface point (:func:`stored_surface`) with its textures resolved, as at the hit."""
-    return surface_material(scene, stored_surface(scene, material, uv, tri, p, ns, ng))
+def make_surface(kinds: Iterable[int]) -> SurfaceFuncs:
+    """``surface_material`` / ``surface_material_at`` for the material kinds ``kinds`` (with their wrapper and feature
+    pseudo-kinds: normal/bump maps, anisotropy, scalar textures), cached per set. A renderer's kernels take them from
+    here with their BSDF dispatch (``make_bsdf``); a scene whose kinds lack a pseudo-kind has no such material."""
+    return _make_surface(frozenset(int(k) for k in kinds))
+
+
+#: every wrapper compiled in (for code outside a kinds-specialised factory)
+surface_material = make_surface(ALL_MATERIAL_KINDS).surface_material
+surface_material_at = make_surface(ALL_MATERIAL_KINDS).surface_material_at
 
 
 @wp.kernel

@@ -29,6 +29,7 @@ from grisx.scene.material import (
     RoughDielectric,
     TextureRef,
     MATERIAL_ANISOTROPIC,
+    MATERIAL_SCALAR_TEXTURES,
     MATERIAL_ROUGH_CONDUCTOR,
     MATERIAL_ROUGH_DIELECTRIC,
     PolarizedPlastic,
@@ -335,7 +336,7 @@ def test_anisotropic_roughconductor():
     assert (packed["alpha_u_texture"], packed["alpha_v_texture"], packed["anisotropic"]) == (0, 1, 1)
     # one texture as alpha: isotropic, its value at the hit in both
     one = bsdf('<bsdf type="roughconductor"><texture type="checkerboard" name="alpha"/></bsdf>')
-    assert one.alpha == TextureRef(0) and one.alpha_u is None and material_kinds([one]) == {MATERIAL_ROUGH_CONDUCTOR}
+    assert one.alpha == TextureRef(0) and one.alpha_u is None and material_kinds([one]) == {MATERIAL_ROUGH_CONDUCTOR, MATERIAL_SCALAR_TEXTURES}  # α resolved at the hit
     packed = pack_materials([one], "cpu").numpy()[0]
     assert (packed["alpha_u_texture"], packed["alpha_v_texture"], packed["anisotropic"]) == (0, 0, 0)
     with pytest.raises(SceneFileError, match=r"<float name=\"alpha_u\"> both 'alpha_u' and 'alpha_v' must be specified"):
@@ -400,7 +401,7 @@ def test_pplastic_polarizer_retarder_and_textured_roughdielectric_alpha():
     # roughdielectric: a texture as alpha (mitsuba-data's bsdf_roughdielectric_textured.xml), isotropic
     rd = bsdf('<bsdf type="roughdielectric"><texture type="checkerboard" name="alpha"><float name="color0" value="0.0"/>'
               '<float name="color1" value="0.4"/></texture></bsdf>')
-    assert rd.alpha == TextureRef(0) and rd.distribution == "beckmann" and material_kinds([rd]) == {MATERIAL_ROUGH_DIELECTRIC}
+    assert rd.alpha == TextureRef(0) and rd.distribution == "beckmann" and material_kinds([rd]) == {MATERIAL_ROUGH_DIELECTRIC, MATERIAL_SCALAR_TEXTURES}
 
 
 def test_twosided_and_shared_references():

@@ -122,6 +122,7 @@ from grisx.scene.scene import (
     occluded,
     segment_occluded,
     spawn_origin,
+    make_surface,
     surface_material_at,
 )
 from grisx.theory.control_variate import decoupled_contribution
@@ -414,6 +415,8 @@ class PathShiftFuncs:
     arguments) walks the same path for ``estimate`` alone (Σ f/(N p) of its candidates; the reservoir is left as given).
     ``shift_across`` is ``shift`` between the frames of :meth:`~grisx.scene.scene.BuiltScene.across_frames`,
     failing where ``suffix_moved(scene, x) -> bool`` finds the reused suffix in a box of what moved.
+    ``vertex_material(scene, material, uv, tri, p, ns, ng) -> Material`` resolves a stored vertex's material with
+    the wrappers of these kinds (:func:`~grisx.scene.scene.make_surface`).
     """
 
     kinds: frozenset[int]
@@ -424,6 +427,7 @@ class PathShiftFuncs:
     settle: Any
     suffix_moved: Any
     shift_across: Any
+    vertex_material: Any
 
 
 @wp.func
@@ -451,6 +455,7 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
     """The path shifts specialized to the scene's material kinds ``kinds`` (cached)."""
     key = frozenset(kinds)
     bsdf = make_bsdf(key)
+    vertex_material = make_surface(key).surface_material_at  # the wrappers of these kinds only (shadows the all-kinds one)
 
     @wp.func
     def roughness(scene: SceneData, material: int) -> float:
@@ -892,7 +897,7 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
 
     funcs = PathShiftFuncs(kinds=key, shift=shift, roughness=roughness, stream_candidates=stream_path_candidates,
                            stream_estimate=stream_path_estimate, settle=settle,
-                           suffix_moved=suffix_moved, shift_across=shift_across)
+                           suffix_moved=suffix_moved, shift_across=shift_across, vertex_material=vertex_material)
     return funcs
 
 
