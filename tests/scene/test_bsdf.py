@@ -74,6 +74,7 @@ from grisx.scene.material import (
     MATERIAL_MASK,
     MATERIAL_NORMALMAP,
     MATERIAL_NULL,
+    MATERIAL_SCALAR_TEXTURES,
     _pack_one,
     conductor_material,
     fresnel_diffuse_reflectance,
@@ -1240,7 +1241,7 @@ def test_wrapper_kinds_packing_and_refusals():
     descs = [Mask(Diffuse(), TextureRef(2)), NormalMap(RoughConductor(), TextureRef(1)), Null(),
              Mask(BumpMap(Plastic(), TextureRef(0), scale=0.5), 0.3)]
     assert material_kinds(descs) == {MATERIAL_DIFFUSE, MATERIAL_ROUGH_CONDUCTOR, MATERIAL_NULL, MATERIAL_PLASTIC,
-                                     MATERIAL_MASK, MATERIAL_NORMALMAP, 11}
+                                     MATERIAL_MASK, MATERIAL_NORMALMAP, 11, MATERIAL_SCALAR_TEXTURES}  # the mask's textured opacity
     assert material_kinds([Diffuse(), Null()]) == {MATERIAL_DIFFUSE, MATERIAL_NULL}  # no wrapper: none compiled in
     packed = pack_materials(descs, "cpu").numpy()
     assert packed["opacity_texture"].tolist() == [2, -1, -1, -1]
@@ -1271,7 +1272,7 @@ def test_a_blend_of_two_diffuse_bsdfs_is_one_lambertian_lobe():
     assert packed["kind"].tolist() == [0, 0, 0, 0] and packed["blend_texture"].tolist() == [-1, -1, 1, -1]
     np.testing.assert_allclose(packed["blend_weight"], [0.0, 0.0, 0.0, 0.4], rtol=1e-6)
     np.testing.assert_allclose(packed["blend_reflectance"][2:], [b, b], rtol=1e-6)
-    assert material_kinds([BlendBSDF(Diffuse(a), Diffuse(b), 0.5)]) == {MATERIAL_DIFFUSE}
+    assert material_kinds([BlendBSDF(Diffuse(a), Diffuse(b), 0.5)]) == {MATERIAL_DIFFUSE, MATERIAL_SCALAR_TEXTURES}  # ρ mixed at the hit
     # any other pair is a general blend (plugins2: test_general_blend_*), whose second BSDF must be untextured
     with pytest.raises(InvalidParameterError, match="second BSDF of a blendbsdf must be untextured"):
         pack_materials([BlendBSDF(Diffuse(), Diffuse(TextureRef(0)), 0.5)])
@@ -1445,7 +1446,7 @@ def test_pplastic_albedo_from_sampling_and_from_eval_agree_and_conserve_energy(d
 def test_pplastic_kinds_packing_and_refusals():
     descs = [PolarizedPlastic(diffuse_reflectance=TextureRef(4), diffuse_mean=0.25, alpha=TextureRef(2)),
              PolarizedPlastic(alpha_u=0.1, alpha_v=TextureRef(3), specular_reflectance=(0.2, 0.4, 0.6))]
-    assert material_kinds(descs) == {MATERIAL_PPLASTIC, 12}  # 12: the anisotropic pseudo-kind of the second
+    assert material_kinds(descs) == {MATERIAL_PPLASTIC, 12, MATERIAL_SCALAR_TEXTURES}  # 12: the anisotropic pseudo-kind of the second
     packed = pack_materials(descs, "cpu").numpy()
     assert packed["kind"].tolist() == [MATERIAL_PPLASTIC] * 2 and packed["texture"].tolist() == [4, -1]
     assert packed["alpha_u_texture"].tolist() == [2, -1] and packed["alpha_v_texture"].tolist() == [2, 3]
@@ -1683,9 +1684,9 @@ def test_general_blend_albedo_roughness_and_delta_flags(device):
 
 def test_general_blend_kinds_packing_and_refusals():
     b = BLEND_CASES["roughplastic_conductor"]
-    assert material_kinds([b]) == {MATERIAL_ROUGH_PLASTIC, MATERIAL_CONDUCTOR, MATERIAL_BLEND}
+    assert material_kinds([b]) == {MATERIAL_ROUGH_PLASTIC, MATERIAL_CONDUCTOR, MATERIAL_BLEND, MATERIAL_SCALAR_TEXTURES}
     assert material_kinds([Mask(BlendBSDF(RoughConductor(alpha_u=0.1, alpha_v=0.3), Diffuse(), TextureRef(1)), 0.5)]) == {
-        MATERIAL_ROUGH_CONDUCTOR, MATERIAL_DIFFUSE, MATERIAL_BLEND, MATERIAL_MASK, 12}
+        MATERIAL_ROUGH_CONDUCTOR, MATERIAL_DIFFUSE, MATERIAL_BLEND, MATERIAL_MASK, 12, MATERIAL_SCALAR_TEXTURES}
     packed = pack_materials([b, BlendBSDF(Diffuse(TextureRef(3)), Plastic(), TextureRef(1)), Diffuse()], "cpu")
     host = packed.numpy()
     assert host["kind"].tolist() == [MATERIAL_ROUGH_PLASTIC, MATERIAL_DIFFUSE, MATERIAL_DIFFUSE]
