@@ -17,7 +17,8 @@ from pathlib import Path
 from grisx.scene.builtin import BUILTIN_SCENES, build_builtin
 from grisx.scene.camera import Camera, CameraData, camera_ray, lookat
 from grisx.scene.lights import ConstantEnvironment
-from grisx.scene.material import Diffuse
+from grisx.scene.material import MATERIAL_SCALAR_TEXTURES, Diffuse
+from grisx.scene.mitsuba import load_mitsuba
 from grisx.render.base.trace import STRATEGIES, make_trace_path, no_first_hit
 from grisx.render.pt import PathTracer
 from grisx.scene.scene import Scene, SceneData
@@ -165,8 +166,6 @@ def test_surfaces_specialised_on_the_scene_kinds_give_the_same_image(case, monke
     """``surface_material`` compiles each wrapper (normal and bump maps, the tangent, the scalar textures) only where
     the scene's kinds name it (``make_surface``); the suite's all-kinds kernels cannot see a pseudo-kind the loader
     forgot, so each such scene is rendered both ways here."""
-    from grisx.scene.mitsuba import load_mitsuba  # noqa: PLC0415
-
     built = load_mitsuba(CONFORMANCE / f"{case}.xml").build("cpu")
     monkeypatch.setenv("GRISX_KERNEL_KINDS", "all")
     every = PathTracer(built, 16, 12, spp=2, seed=3, max_depth=4).render_frame(0).numpy()
@@ -176,9 +175,6 @@ def test_surfaces_specialised_on_the_scene_kinds_give_the_same_image(case, monke
 
 def test_surfaces_without_their_scalar_textures_are_caught():
     # the sibling: the textured mask's scene compiled without MATERIAL_SCALAR_TEXTURES renders another image
-    from grisx.scene.material import MATERIAL_SCALAR_TEXTURES  # noqa: PLC0415
-    from grisx.scene.mitsuba import load_mitsuba  # noqa: PLC0415
-
     built = load_mitsuba(CONFORMANCE / "mask_checkerboard.xml").build("cpu")
     kinds = built.features.material_kinds
     assert MATERIAL_SCALAR_TEXTURES in kinds
