@@ -5,6 +5,8 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
+import warp as wp
+
 import grisx
 
 ROOT = Path(grisx.__file__).parent
@@ -42,8 +44,6 @@ def test_layers_point_one_way():
 
 def _warp_constant_attributes(source: str) -> list[str]:
     """``name.attr`` inside a ``wp.func``/``wp.kernel`` where ``name`` is also one of Warp's constants (``wp.e``, ``wp.tau``, ...)."""
-    import warp as wp  # noqa: PLC0415
-
     constants = {n for n in dir(wp) if not n.startswith("_") and isinstance(getattr(wp, n), (int, float))}
     found = []
     for fn in ast.walk(ast.parse(source)):
