@@ -21,12 +21,12 @@ import numpy as np
 
 from grisx.render.driver import METHODS, RenderContext, load_scene, method_params
 from grisx.render.pt import PathTracer
-from grisx.scene.builtin import cornell_box, glossy_room_glass
+from grisx.scene.builtin import build_builtin, cornell_box, glossy_room_glass
 from grisx.scene.camera import CameraPath
 from grisx.scene.gbuffer import GBuffer
 from grisx.scene.scene import RigidMotion
 from grisx.testing import DEFAULT_K, ReuseTestResult, reuse_unbiasedness_test
-from session_cache import shared
+from session_cache import committed, shared
 
 RES = (16, 16)
 REFERENCE_SEED = 987654
@@ -126,12 +126,31 @@ def reference(scene_name: Any, depth: int, camera: str, frame: int, spp: int = 4
         pt.add_samples(frame, spp)
         return pt.mean().astype(np.float64), pt.variance_of_mean().astype(np.float64)
 
-    if isinstance(scene_name, str):  # named: rendered once per test session, whichever xdist worker asks first
-        return shared(("reuse_checks.reference", scene_name, depth, camera, frame, spp, tuple(res), REFERENCE_SEED), render)
+    if isinstance(scene_name, str):  # named: committed, or rendered once per test session (whichever xdist worker asks first)
+        return committed(("reuse_checks.reference", scene_name, depth, camera, frame, spp, tuple(res), REFERENCE_SEED), _load(scene_name), render)
     key = (id(scene_name), depth, camera, frame, spp, tuple(res))
     if key not in _REFERENCES:
         _REFERENCES[key] = render()
     return _REFERENCES[key]
+
+
+def builtin_image_mean(built: Any, size: tuple[int, int], max_depth: int, spp: int, jitter: bool, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """The path tracer's image mean over a built-in scene (``built.name`` says which) and its standard error.
+
+    Committed for the CPU (:func:`session_cache.committed`); on CUDA rendered once per session.
+    """
+
+    def render() -> tuple[np.ndarray, np.ndarray]:
+        pt = PathTracer(built, *size, spp=spp, max_depth=max_depth, seed=seed, jitter=jitter)
+        pt.add_samples(0, spp)
+        assert pt.nonfinite_samples == 0
+        mean = pt.mean().astype(np.float64).reshape(-1, 3)
+        var = pt.variance_of_mean().astype(np.float64).reshape(-1, 3)
+        return mean.mean(axis=0), np.sqrt(var.sum(axis=0)) / len(mean)
+
+    device = str(built.positions.device)
+    key = ("builtin_image_mean", built.name, device, tuple(size), max_depth, spp, jitter, seed)
+    return committed(key, build_builtin(built.name), render) if device == "cpu" else shared(key, render)
 
 
 def check(method: str, params: dict[str, Any] | None = None, *, scene: Any = "cornell-box", camera: str = "static",

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from session_cache import shared
+from session_cache import committed
 from test_path_shift import lit_wall  # the scene whose Jacobians are far from 1
 
 from grisx.errors import InvalidParameterError
@@ -58,7 +58,7 @@ def _reference(scene: str, depth: int, camera: str, frame: int, spp: int = 4096)
         pt.add_samples(frame, spp)
         return pt.mean().astype(np.float64), pt.variance_of_mean().astype(np.float64)
 
-    return shared(("test_gradient_domain.reference", scene, depth, camera, frame, spp, RES, 987654), render)
+    return committed(("test_gradient_domain.reference", scene, depth, camera, frame, spp, RES, 987654), _scene(scene), render)
 
 
 def _runs(method: str, params: dict[str, Any], scene: str, camera: str, frames: int, runs: int) -> list[dict[str, np.ndarray]]:

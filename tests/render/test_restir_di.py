@@ -16,6 +16,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from reuse_checks import builtin_image_mean
+
 from grisx.errors import InvalidParameterError, UnknownNameError
 from grisx.scene.builtin import BUILTIN_SCENES, build_builtin
 from grisx.render.pt import PathTracer
@@ -34,12 +36,7 @@ def cornell(device):
 
 def _reference(built, max_depth: int = 2, spp: int = 4096, jitter: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Image mean of the path tracer (pixel centres, or box-filtered with ``jitter``) and its standard error."""
-    pt = PathTracer(built, W, H, spp=spp, max_depth=max_depth, seed=99, jitter=jitter)
-    pt.add_samples(0, spp)
-    assert pt.nonfinite_samples == 0
-    mean = pt.mean().astype(np.float64).reshape(-1, 3)
-    var = pt.variance_of_mean().astype(np.float64).reshape(-1, 3)
-    return mean.mean(axis=0), np.sqrt(var.sum(axis=0)) / len(mean)
+    return builtin_image_mean(built, (W, H), max_depth, spp, jitter, seed=99)
 
 
 def _runs(renderer, runs: int, frames: int) -> tuple[np.ndarray, np.ndarray]:

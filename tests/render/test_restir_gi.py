@@ -18,15 +18,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from reuse_checks import builtin_image_mean
+
 from grisx.errors import InvalidParameterError
 from grisx.scene.builtin import BUILTIN_SCENES, build_builtin
-from grisx.render.pt import PathTracer
 from grisx.render.driver import render
 from grisx.render.restir_gi import ReSTIRGI
 from grisx.testing import BIASED_K, DEFAULT_K, independent_runs, z_test
 
 W, H = 12, 9
-_REFS: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
 
 
 @pytest.fixture
@@ -35,15 +35,8 @@ def cornell(device):
 
 
 def _reference(built, device: str, max_depth: int = 16, spp: int = 8192, jitter: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    key = (built.name, device, max_depth, spp, jitter)  # built-in scenes only: the name says which
-    if key not in _REFS:
-        pt = PathTracer(built, W, H, spp=spp, max_depth=max_depth, seed=99, jitter=jitter)
-        pt.add_samples(0, spp)
-        assert pt.nonfinite_samples == 0
-        mean = pt.mean().astype(np.float64).reshape(-1, 3)
-        var = pt.variance_of_mean().astype(np.float64).reshape(-1, 3)
-        _REFS[key] = (mean.mean(axis=0), np.sqrt(var.sum(axis=0)) / len(mean))
-    return _REFS[key]
+    """Image mean of the path tracer and its standard error (built-in scenes only)."""
+    return builtin_image_mean(built, (W, H), max_depth, spp, jitter, seed=99)
 
 
 def _runs(renderer, runs: int, frames: int) -> tuple[np.ndarray, np.ndarray]:

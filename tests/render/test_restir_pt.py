@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from session_cache import committed
 from test_path_shift import lit_wall  # the scene whose Jacobians are far from 1
 
 from grisx.errors import InvalidParameterError, UnknownNameError
@@ -39,19 +40,18 @@ def _built(name: str, device: str = "cpu"):
     return _BUILT[name, device]
 
 
-_REFERENCES: dict = {}
-
-
 def _reference(name: str, spp: int = 1024, max_depth: int = MAX_DEPTH) -> tuple[np.ndarray, np.ndarray]:
     """The path tracer's image mean and its standard error (independent pixels; CPU: the device is not part of it)."""
-    if (name, spp, max_depth) in _REFERENCES:
-        return _REFERENCES[name, spp, max_depth]
-    pt = PathTracer(_built(name), RES, RES, spp=spp, max_depth=max_depth, seed=4321)
-    pt.add_samples(0, spp)
-    mean = pt.mean().reshape(-1, 3).astype(np.float64)
-    var = pt.variance_of_mean().reshape(-1, 3).astype(np.float64)
-    _REFERENCES[name, spp, max_depth] = mean.mean(axis=0), np.sqrt(var.sum(axis=0)) / len(mean)
-    return _REFERENCES[name, spp, max_depth]
+
+    def render() -> tuple[np.ndarray, np.ndarray]:
+        pt = PathTracer(_built(name), RES, RES, spp=spp, max_depth=max_depth, seed=4321)
+        pt.add_samples(0, spp)
+        mean = pt.mean().reshape(-1, 3).astype(np.float64)
+        var = pt.variance_of_mean().reshape(-1, 3).astype(np.float64)
+        return mean.mean(axis=0), np.sqrt(var.sum(axis=0)) / len(mean)
+
+    scene = lit_wall() if name == "lit-wall" else build_builtin(name)
+    return committed(("test_restir_pt.reference", name, spp, max_depth, RES, 4321), scene, render)
 
 
 def _runs(name: str, runs: int, frames: int, device: str = "cpu", **kw) -> tuple[np.ndarray, np.ndarray]:

@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from reuse_checks import check
-from session_cache import shared
+from session_cache import committed, shared
 
 from grisx.render.driver import METHODS, RenderContext, load_scene, method_params, render
 from grisx.render.pt import PathTracer
@@ -199,7 +199,7 @@ def _pt_reference(scene, spp=16384):
         pt.add_samples(0, spp)
         return pt.mean(), pt.variance_of_mean()
 
-    return shared(("test_sms.pt", scene, spp, RES, 987654), render)
+    return committed(("test_sms.pt", scene, spp, RES, 987654), load_scene(scene), render)
 
 
 def _sms_image(method, params, scene="caustic-slab", spp=256, seed=11):
@@ -262,7 +262,7 @@ def _sms_reference(camera: str, frame: int, spp: int = 16384):
         r.render_frame(frame)
         return r.mean(), r.variance_of_mean()
 
-    return shared(("test_sms.sms", camera, frame, spp, 4242), render)
+    return shared(("test_sms.sms", camera, frame, spp, 4242), render)  # sms's own image: not the path tracer's, not committed
 
 
 @pytest.mark.parametrize(
@@ -366,7 +366,7 @@ def test_environment_caustics_agree_with_the_path_tracer(method):
         pt.add_samples(0, 16384)
         return pt.mean(), pt.variance_of_mean()
 
-    ref, ref_var = shared(("test_sms.env", RES, 8, 16384, 987654), reference)
+    ref, ref_var = committed(("test_sms.env", RES, 8, 16384, 987654), scene, reference)
     built = scene.build("cpu")
     resolved = {**method_params(method, {"max_depth": 8}), "spp": 512}
     renderer = METHODS[method].create(RenderContext(built, *RES, resolved, 11, None, method))

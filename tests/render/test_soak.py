@@ -15,7 +15,7 @@ import pytest
 from grisx.render.driver import METHODS, RenderContext, load_scene, method_params
 from grisx.render.pt import PathTracer
 from grisx.testing import DEFAULT_K, z_test
-from session_cache import shared
+from session_cache import committed
 
 #: methods that keep nothing from frame to frame: their soak is 1,000 independent frames, nothing to drift (slow tier)
 STATELESS = {"mmis-gather": "each frame traces its own prefixes and suffixes; no reservoir outlives a frame"}
@@ -40,7 +40,7 @@ def _reference(depth: int) -> tuple[np.ndarray, np.ndarray]:
         pt.add_samples(0, 4096)
         return pt.mean().reshape(-1, 3).mean(axis=0), np.sqrt(pt.variance_of_mean().reshape(-1, 3).sum(axis=0)) / (RES[0] * RES[1])
 
-    return shared(("test_soak.reference", "cornell-box", depth, RES, 4096, 1), render)
+    return committed(("test_soak.reference", "cornell-box", depth, RES, 4096, 1), load_scene("cornell-box"), render)
 
 
 @pytest.mark.parametrize("method", REUSE)
