@@ -1121,7 +1121,9 @@ def perturbed(desc, n, device):
     m = _pack_one(desc, 0, device)
     n = np.asarray(n, dtype=np.float64)
     m.perturbed_n = wp.vec3(*(n / np.linalg.norm(n)))
-    return wp.array([m], dtype=Material, device=device)
+    out = wp.array([m], dtype=Material, device=device)
+    out.packed_struct = m  # its tables (a rough plastic's, a blend's partner) live as long as the array: see _packed
+    return out
 
 
 def _shadowing_oracle(n, w):
