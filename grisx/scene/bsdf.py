@@ -1212,8 +1212,9 @@ def make_bsdf(kinds: Iterable[int]) -> BsdfFuncs:
         return blend_pdf(m, wo, wi)
 
     # A plain diffuse material (no mask, perturbed frame, blend, two sides) skips the wrappers and the kind
-    # dispatch: where they are compiled in, they are too large to inline, and a call passes the 320-byte
-    # Material by value (CPU: the all-kinds kernels ran the Cornell box 27% slower than its own). Same values.
+    # dispatch: where they are compiled in, LLVM leaves them out of line (the all-kinds kind_sample alone is
+    # 78 kB of x86), and the all-kinds path tracer ran the Cornell box 27% slower than its own kernels (CPU);
+    # with this, 10%. The same values, bit for bit (the scene-kinds tests compare the two).
     plain_fast_path = has_diffuse and (has_mask or has_perturb or has_blend or has_anisotropic)
 
     @wp.func
