@@ -744,7 +744,7 @@ def _make_surface(kinds: frozenset[int]) -> SurfaceFuncs:
                     elif j == 3:
                         w = wp.clamp(value, 0.0, 1.0)
                     else:
-                        m = principled_set_slot(m, m.lobe_textures[j - 4] % 16, value)
+                        principled_set_slot(m, m.lobe_textures[j - 4] % 16, value)
                 elif j >= 4:
                     break  # the lobe textures are packed first to last
                 j += 1
