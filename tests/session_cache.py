@@ -30,6 +30,7 @@ from __future__ import annotations
 import dataclasses
 import enum
 import hashlib
+import inspect
 import os
 import time
 from collections.abc import Callable
@@ -81,7 +82,7 @@ def shared(key: tuple, compute: Callable[[], tuple[np.ndarray, ...]]) -> tuple[n
     return value
 
 
-def _feed(h: "hashlib._Hash", obj: Any, seen: set[int]) -> None:
+def _feed(h: Any, obj: Any, seen: set[int]) -> None:
     """Feed ``obj``'s content (not its identity) to ``h``: the same scene gives the same bytes in every process."""
     if obj is None or isinstance(obj, (bool, int, float, str, bytes, complex)):
         h.update(f"{type(obj).__name__}:{obj!r};".encode())
@@ -97,9 +98,8 @@ def _feed(h: "hashlib._Hash", obj: Any, seen: set[int]) -> None:
     if isinstance(obj, enum.Enum):
         h.update(f"enum:{obj!r};".encode())
         return
-    if callable(obj) and not dataclasses.is_dataclass(obj) and not hasattr(obj, "__dict__"):
-        h.update(f"fn:{getattr(obj, '__qualname__', type(obj).__name__)};".encode())
-        return
+    if inspect.isroutine(obj) or inspect.isclass(obj):  # code: its name would not say what it computes
+        raise TypeError(f"scene_fingerprint: cannot fingerprint {obj!r} (code, not data)")
     if id(obj) in seen:
         h.update(b"cycle;")
         return
@@ -154,7 +154,7 @@ def committed(key: tuple, scene: Any, compute: Callable[[], tuple[np.ndarray, ..
     if not write and path.exists():
         if name not in _MEMO:
             with np.load(path) as data:
-                _MEMO[name] = tuple(data[f"a{i}"] for i in range((len(data.files) - 1)))
+                _MEMO[name] = tuple(data[f"a{i}"] for i in range(len(data.files) - 1))
         return _MEMO[name]
     value = shared(full, compute)
     if write:

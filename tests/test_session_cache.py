@@ -67,3 +67,5 @@ def test_what_cannot_be_fingerprinted_is_refused():
 
     with pytest.raises(TypeError, match="Opaque"):
         scene_fingerprint({"x": Opaque()})
+    with pytest.raises(TypeError, match="code, not data"):
+        scene_fingerprint({"x": lambda t: t})

@@ -727,7 +727,7 @@ def _make_surface(kinds: frozenset[int]) -> SurfaceFuncs:
             # the scalar textures (Mitsuba's eval_1 of each) in one loop, not unrolled: one texture lookup in the code
             # of every kernel that resolves a material, not eight
             w = m.blend_weight
-            j = int(8)  # most materials have none: skip the loop (a tenth of an all-kinds path tracer's time on the CPU)
+            j = int(8)  # most materials have none: skip the loop
             if (m.opacity_texture >= 0 or m.alpha_u_texture >= 0 or m.alpha_v_texture >= 0 or m.blend_texture >= 0
                     or m.lobe_textures[0] >= 0):
                 j = 0
