@@ -695,6 +695,13 @@ def _scalar_texture_slot(m: Material, j: int) -> int:
     return t // 16
 
 
+@wp.func
+def _has_scalar_textures(m: Material) -> bool:
+    """Whether any slot of :func:`_scalar_texture_slot` holds a texture (the lobe textures are packed first to last)."""
+    return (m.opacity_texture >= 0 or m.alpha_u_texture >= 0 or m.alpha_v_texture >= 0 or m.blend_texture >= 0
+            or m.lobe_textures[0] >= 0)
+
+
 class SurfaceFuncs(NamedTuple):
     """``surface_material`` and ``surface_material_at`` compiled for one set of material kinds (:func:`make_surface`)."""
 
@@ -728,8 +735,7 @@ def _make_surface(kinds: frozenset[int]) -> SurfaceFuncs:
             # of every kernel that resolves a material, not eight
             w = m.blend_weight
             j = int(8)  # most materials have none: skip the loop
-            if (m.opacity_texture >= 0 or m.alpha_u_texture >= 0 or m.alpha_v_texture >= 0 or m.blend_texture >= 0
-                    or m.lobe_textures[0] >= 0):
+            if _has_scalar_textures(m):
                 j = 0
             while j < 8:
                 t = _scalar_texture_slot(m, j)
