@@ -110,16 +110,21 @@ from grisx.device import specialized_module
 from grisx.errors import InvalidParameterError
 from grisx.params import Param
 from grisx.render.base.path_shift import (
+    CUT_FIRST_BOUNCE,
+    CUT_HYBRID,
     DIM_BSDF,
     density_in_range,
     Domain,
     PathReservoir,
     PathSample,
+    PrefixCut,
     ShiftParams,
     make_path_shift,
     path_dim,
     path_sample_empty,
     path_target,
+    prefix_cut_empty,
+    prefix_cut_here,
     segment_measure,
     shift_params,
     vertex_from_hit,
@@ -196,7 +201,7 @@ class SuffixSpec:
     scene: SceneData
     sp: ShiftParams
     max_bounces: int  # segments after x₁ (−1: unbounded): a prefix of length k − 1 leaves its suffix the rest
-    hybrid_prefix: int  # 1: the prefix ends at the first rough pair (sp's thresholds); 0: always at x₂
+    prefix_cut: int  # where a prefix ends: CUT_HYBRID, the first rough pair (sp's thresholds); CUT_FIRST_BOUNCE, at x₂
 
 
 @wp.struct
@@ -249,6 +254,27 @@ def prefix_empty() -> Prefix:
 
 
 @wp.func
+def prefix_of_cut(c: PrefixCut, key: wp.uint32, max_bounces: int) -> Prefix:
+    """The prefix a walk with seed ``key`` cut at ``c`` (none where ``c.end`` is invalid); its suffix may take the segments
+    that ``max_bounces`` (after x₁; −1: unbounded) leaves."""
+    p = prefix_empty()
+    p.key = key
+    if c.end.valid == 0:
+        return p
+    p.dom = c.end
+    p.f = c.f
+    p.pdf = c.pdf
+    p.dist = c.dist
+    p.cos = c.cos
+    p.delta = c.delta
+    p.length = c.length
+    p.bounces = -1
+    if max_bounces >= 0:
+        p.bounces = max_bounces - c.length
+    return p
+
+
+@wp.func
 def prefix_target(z: Prefix) -> float:
     """p̂(x^p) = f_p(x^p) (seed 001, Eq. 19; luminance), 0 for no prefix."""
     if z.dom.valid == 0:
@@ -283,7 +309,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     bsdf = make_bsdf(kinds)
     path_shift = shifts.shift
     stream = shifts.stream_candidates
-    stream_estimate = shifts.stream_estimate  # the gather's walk needs its light, not a reservoir
+    stream_prefix = shifts.stream_prefix  # the gather's walk: its prefix and the light within it, no reservoir
     vertex_material = shifts.vertex_material
     settle = shifts.settle
 
@@ -345,15 +371,15 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     def sample_prefix(spec: SuffixSpec, x1: Domain, key: wp.uint32) -> Prefix:
         """A prefix from x₁ by BSDF sampling with the path tracer's uniforms (its NEE shares ``key``), no roulette.
 
-        It ends at x_k, the second vertex of the first pair (x_{k−1}, x_k) rougher than the
-        threshold and farther apart than the near field (the hybrid shift's rule), or at x₂ with
-        ``hybrid_prefix`` 0. Invalid (no suffix) where it escapes, fails, or finds no pair within
-        ``max_bounces``: then the NEE walk of the gather owns all of that path's light.
+        It ends at x_k where :func:`prefix_cut_here` first holds (``spec.prefix_cut``: the second vertex of the first
+        pair rougher than the threshold and farther apart than the near field, the hybrid shift's rule, or x₂).
+        Invalid (no suffix) where it escapes, fails, or finds no pair within ``max_bounces``: then the NEE walk of
+        the gather owns all of that path's light. The gather's own prefixes come from ``stream_prefix``, the same
+        walk with that light streamed on the way.
         """
-        p = prefix_empty()
-        p.key = key
+        c = prefix_cut_empty()
         if x1.valid == 0:
-            return p
+            return prefix_of_cut(c, key, spec.max_bounces)
         v = x1
         f = wp.vec3(1.0, 1.0, 1.0)
         pdf = float(1.0)
@@ -361,36 +387,32 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         while spec.max_bounces < 0 or i <= spec.max_bounces:
             m = vertex_material(spec.scene, v.material, v.uv, v.tri, v.p, v.ns, v.ng)
             frame = frame_from_normal(v.ns)
-            c = path_dim(i, DIM_BSDF)
-            bs = bsdf.sample(m, to_local(frame, v.wo), random_uniform(key, c), wp.vec2(random_uniform(key, c + 1), random_uniform(key, c + 2)))
+            c_dim = path_dim(i, DIM_BSDF)
+            bs = bsdf.sample(m, to_local(frame, v.wo), random_uniform(key, c_dim), wp.vec2(random_uniform(key, c_dim + 1), random_uniform(key, c_dim + 2)))
             if bs.valid == 0 or not (bs.pdf > 0.0):
-                return p
+                break
             s = segment_measure(bs.delta)
             f = wp.cw_mul(f, bs.weight * (bs.pdf * s))
             pdf = pdf * bs.pdf * s
             if not density_in_range(pdf):
-                return p
+                break
             d = wp.normalize(to_world(frame, bs.wi))
             si = intersect(spec.scene, spawn_origin(spec.scene, v.p, v.ng, d), d, 1.0e30)
             if si.valid == 0:
-                return p  # escaped: its light is the NEE walk's
+                break  # escaped: its light is the NEE walk's
             dist = wp.length(si.p - v.p)
-            rough_pair = bsdf.roughness(m) > spec.sp.rough_threshold and shifts.roughness(spec.scene, si.material) > spec.sp.rough_threshold
-            if spec.hybrid_prefix == 0 or (rough_pair and dist > spec.sp.near_distance):
-                p.dom = vertex_from_hit(si, -d)
-                p.f = f
-                p.pdf = pdf
-                p.dist = dist
-                p.cos = wp.dot(si.ng, v.p - si.p) / dist
-                p.delta = bs.delta
-                p.length = i
-                p.bounces = -1
-                if spec.max_bounces >= 0:
-                    p.bounces = spec.max_bounces - i
-                return p
+            if prefix_cut_here(spec.sp, spec.prefix_cut, bsdf.roughness(m), shifts.roughness(spec.scene, si.material), dist):
+                c.end = vertex_from_hit(si, -d)
+                c.f = f
+                c.pdf = pdf
+                c.dist = dist
+                c.cos = wp.dot(si.ng, v.p - si.p) / dist
+                c.delta = bs.delta
+                c.length = i
+                break
             v = vertex_from_hit(si, -d)
             i += 1
-        return p
+        return prefix_of_cut(c, key, spec.max_bounces)
 
     @wp.func
     def replay_prefix(spec: SuffixSpec, x1: Domain, z: Prefix) -> PrefixShift:
@@ -408,7 +430,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     @wp.func
     def shift_prefix(spec: SuffixSpec, x1: Domain, z: Prefix) -> PrefixShift:
         """The supporting prefix's shift into another pixel: reconnection x₁' → x₂ for one-bounce prefixes, replay for the hybrid rule's."""
-        if spec.hybrid_prefix != 0:
+        if spec.prefix_cut == CUT_HYBRID:
             return replay_prefix(spec, x1, z)
         return reconnect_prefix(spec.scene, x1, z)
 
@@ -675,19 +697,15 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             return
         gkey = pixel_key_of(seed, frame, x, y, width, _STREAM_GATHER)
         pkey = random_subkey(gkey, _STREAM_GATHER_PREFIX + j)
-        z = sample_prefix(spec, dom, pkey)
-        # ---- light of the paths that end within the prefix: NEE at x₁ … x_{k−1}, emitters hit at x₂ … x_k (MIS), as pt ----
-        # (the same walk: the same uniforms; without a suffix, the whole path is the walk's)
-        walk = max_bounces
-        if z.dom.valid != 0:
-            walk = z.length
-        if walk != 0:
-            d = PathReservoir()
-            d.res = reservoir_empty()
-            d.path = path_sample_empty()
-            d.estimate = wp.vec3(0.0)
-            d = stream_estimate(spec.scene, dom, pkey, walk, 1.0, full_sp, d, random_subkey(gkey, _STREAM_CHOICES + j))
-            L += d.estimate * (1.0 / float(prefixes))  # Σ f/p over its candidates
+        # ---- the prefix, and the light of the paths that end within it: NEE at x₁ … x_{k−1}, emitters hit at x₂ … x_k ----
+        # (MIS'd as pt; one walk, sample_prefix's directions: without a suffix, the whole path is the walk's)
+        d = PathReservoir()
+        d.res = reservoir_empty()
+        d.path = path_sample_empty()
+        d.estimate = wp.vec3(0.0)
+        walk = stream_prefix(spec.scene, dom, pkey, max_bounces, 1.0, full_sp, d, random_subkey(gkey, _STREAM_CHOICES + j), spec.sp, spec.prefix_cut)
+        z = prefix_of_cut(walk.cut, pkey, spec.max_bounces)
+        L += walk.pr.estimate * (1.0 / float(prefixes))  # Σ f/p over its candidates
         accum[y, x] = L
         if z.dom.valid == 0 or z.bounces == 0:
             return
@@ -891,7 +909,7 @@ class SuffixReSTIR(ScreenSpaceRenderer):
         self.spec.scene = built.data
         self.spec.sp = shift_params(shift, rr_depth=max(int(rr_depth) - 1, 1), **common)  # roulette counted from the suffix's own x_k
         self.spec.max_bounces = self.max_bounces
-        self.spec.hybrid_prefix = int(prefix == "hybrid")
+        self.spec.prefix_cut = CUT_HYBRID if prefix == "hybrid" else CUT_FIRST_BOUNCE
         n = self.width * self.height
         self.grid_radius = float(gather_radius) * float(built.data.scene_radius)
         if self.grid_radius <= 0.0:

@@ -92,7 +92,9 @@ hit into a :class:`PathReservoir` with its reconnection data chosen by the same
 rule the shift checks; ``settle`` re-evaluates the kept path as the shift
 measures it (geometric segments instead of the offset rays that sampled them,
 so T⁻¹(T(x̄)) = x̄ holds to rounding) and finalizes the UCW. Renderers that reuse
-paths start from these two.
+paths start from these two. ``stream_prefix`` walks a path for its estimate alone and **cuts** it
+where a prefix x₁ … x_k ends (:func:`prefix_cut_here`: the first rough pair beyond the near field, or
+x₂): Suffix ReSTIR's gather samples its prefix and gathers the light that ends within it in one walk.
 
 References: D. Lin, M. Kettunen, B. Bitterli, J. Pantaleoni, C. Yuksel,
 C. Wyman, "Generalized resampled importance sampling", SIGGRAPH 2022
@@ -165,6 +167,12 @@ __all__ = [
     "VERTEX_ENV",
     "DIM_NEE",
     "DIM_BSDF",
+    "PrefixCut",
+    "StreamedPath",
+    "prefix_cut_here",
+    "CUT_NONE",
+    "CUT_HYBRID",
+    "CUT_FIRST_BOUNCE",
 ]
 
 SHIFT_REPLAY = wp.constant(0)
@@ -183,6 +191,11 @@ DIM_BSDF = wp.constant(3)  # counters 8i + 3..5: lobe, direction
 DIM_RR = wp.constant(6)  # counter 8i + 6: the Russian-roulette decision after BSDF sampling at x_i
 #: each non-delta direction is measured in π · solid angle (see "Measure" in the module docstring)
 MEASURE_SCALE = wp.constant(wp.pi)
+#: where :func:`prefix_cut_here` cuts a walk into a prefix and a suffix: nowhere, at the first rough pair beyond the
+#: near field (the hybrid shift's reconnection rule), or always at x₂
+CUT_NONE = wp.constant(0)
+CUT_HYBRID = wp.constant(1)
+CUT_FIRST_BOUNCE = wp.constant(2)
 #: a path whose density leaves this range (float32) ends there: far beyond any path's real density
 _PDF_RANGE = wp.constant(1.0e30)
 _FAR = wp.constant(1.0e30)
@@ -241,6 +254,33 @@ class PathReservoir:
     res: Reservoir
     path: PathSample
     estimate: wp.vec3
+
+
+@wp.struct
+class PrefixCut:
+    """Where a walk was cut into a prefix x₁ … x_k and a suffix (seed 001, Sec. 6): x_k and the prefix's factors.
+
+    ``end`` is x_k as a domain (ω_o toward x_{k−1}; ``end.valid`` 0: not cut, no suffix follows); ``f`` is
+    Π f_s|cos| of the prefix's directions (π-scaled measure, without the film weight) and ``pdf`` their density
+    (no roulette); ``cos`` and ``dist`` describe the segment x_{k−1} → x_k, ``delta`` whether it was sampled
+    from a delta lobe, and ``length`` = k − 1 its segments.
+    """
+
+    end: Domain
+    f: wp.vec3
+    pdf: float
+    cos: float
+    dist: float
+    delta: int
+    length: int
+
+
+@wp.struct
+class StreamedPath:
+    """What a walk of ``make_path_shift``'s streams returns: the path reservoir and, for ``stream_prefix``, its cut."""
+
+    pr: PathReservoir
+    cut: PrefixCut
 
 
 @wp.struct
@@ -318,6 +358,28 @@ def rc_pair_ok(sp: ShiftParams, rough_prev: float, rough_cur: float, dist: float
     if sp.mode == SHIFT_RECONNECTION:
         return index == 2 and rough_prev > 0.0 and rough_cur > 0.0
     return False
+
+
+@wp.func
+def prefix_cut_here(sp: ShiftParams, rule: int, rough_prev: float, rough_cur: float, dist: float) -> bool:
+    """Whether a prefix ends at x_k after the segment x_{k−1} → x_k (``dist`` long) under ``rule``: ``CUT_HYBRID``, both
+    rougher than ``sp``'s threshold and farther apart than its near field (the hybrid shift's rule, whatever ``sp.mode``);
+    ``CUT_FIRST_BOUNCE``, always (k = 2)."""
+    if rule == CUT_FIRST_BOUNCE:
+        return True
+    if rule == CUT_HYBRID:
+        return rough_prev > sp.rough_threshold and rough_cur > sp.rough_threshold and dist > sp.near_distance
+    return False
+
+
+@wp.func
+def prefix_cut_empty() -> PrefixCut:
+    c = PrefixCut()
+    c.end.valid = 0
+    c.f = wp.vec3(0.0)
+    c.pdf = 0.0
+    c.length = 0
+    return c
 
 
 @wp.struct
@@ -411,8 +473,9 @@ class PathShiftFuncs:
     ``roughness(scene, material) -> float`` is the hybrid rule's roughness of a material id;
     ``stream_candidates(scene, dom, key, max_bounces, weight_scale, sp, pr, ukey) -> PathReservoir``
     traces one path and streams its candidates (with their reconnection data) into a path
-    reservoir, and ``settle(scene, dom, pr, sp) -> PathReservoir`` finalizes it; ``stream_estimate`` (same
-    arguments) walks the same path for ``estimate`` alone (Σ f/(N p) of its candidates; the reservoir is left as given).
+    reservoir, and ``settle(scene, dom, pr, sp) -> PathReservoir`` finalizes it; ``stream_prefix`` (the same arguments,
+    then ``cut_sp, cut_rule``; returns :class:`StreamedPath`) walks a path for ``estimate`` alone (Σ f/(N p) of its
+    candidates; the reservoir is left as given) up to where :func:`prefix_cut_here` ends its prefix.
     ``shift_across`` is ``shift`` between the frames of :meth:`~grisx.scene.scene.BuiltScene.across_frames`,
     failing where ``suffix_moved(scene, x) -> bool`` finds the reused suffix in a box of what moved.
     ``vertex_material(scene, material, uv, tri, p, ns, ng) -> Material`` resolves a stored vertex's material with
@@ -423,7 +486,7 @@ class PathShiftFuncs:
     shift: Any
     roughness: Any
     stream_candidates: Any
-    stream_estimate: Any
+    stream_prefix: Any
     settle: Any
     suffix_moved: Any
     shift_across: Any
@@ -690,10 +753,12 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
 
     # ---- sampling paths into a path reservoir (what every path-reuse renderer starts from) ----
     # ``estimate_only``: the same walk and the same Σ f/(N p), without the reservoir or the candidates' reconnection
-    # data (Suffix ReSTIR's gather walks a prefix for its light alone: two thirds of its prefix pass was that bookkeeping)
-    def make_stream(estimate_only: bool) -> Any:
+    # data (Suffix ReSTIR's gather walks a prefix for its light alone: two thirds of its prefix pass was that bookkeeping).
+    # ``cut``: the walk also ends its prefix where ``prefix_cut_here`` says (the gather sampled the prefix in a walk of its
+    # own before, the same directions traced twice)
+    def make_stream(estimate_only: bool, cut: bool) -> Any:
         @wp.func
-        def stream_path_candidates(
+        def stream_path(
             scene: SceneData,
             dom: Domain,
             key: wp.uint32,
@@ -702,7 +767,9 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
             sp: ShiftParams,
             pr: PathReservoir,
             ukey: wp.uint32,
-        ) -> PathReservoir:
+            cut_sp: ShiftParams,
+            cut_rule: int,
+        ) -> StreamedPath:
             """Trace one path from ``dom`` with seed ``key`` and stream every light connection and emitter hit into ``pr``.
 
             Next-event estimation at every non-delta vertex, BSDF sampling, Russian roulette from
@@ -713,13 +780,22 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
             so with ``weight_scale`` = 1/N over N traced paths the MIS weights sum to one) and its
             reconnection data under ``sp``'s rule. Reservoir decisions use ``random_uniform(ukey, j)``,
             j = 0, 1, … (one key per traced path). Call :func:`settle` once after the last path.
+
+            With ``cut``, the walk is also a prefix sampler: it ends after the segment x_{k−1} → x_k where
+            :func:`prefix_cut_here` (``cut_sp``, ``cut_rule``) first holds and returns x_k in ``cut``, having
+            streamed the light that ends within the prefix (NEE at x₁ … x_{k−1}, emitters hit at x₂ … x_k). Where
+            roulette ends the light's walk first, the prefix walks on (a prefix is never rouletted); where the
+            prefix fails (escape, an invalid sample, no pair within ``max_bounces``), the walk is the whole path's.
             """
             r = pr.res
             sel = pr.path
             estimate = pr.estimate  # Σ f/(N p) over the candidates (seed 002, Listing 1 line 36)
             ucount = int(0)
+            out = StreamedPath()
+            out.pr = pr
+            out.cut = prefix_cut_empty()
             if dom.valid == 0:
-                return pr
+                return out
             v = dom  # the current vertex x_i
             fthru = wp.vec3(dom.weight, dom.weight, dom.weight)  # f of x₁ … x_i: x₁'s film weight, the BSDF factors so far
             pdf = float(1.0)  # density of the directions sampled so far (π-scaled measure, roulette included)
@@ -727,6 +803,10 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
             cur = path_sample_empty()  # the walk's reconnection data (k = 0 until a pair qualifies)
             cur.key = key
             suffix_thru = wp.vec3(1.0, 1.0, 1.0)  # f factors after x_k's BSDF
+            lit = bool(True)  # the light's walk goes on (false once roulette or the density range ended it)
+            seeking = bool(wp.static(cut))  # the prefix's end is still to be found
+            cut_f = wp.vec3(1.0, 1.0, 1.0)  # the prefix's f and density (no film weight, no roulette)
+            cut_pdf = float(1.0)
             i = int(1)
             while max_bounces < 0 or i <= max_bounces:
                 m = vertex_material(scene, v.material, v.uv, v.tri, v.p, v.ns, v.ng)
@@ -734,7 +814,7 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                 wo_l = to_local(frame_l, v.wo)
                 rough = bsdf.roughness(m)
                 # -- next-event estimation: candidate x₁ … x_i → light --
-                if bsdf.is_delta(m) == 0 and i >= sp.min_bounces:
+                if lit and bsdf.is_delta(m) == 0 and i >= sp.min_bounces:
                     c = path_dim(i, DIM_NEE)
                     ls = sample_light(scene.lights, v.p, random_uniform(key, c), wp.vec2(random_uniform(key, c + 1), random_uniform(key, c + 2)))
                     if ls.pdf > 0.0 and wp.length_sq(ls.radiance) > 0.0:
@@ -792,14 +872,21 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                 pdf_before = pdf
                 pdf = pdf * bs.pdf * s_bsdf
                 eta = eta * bs.eta
+                if wp.static(cut):
+                    cut_f = wp.cw_mul(cut_f, fac)
+                    cut_pdf = cut_pdf * bs.pdf * s_bsdf
+                    if seeking and not density_in_range(cut_pdf):
+                        seeking = False  # the prefix fails; the light's walk goes on alone
                 # -- Russian roulette (Mitsuba's rule); its decision is part of the path's random sequence --
-                if i >= sp.rr_depth:
+                if lit and i >= sp.rr_depth:
                     q = roulette_survival(fthru / pdf, eta)
                     if random_uniform(key, path_dim(i, DIM_RR)) >= q:
-                        break
+                        lit = False
                     pdf = pdf * q
-                if not density_in_range(pdf):
-                    break  # beyond float32: ends the path (see _PDF_RANGE)
+                if lit and not density_in_range(pdf):
+                    lit = False  # beyond float32: ends the path (see _PDF_RANGE)
+                if not lit and not seeking:
+                    break
                 d = wp.normalize(to_world(frame_l, bs.wi))
                 if wp.static(not estimate_only):
                     if cur.rc_index == i:
@@ -812,7 +899,7 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                 lpdf = eh.light_pdf
                 dist = eh.dist
                 # -- emitter reached by BSDF sampling: candidate x₁ … x_{i+1} --
-                if wp.length_sq(le) > 0.0 and i >= sp.min_bounces:
+                if lit and wp.length_sq(le) > 0.0 and i >= sp.min_bounces:
                     mis = technique_mis(0, 0, bs.delta, lpdf, bs.pdf)
                     cand_x = cur
                     cand_x.length = i
@@ -841,6 +928,19 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                         ucount += 1
                         if r.selected:
                             sel = cand_x
+                if wp.static(cut):
+                    # -- does the prefix end at x_{i+1}? (the light beyond it is its suffix's) --
+                    if seeking and si.valid != 0:
+                        cut_dist = wp.length(si.p - v.p)
+                        if prefix_cut_here(cut_sp, cut_rule, rough, roughness(scene, si.material), cut_dist):
+                            out.cut.end = vertex_from_hit(si, -d)
+                            out.cut.f = cut_f
+                            out.cut.pdf = cut_pdf
+                            out.cut.dist = cut_dist
+                            out.cut.cos = wp.dot(si.ng, v.p - si.p) / cut_dist
+                            out.cut.delta = bs.delta
+                            out.cut.length = i
+                            break
                 if si.valid == 0 or (max_bounces >= 0 and i >= max_bounces):
                     break
                 # -- advance to x_{i+1}; is (x_i, x_{i+1}) the reconnection pair? --
@@ -860,16 +960,22 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                         suffix_thru = wp.vec3(1.0, 1.0, 1.0)
                 v = vertex_from_hit(si, -d)
                 i += 1
-            out = PathReservoir()
-            out.res = r
-            out.path = sel
-            out.estimate = estimate
+            out.pr.res = r
+            out.pr.path = sel
+            out.pr.estimate = estimate
             return out
 
-        return stream_path_candidates
+        return stream_path
 
-    stream_path_candidates = make_stream(False)
-    stream_path_estimate = make_stream(True)
+    stream_path = make_stream(False, False)
+    stream_path_prefix = make_stream(True, True)
+
+    @wp.func
+    def stream_path_candidates(
+        scene: SceneData, dom: Domain, key: wp.uint32, max_bounces: int, weight_scale: float, sp: ShiftParams, pr: PathReservoir, ukey: wp.uint32
+    ) -> PathReservoir:
+        """:func:`stream_path` without a cut: one path's candidates streamed into ``pr``."""
+        return stream_path(scene, dom, key, max_bounces, weight_scale, sp, pr, ukey, sp, CUT_NONE).pr
 
     @wp.func
     def settle(scene: SceneData, dom: Domain, pr: PathReservoir, sp: ShiftParams) -> PathReservoir:
@@ -896,7 +1002,7 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
         return out
 
     funcs = PathShiftFuncs(kinds=key, shift=shift, roughness=roughness, stream_candidates=stream_path_candidates,
-                           stream_estimate=stream_path_estimate, settle=settle,
+                           stream_prefix=stream_path_prefix, settle=settle,
                            suffix_moved=suffix_moved, shift_across=shift_across, vertex_material=vertex_material)
     return funcs
 
