@@ -1349,7 +1349,21 @@ class BuiltScene:
         return dataclasses.replace(self.camera, to_world=self.camera_path.to_world(max(frame, 0.0)))
 
     def camera_data(self, frame: float, width: int, height: int) -> CameraData:
-        d = self.camera_at(frame).data(width, height)
-        d.filter_stddev = float(self.film.filter_stddev)
-        d.filter_tent = float(self.film.filter_tent)
+        """The camera at ``frame`` for a ``width``×``height`` film, as kernels read it (with the film's filter).
+
+        Kept for the last few cameras asked for (by value: every field that goes into it), since every pass
+        of a frame asks again (a G-buffer asks for this frame and the last; ReSTIR G-PT's pairs more often).
+        """
+        cam = self.camera_at(frame)
+        key = (cam.to_world.tobytes(), cam.fov, cam.fov_axis, cam.near_clip, cam.far_clip, cam.aperture_radius, cam.focus_distance,
+               cam.projection, int(width), int(height), float(self.film.filter_stddev), float(self.film.filter_tent))
+        cache = self.__dict__.setdefault("_camera_data", {})
+        d = cache.get(key)
+        if d is None:
+            d = cam.data(width, height)
+            d.filter_stddev = float(self.film.filter_stddev)
+            d.filter_tent = float(self.film.filter_tent)
+            if len(cache) >= 8:
+                cache.clear()
+            cache[key] = d
         return d
