@@ -61,8 +61,9 @@ than the other prefix leaves (``max_depth`` counts the whole path). Per frame:
     and weighting by it was measured worse (closed room, 24×18, frame 6: relMSE 0.175 against
     0.068 with α = 1). The MIS weights include the prefix's own canonical suffix domain; with
     ``roulette=true`` only one random prefix traces its canonical suffix, weighted N
-    (:func:`roulette_pick`, :func:`canonical_roulette_weight`, Eq. 23); ``roulette=false``
-    traces one per prefix. ``canonical=false`` drops the canonical domain: the borrowed
+    (:func:`roulette_pick`, :func:`canonical_roulette_weight`, Eq. 23) — one index per frame for every
+    pixel (the prefixes are i.i.d.; on a GPU the suffixes are then one pass's coherent work);
+    ``roulette=false`` traces one per prefix. ``canonical=false`` drops the canonical domain: the borrowed
     suffixes no longer cover the suffix space (Eq. 17) — biased, and the tests show it.
     Each prefix j is one launch pair, a prefix pass (sample it, its walk, fill the pixel's row of
     domains) and a MIS pass (its Eq. 22 terms), summed into a running image: no kernel loops
@@ -131,7 +132,7 @@ from grisx.render.base.path_shift import (
 )
 from grisx.render.base.registry import RenderMethod, create_renderer, register, renderer_params
 from grisx.render.base.reuse import SIMILARITY_DEPTH, SIMILARITY_NORMAL_COS, pixels_similar, spatial_neighbor, temporal_neighbor
-from grisx.render.base.screen import ScreenSpaceRenderer, kernel_cache, pixel_key_of
+from grisx.render.base.screen import ScreenSpaceRenderer, frame_key_of, kernel_cache, pixel_key_of
 from grisx.scene.bsdf import make_bsdf
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.gbuffer import GBuffer, GBufferData
@@ -161,6 +162,7 @@ _STREAM_TEMPORAL = wp.constant(2)
 _STREAM_SPATIAL = wp.constant(3)
 _STREAM_SUPPORT_SUFFIX = wp.constant(4)  # the supporting canonical suffix's seed (replayed by shifts)
 _STREAM_GATHER = wp.constant(5)
+_FRAME_STREAM_ROULETTE = wp.constant(2)  # frame_key_of stream: which prefix traces the canonical suffix (every pixel's)
 _STREAM_GATHER_PREFIX = wp.constant(1024)  # + j: integration prefix j (and its NEE)
 _STREAM_GATHER_SUFFIX = wp.constant(4096)  # + j: integration prefix j's canonical suffix
 _STREAM_CHOICES = wp.constant(8192)  # + j: reservoir decisions of prefix j's paths
@@ -648,9 +650,16 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     # held kernel int params written by diverged lanes — a code-generation fault, measured with
     # cuda-gdb; see benchmarks/README "The metal-rack fault".
     @wp.func
-    def gather_chosen(gkey: wp.uint32, prefixes: int, own_suffixes: int) -> int:
-        """The prefix that traces its canonical suffix (Eq. 23); with own suffixes (MMIS) the first ones always do."""
-        return own_suffixes + roulette_pick(random_uniform(gkey, 0), wp.max(prefixes - own_suffixes, 1))
+    def gather_chosen(seed: int, frame: int, prefixes: int, own_suffixes: int) -> int:
+        """The prefix that traces its canonical suffix (Eq. 23), one index for every pixel of the frame; with own
+        suffixes (MMIS) the first ones always do.
+
+        A pixel's N prefixes are i.i.d., so which index traces does not change the estimator's law, nor the joint
+        law of the pixels: a per-pixel index is as unbiased and no better. One index per frame makes the suffix
+        trace one pass's work for every pixel, where a per-pixel index had almost every 32-pixel warp of a GPU
+        trace a suffix in every pass (1 − (7/8)³² ≈ 99% at N = 8; Alg. 1 traces it with the first prefix).
+        """
+        return own_suffixes + roulette_pick(random_uniform(frame_key_of(seed, frame, _FRAME_STREAM_ROULETTE), 0), wp.max(prefixes - own_suffixes, 1))
 
     @wp.func
     def gather_traced(j: int, chosen: int, own_suffixes: int, roulette: int, canonical: int) -> wp.bool:
@@ -711,7 +720,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             return
         # entry 0: the prefix's own (canonical) suffix domain, α = 0 without it (canonical=false, biased)
         row_set(rows, t, 0, z, path_sample_empty(), reservoir_empty(), float(canonical))
-        if gather_traced(j, gather_chosen(gkey, prefixes, own_suffixes), own_suffixes, roulette, canonical):
+        if gather_traced(j, gather_chosen(seed, frame, prefixes, own_suffixes), own_suffixes, roulette, canonical):
             if j < own_suffixes:
                 row_set(rows, t, 0, z, own_x[t, j], own_res[t, j], 1.0)
             else:
@@ -755,8 +764,8 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         z = rows.z[t, 0]
         if z.dom.valid == 0 or z.bounces == 0:
             return
-        gkey = pixel_key_of(seed, frame, x, y, width, _STREAM_GATHER)
-        traced = gather_traced(j, gather_chosen(gkey, prefixes, own_suffixes), own_suffixes, roulette, canonical)
+        chosen = gather_chosen(seed, frame, prefixes, own_suffixes)
+        traced = gather_traced(j, chosen, own_suffixes, roulette, canonical)
         inv_n = 1.0 / float(prefixes)
         w_prefix = ucw_from_source_pdf(z.pdf)
         L = accum[y, x]
@@ -771,7 +780,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             if gw.weight > 0.0:
                 rw = float(1.0)
                 if j >= own_suffixes:
-                    rw = canonical_roulette_weight(roulette, j == gather_chosen(gkey, prefixes, own_suffixes), prefixes - own_suffixes)
+                    rw = canonical_roulette_weight(roulette, j == chosen, prefixes - own_suffixes)
                 L += wp.cw_mul(z.f, gw.y.f) * (gw.weight * rw * inv_n)
         accum[y, x] = L
 

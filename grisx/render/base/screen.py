@@ -23,7 +23,7 @@ from grisx.theory.random import random_key, random_subkey
 
 wp.set_module_options({"enable_backward": False})
 
-__all__ = ["ScreenFrame", "screen_frame", "frame_key", "pixel_key", "pixel_key_of", "write_pixel", "visible_normal", "ScreenSpaceRenderer", "kernel_cache", "arg_types"]
+__all__ = ["ScreenFrame", "screen_frame", "frame_key", "frame_key_of", "pixel_key", "pixel_key_of", "write_pixel", "visible_normal", "ScreenSpaceRenderer", "kernel_cache", "arg_types"]
 
 
 @wp.struct
@@ -42,15 +42,21 @@ class ScreenFrame:
 
 
 @wp.func
+def frame_key_of(seed: int, frame: int, stream: int) -> wp.uint32:
+    """Random key of stream ``stream`` of frame ``frame`` of run ``seed`` (stream 0: pixels; others: e.g. tiles)."""
+    return random_subkey(random_key(seed, frame), stream)
+
+
+@wp.func
 def frame_key(sf: ScreenFrame, stream: int) -> wp.uint32:
-    """Random key of stream ``stream`` of this frame (stream 0: pixels; others: e.g. tiles)."""
-    return random_subkey(random_key(sf.seed, sf.frame), stream)
+    """Random key of stream ``stream`` of this frame (:func:`frame_key_of`)."""
+    return frame_key_of(sf.seed, sf.frame, stream)
 
 
 @wp.func
 def pixel_key_of(seed: int, frame: int, x: int, y: int, width: int, stream: int) -> wp.uint32:
     """Random key of pass (or use) ``stream`` of pixel (x, y) in frame ``frame`` of run ``seed``: the one scheme."""
-    return random_subkey(random_subkey(random_subkey(random_key(seed, frame), 0), y * width + x), stream)
+    return random_subkey(random_subkey(frame_key_of(seed, frame, 0), y * width + x), stream)
 
 
 @wp.func
