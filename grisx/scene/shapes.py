@@ -315,6 +315,18 @@ def _obj_index(token: str, count: int, kind: str, path: Path, line: int) -> int:
     return j
 
 
+#: meshes read from OBJ files, by (file, modification time, size, flip_tex_coords): a scene names one file many
+#: times (Mitsuba's bsdf_spheres scenes place sphere.obj, 81,671 lines, twelve times) and a session reads it in many
+#: scenes; each caller gets its own copy
+_OBJ_CACHE: dict[tuple[str, int, int, bool], MeshData] = {}
+_OBJ_CACHE_SIZE = 16
+
+
+def _mesh_copy(m: MeshData) -> MeshData:
+    return MeshData(m.vertices.copy(), m.faces.copy(), None if m.normals is None else m.normals.copy(),
+                    None if m.uvs is None else m.uvs.copy(), {k: v.copy() for k, v in m.attributes.items()})
+
+
 def load_obj(path: str | os.PathLike, flip_tex_coords: bool = True) -> MeshData:
     """Read a Wavefront OBJ file as Mitsuba's ``obj`` plugin does (see module docstring).
 
@@ -323,12 +335,25 @@ def load_obj(path: str | os.PathLike, flip_tex_coords: bool = True) -> MeshData:
     path = Path(path)
     if not path.is_file():
         raise _mesh_error(path, "no such file")
+    st = path.stat()
+    key = (str(path.resolve()), st.st_mtime_ns, st.st_size, bool(flip_tex_coords))
+    mesh = _OBJ_CACHE.get(key)
+    if mesh is None:
+        mesh = _read_obj(path, flip_tex_coords)
+        if len(_OBJ_CACHE) >= _OBJ_CACHE_SIZE:
+            _OBJ_CACHE.pop(next(iter(_OBJ_CACHE)))
+        _OBJ_CACHE[key] = mesh
+    return _mesh_copy(mesh)
+
+
+def _read_obj(path: Path, flip_tex_coords: bool) -> MeshData:
     pos: list[tuple[float, float, float]] = []
     tex: list[tuple[float, float]] = []
     nrm: list[tuple[float, float, float]] = []
     key_to_vertex: dict[tuple[int, int, int], int] = {}
     keys: list[tuple[int, int, int]] = []
     tris: list[tuple[int, int, int]] = []
+    token_to_vertex: dict[str, int] = {}  # face tokens without relative (negative) indices name one vertex for good
     with open(path, encoding="utf-8", errors="replace") as fh:
         for lineno, raw in enumerate(fh, start=1):
             parts = raw.split()
@@ -350,6 +375,10 @@ def load_obj(path: str | os.PathLike, flip_tex_coords: bool = True) -> MeshData:
                 continue  # o, g, s, usemtl, mtllib, l, p: geometry groups are merged, as Mitsuba does
             corner_ids = []
             for tok in parts[1:]:
+                vid = token_to_vertex.get(tok)
+                if vid is not None:
+                    corner_ids.append(vid)
+                    continue
                 fields = tok.split("/")
                 if len(fields) > 3 or not fields[0]:
                     raise _mesh_error(path, f"line {lineno}: bad face vertex '{tok}'")
@@ -361,6 +390,8 @@ def load_obj(path: str | os.PathLike, flip_tex_coords: bool = True) -> MeshData:
                 if vid is None:
                     vid = key_to_vertex[key] = len(keys)
                     keys.append(key)
+                if "-" not in tok:
+                    token_to_vertex[tok] = vid
                 corner_ids.append(vid)
             if len(corner_ids) < 3:
                 raise _mesh_error(path, f"line {lineno}: a face needs at least 3 vertices")

@@ -190,6 +190,17 @@ def test_obj_flip_tex_coords_off_and_face_normals():
     assert (0.0, 0.0) in {tuple(uv) for uv in m.uvs[m.vertices[:, 0] == 0]}
 
 
+def test_an_obj_read_again_is_the_file_as_it_is_now_and_each_reader_owns_its_copy(tmp_path):
+    # load_obj keeps the meshes it read (a scene names one file many times): by content's stamp, never stale
+    path = tmp_path / "tri.obj"
+    path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    first = shapes.load_obj(path)
+    first.vertices[:] = 7.0  # a caller editing its mesh edits its own copy
+    np.testing.assert_array_equal(shapes.load_obj(path).vertices, [[0, 0, 0], [1, 0, 0], [0, 1, 0]])
+    path.write_text("v 0 0 0\nv 2 0 0\nv 0 2 0\nv 2 2 0\nf 1 2 3\nf 2 4 3\n")  # rewritten: read again
+    assert shapes.load_obj(path).faces.shape == (2, 3)
+
+
 def test_obj_file_normals_and_negative_indices():
     m = shapes.load_mesh(DATA / "normals.obj")
     assert m.uvs is None
