@@ -1118,6 +1118,7 @@ class BuiltScene:
         self.film = scene.film
         self.defaults = dict(scene.defaults)
         self.camera = scene.camera
+        self._camera_data: dict[tuple, CameraData] = {}  # camera_data's last few results, by value
         self.camera_path = scene.camera_path
         #: follow the camera path (renderers set it for animated sequences)
         self.animate_camera = False
@@ -1357,7 +1358,7 @@ class BuiltScene:
         cam = self.camera_at(frame)
         key = (cam.to_world.tobytes(), cam.fov, cam.fov_axis, cam.near_clip, cam.far_clip, cam.aperture_radius, cam.focus_distance,
                cam.projection, int(width), int(height), float(self.film.filter_stddev), float(self.film.filter_tent))
-        cache = self.__dict__.setdefault("_camera_data", {})
+        cache = self._camera_data
         d = cache.get(key)
         if d is None:
             d = cam.data(width, height)
