@@ -67,7 +67,7 @@ import warp as wp
 from grisx.device import SHIFT_REGISTERS, specialized_module
 from grisx.errors import InvalidParameterError
 from grisx.params import Param
-from grisx.render.base.area import FILM_STREAM, FilmSample, area_domain, film_sample, film_translate, temporal_film_offset
+from grisx.render.base.area import FILM_STREAM, FilmSample, film_sample, make_area_domain, film_translate, temporal_film_offset
 from grisx.render.base.path_shift import (
     Domain,
     PathReservoir,
@@ -121,6 +121,7 @@ def _shift_none() -> PathShiftResult:
 def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     """The passes of Area ReSTIR compiled for the material kinds ``kinds`` (cached)."""
     shifts = make_path_shift(kinds)
+    area_domain = make_area_domain(kinds)
     shift = shifts.shift
     suffix_moved = shifts.suffix_moved
     module = specialized_module(__name__, kinds)

@@ -112,7 +112,7 @@ from grisx.render.base.reuse import (
     spatial_neighbor,
     temporal_neighbor,
 )
-from grisx.scene.scene import SceneData, SurfaceInteraction, intersect, motion_touches, occluded, segment_occluded, spawn_origin, make_surface
+from grisx.scene.scene import SceneData, SurfaceInteraction, motion_touches, spawn_origin, make_surface
 from grisx.scene.bsdf import MATERIAL_DIFFUSE
 from grisx.scene.material import Material
 from grisx.theory.control_variate import (
@@ -234,7 +234,8 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
     """ReSTIR DI's functions and kernels for ``kinds``; with ``cv``, each pass also carries ReSTCV's
     estimate ⟨Ḋ_i⟩ of the auxiliary direct light (seed 002, Sec. 5.3; :mod:`grisx.render.restcv`)."""
     bsdf = make_bsdf(kinds)
-    surface_material = make_surface(kinds).surface_material  # the wrappers of these kinds only
+    surface = make_surface(kinds)  # the wrappers and shapes of these kinds only
+    surface_material, intersect, occluded, segment_occluded = surface.surface_material, surface.intersect, surface.occluded, surface.segment_occluded
 
     @wp.func
     def light_eval_at(scene: SceneData, si: SurfaceInteraction, m: Material, frame: Frame, wo: wp.vec3, lp: LightPoint) -> LightEval:

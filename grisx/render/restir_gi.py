@@ -204,9 +204,7 @@ from grisx.render.base.reuse import (
 from grisx.scene.scene import (
     SceneData,
     SurfaceInteraction,
-    intersect,
     motion_touches,
-    segment_occluded,
     spawn_origin,
     make_surface,
 )
@@ -377,9 +375,10 @@ class SampleRadiance:
 def make_restir_gi_kernels(kinds: frozenset[int], moving: bool = False) -> Any:
     """ReSTIR GI's functions and kernels compiled for the material kinds ``kinds`` (cached)."""
     bsdf = make_bsdf(kinds)
-    surface = make_surface(kinds)  # the wrappers of these kinds only
+    surface = make_surface(kinds)  # the wrappers and shapes of these kinds only
     surface_material = surface.surface_material
     surface_material_at = surface.surface_material_at
+    intersect, segment_occluded = surface.intersect, surface.segment_occluded
     trace_path = make_trace_path(kinds, bounds=moving)  # with moving objects, the box of what L_o depends on
     has_rough_dielectric = MATERIAL_ROUGH_DIELECTRIC in kinds
     has_principled = MATERIAL_PRINCIPLED in kinds or MATERIAL_PRINCIPLED_THIN in kinds

@@ -74,7 +74,7 @@ import warp as wp
 from grisx.device import specialized_module
 from grisx.errors import InvalidParameterError
 from grisx.params import Param
-from grisx.render.base.area import FilmSample, area_domain, film_translate, temporal_film_offset
+from grisx.render.base.area import FilmSample, film_translate, make_area_domain, temporal_film_offset
 from grisx.render.base.path_shift import PathReservoir, PathSample, ShiftParams, make_path_shift, path_sample_empty, path_target
 from grisx.render.base.registry import RenderMethod, create_renderer, register, renderer_params
 from grisx.render.base.reuse import SIMILARITY_DEPTH, SIMILARITY_NORMAL_COS, pixels_similar, spatial_neighbor, temporal_neighbor
@@ -184,6 +184,7 @@ def _pairs_alike(g: GBufferData, x: int, y: int, nx: int, ny: int, e: wp.vec2i) 
 def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     """The paired-pixel passes of ReSTIR G-PT compiled for the material kinds ``kinds`` (cached)."""
     shift = make_path_shift(kinds).shift
+    area_domain = make_area_domain(kinds)
     module = specialized_module(__name__, kinds)
 
     @wp.func

@@ -80,7 +80,7 @@ from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.distribution import alias_pmf, sample_alias
 from grisx.scene.lights import sample_given_light, sample_light
 from grisx.scene.material import MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, material_kind
-from grisx.scene.scene import SceneData, SurfaceInteraction, intersect, make_surface, spawn_origin
+from grisx.scene.scene import SceneData, SurfaceInteraction, make_surface, spawn_origin
 from grisx.theory.gris import resampling_weight
 from grisx.theory.manifold import NEWTON_MAX_ITERATIONS, PRIOR_ALPHA, pair_pmf, prior_add_tile, prior_contains, reuse_neighbor, seed_space, tile_of
 from grisx.theory.reservoir import Reservoir, reservoir_empty, reservoir_finalize, reservoir_update
@@ -179,7 +179,8 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
         return _KERNELS[key]
     kinds = frozenset(kinds)
     bsdf = make_bsdf(kinds)
-    surface_material = make_surface(kinds).surface_material  # the wrappers of these kinds only
+    surface = make_surface(kinds)  # the wrappers and shapes of these kinds only
+    surface_material, intersect = surface.surface_material, surface.intersect
     trace_path = make_trace_path(kinds, caustic_chain=chain)
     caustics = make_caustics(kinds)
     SMS = caustics.sms

@@ -137,7 +137,7 @@ from grisx.scene.bsdf import make_bsdf
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.gbuffer import GBuffer, GBufferData
 from grisx.scene.lights import luminance
-from grisx.scene.scene import SceneData, finite_or_dropped, intersect, segment_occluded, spawn_origin
+from grisx.scene.scene import SceneData, finite_or_dropped, make_surface, spawn_origin
 from grisx.theory.conditional import PAIRWISE_TARGET, PROXY_TARGET, canonical_roulette_weight, make_conditional_ris, roulette_pick
 from grisx.theory.gris import resampling_weight, ucw_from_source_pdf
 from grisx.theory.mis import target_from, two_domain_balance
@@ -309,6 +309,8 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     """The passes of Suffix ReSTIR and the MMIS gather for the material kinds ``kinds`` (cached)."""
     shifts = make_path_shift(kinds)
     bsdf = make_bsdf(kinds)
+    surface = make_surface(kinds)  # the shapes of these kinds only
+    intersect, segment_occluded = surface.intersect, surface.segment_occluded
     path_shift = shifts.shift
     stream = shifts.stream_candidates
     stream_prefix = shifts.stream_prefix  # the gather's walk: its prefix and the light within it, no reservoir

@@ -87,10 +87,6 @@ from grisx.scene.lights import emitter_radiance, environment_eval
 from grisx.scene.scene import (
     SceneData,
     SurfaceInteraction,
-    intersect,
-    occluded,
-    segment_occluded,
-    shading_normal_derivative,
     spawn_origin,
     make_surface,
 )
@@ -337,7 +333,9 @@ class CausticFuncs:
 @functools.cache
 def _make_caustics(kinds: frozenset[int]) -> CausticFuncs:
     bsdf = make_bsdf(kinds)
-    surface_material = make_surface(kinds).surface_material  # the wrappers of these kinds only
+    surface = make_surface(kinds)  # the wrappers and shapes of these kinds only
+    surface_material, intersect, occluded, segment_occluded = surface.surface_material, surface.intersect, surface.occluded, surface.segment_occluded
+    shading_normal_derivative = surface.shading_normal_derivative
     # only a normal or bump map turns a normal whose derivative the shot does not carry: without one, ∂C/∂u is
     # always the differentials', and the four extra shots of the differences are not compiled in at all
     differences = bool(kinds & {MATERIAL_NORMALMAP, MATERIAL_BUMPMAP})

@@ -31,7 +31,7 @@ from grisx.device import specialized_module
 from grisx.scene.bsdf import make_bsdf
 from grisx.scene.camera import CameraData, camera_project, camera_ray, camera_sample_key, sample_camera
 from grisx.scene.lights import emitter_radiance, environment_eval
-from grisx.scene.scene import BuiltScene, SceneData, SurfaceInteraction, intersect, make_surface
+from grisx.scene.scene import BuiltScene, SceneData, SurfaceInteraction, make_surface
 
 wp.set_module_options({"enable_backward": False})
 
@@ -80,7 +80,8 @@ def make_gbuffer_kernel(kinds: frozenset[int]) -> Any:
     dispatch is compiled for the scene's kinds as the renderers' are (the all-kinds one cost a 1080p frame up to
     1 ms more on an H200 once principled, pplastic and blends joined it)."""
     bsdf = make_bsdf(kinds)
-    surface_material = make_surface(kinds).surface_material  # the wrappers of these kinds only
+    surface = make_surface(kinds)  # the wrappers and shapes of these kinds only
+    surface_material, intersect = surface.surface_material, surface.intersect
 
     @wp.kernel(module=specialized_module(__name__, kinds))
     def gbuffer_kernel(

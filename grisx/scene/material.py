@@ -50,7 +50,9 @@ nested kinds, so a dispatch compiles the wrapper code only for scenes that use i
 likewise ``MATERIAL_ANISOTROPIC`` where some rough conductor has α_u ≠ α_v, and
 ``MATERIAL_SCALAR_TEXTURES`` where some material resolves scalars at the hit
 (:func:`resolves_scalars`: a textured mask opacity or α, a blend, a principled
-BSDF's textured lobes).
+BSDF's textured lobes). One pseudo-kind is the scene's, not a material's:
+``SCENE_ANALYTIC_SHAPES`` (:class:`~grisx.scene.scene.SceneFeatures` adds it where
+the scene has analytic shapes), so that the ray queries compile the shapes in.
 
 Every record carries ``two_sided`` (set by the loader for Mitsuba's
 ``twosided`` wrapper): a one-sided reflecting BSDF is black seen from the back,
@@ -135,6 +137,7 @@ __all__ = [
     "MATERIAL_BUMPMAP",
     "MATERIAL_ANISOTROPIC",
     "MATERIAL_SCALAR_TEXTURES",
+    "SCENE_ANALYTIC_SHAPES",
     "MATERIAL_PPLASTIC",
     "MATERIAL_BLEND",
     "MATERIAL_WRAPPERS",
@@ -198,6 +201,9 @@ MATERIAL_ANISOTROPIC = wp.constant(12)
 #: a feature pseudo-kind: some material resolves scalars at the hit (a mask's opacity, a textured α, a blend's
 #: weight, a principled BSDF's textured lobes): ``surface_material`` compiles that loop in only then
 MATERIAL_SCALAR_TEXTURES = wp.constant(13)
+#: a scene pseudo-kind: the scene has analytic shapes (grisx.scene.analytic), so the ray queries compile their BVH
+#: and quadrics in (``SceneFeatures.material_kinds`` holds it beside the materials' kinds)
+SCENE_ANALYTIC_SHAPES = wp.constant(14)
 # ---- principled (grisx.scene.principled); ids 16, 17 leave room for kinds added beside them
 #: Mitsuba 3's ``principled`` and ``principledthin`` (Disney's principled BSDF, Burley 2012, 2015)
 MATERIAL_PRINCIPLED = wp.constant(16)
@@ -232,6 +238,7 @@ MATERIAL_KINDS: tuple[int, ...] = (
     MATERIAL_BUMPMAP,
     MATERIAL_ANISOTROPIC,
     MATERIAL_SCALAR_TEXTURES,
+    SCENE_ANALYTIC_SHAPES,
     MATERIAL_PRINCIPLED,
     MATERIAL_PRINCIPLED_THIN,
     MATERIAL_PPLASTIC,
@@ -256,6 +263,7 @@ MATERIAL_KIND_NAMES: dict[int, str] = {
     MATERIAL_BUMPMAP: "bumpmap",
     MATERIAL_ANISOTROPIC: "anisotropic",
     MATERIAL_SCALAR_TEXTURES: "scalar textures",
+    SCENE_ANALYTIC_SHAPES: "analytic shapes",
     MATERIAL_PRINCIPLED: "principled",
     MATERIAL_PRINCIPLED_THIN: "principledthin",
     MATERIAL_PPLASTIC: "pplastic",

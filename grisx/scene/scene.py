@@ -61,6 +61,7 @@ from grisx.scene.material import (
     MATERIAL_BUMPMAP,
     MATERIAL_NORMALMAP,
     MATERIAL_SCALAR_TEXTURES,
+    SCENE_ANALYTIC_SHAPES,
     MATERIAL_CONDUCTOR,
     MATERIAL_DIELECTRIC,
     MATERIAL_MASK,
@@ -193,7 +194,7 @@ class _Object:
 class SceneFeatures:
     """What a scene uses; renderers specialize their kernels on it."""
 
-    material_kinds: frozenset[int]
+    material_kinds: frozenset[int]  # with the pseudo-kinds (grisx.scene.material), SCENE_ANALYTIC_SHAPES among them
     has_textures: bool
     has_bump: bool
     has_area_lights: bool
@@ -329,72 +330,6 @@ def perturb_normal(n: wp.vec3, p: wp.vec3, amplitude: float, frequency: float) -
 
 
 @wp.func
-def intersect(scene: SceneData, o: wp.vec3, d: wp.vec3, tmax: float) -> SurfaceInteraction:
-    """Closest hit of the ray o + t·d (d unit), 0 < t < tmax: triangles, then analytic shapes before that hit."""
-    si = SurfaceInteraction()
-    si.valid = 0
-    q = wp.mesh_query_ray(scene.mesh, o, d, tmax)
-    shape = int(-1)
-    if scene.shapes.count > 0:  # uniform: a scene without analytic shapes never asks
-        t_shape = tmax
-        if q.result:
-            t_shape = q.t
-        hit = intersect_shapes(scene.shapes, o, d, t_shape)
-        shape = int(hit[1])
-        if shape >= 0:
-            s = shape_surface(scene.shapes, shape, o, d, hit[0])
-            si.t = hit[0]
-            si.tri = scene.shapes.prim_base + shape
-            si.bary = s.uv
-            si.p = s.p
-            si.ng = s.n
-            si.uv = s.uv
-    if shape < 0:
-        if not q.result:
-            return si
-        tri = q.face
-        i0 = scene.indices[3 * tri + 0]
-        i1 = scene.indices[3 * tri + 1]
-        i2 = scene.indices[3 * tri + 2]
-        b0 = q.u
-        b1 = q.v
-        b2 = 1.0 - b0 - b1
-        si.t = q.t
-        si.tri = tri
-        si.bary = wp.vec2(b0, b1)
-        si.p = o + d * q.t
-        p0 = scene.positions[i0]
-        p1 = scene.positions[i1]
-        p2 = scene.positions[i2]
-        si.ng = wp.normalize(wp.cross(p1 - p0, p2 - p0))
-        flags = scene.tri_flags[tri]
-        si.ns = si.ng
-        if (flags & TRI_HAS_NORMALS) != 0:
-            nn = scene.normals[i0] * b0 + scene.normals[i1] * b1 + scene.normals[i2] * b2
-            if wp.length(nn) > 1.0e-12:
-                si.ns = wp.normalize(nn)
-        si.uv = wp.vec2(b1, b2)  # Mitsuba's default parametrization for meshes without UVs
-        if (flags & TRI_HAS_UVS) != 0:
-            si.uv = scene.uvs[i0] * b0 + scene.uvs[i1] * b1 + scene.uvs[i2] * b2
-    else:
-        si.ns = si.ng  # analytic shapes shade with their exact normal
-    si.valid = 1
-    ng = si.ng
-    ns = si.ns
-    mat_id = scene.tri_material[si.tri]
-    si.material = mat_id
-    si.object = scene.tri_object[si.tri]
-    mat = scene.materials[mat_id]
-    if mat.bump_amplitude > 0.0:
-        ns = perturb_normal(ns, si.p, mat.bump_amplitude, mat.bump_frequency)
-    if wp.dot(ns, ng) < 0.0:
-        ns = -ns
-    si.ns = ns
-    si.front = int(wp.dot(d, ng) < 0.0)
-    return si
-
-
-@wp.func
 def _bump_hessian_times(p: wp.vec3, amplitude: float, frequency: float, v: wp.vec3) -> wp.vec3:
     # H·v for the height field of _bump_gradient: ∂(∇h) along v (each term a_k cos(c f a_k·p) differentiates
     # to −c f a_k (a_k·v) sin(c f a_k·p))
@@ -422,111 +357,189 @@ def perturb_normal_derivative(n: wp.vec3, dn: wp.vec3, p: wp.vec3, dp: wp.vec3, 
     return (dm - n_p * wp.dot(n_p, dm)) / length
 
 
-@wp.func
-def shading_normal_derivative(scene: SceneData, si: SurfaceInteraction, dp: wp.vec3) -> wp.vec4:
-    """∂n_s at hit ``si`` for the tangent displacement ``dp`` of its point, as (∂n_s, exact).
+@functools.cache
+def _make_ray_queries(shapes: bool) -> tuple[Any, ...]:
+    """The ray queries (the last fields of :class:`SurfaceFuncs`, in its order) with or without the analytic shapes."""
+    # the analytic-shape queries (a BVH traversal and three quadrics) only where the scene has shapes: each query is
+    # inlined at every call site of every kernel, and a scene without shapes would compile them for nothing
+    # (benchmarks/README, "A compile-time regression")
 
-    The normal :func:`intersect` shades with, differentiated the way it was built: the base normal (an
-    analytic shape's, :func:`~grisx.scene.analytic.shape_normal_derivative`; a triangle's interpolated vertex
-    normal through its barycentrics; a flat triangle's, constant), then a material's procedural bump
-    (:func:`perturb_normal_derivative`). A normal perturbed by anything else (a normal map) has a derivative
-    this does not know: w = 0 there, and the caller falls back to differences (grisx.scene.caustics).
-    """
-    zero = wp.vec4(0.0, 0.0, 0.0, 0.0)
-    mat = scene.materials[si.material]
-    if mat.perturb != PERTURB_NONE:
-        return zero  # a normal or bump map turns the BSDF's frame (Material.perturbed_n): no derivative here
-    n = si.ng
-    dn = wp.vec3(0.0, 0.0, 0.0)
-    if si.tri >= scene.shapes.prim_base and scene.shapes.count > 0:
-        dn = shape_normal_derivative(scene.shapes, si.tri - scene.shapes.prim_base, si.p, si.ng, dp)
-    elif (scene.tri_flags[si.tri] & TRI_HAS_NORMALS) != 0:
-        i0 = scene.indices[3 * si.tri + 0]
-        i1 = scene.indices[3 * si.tri + 1]
-        i2 = scene.indices[3 * si.tri + 2]
-        p2 = scene.positions[i2]
-        e0 = scene.positions[i0] - p2
-        e1 = scene.positions[i1] - p2
-        n2 = scene.normals[i2]
-        b0 = si.bary[0]
-        b1 = si.bary[1]
-        big_n = scene.normals[i0] * b0 + scene.normals[i1] * b1 + n2 * (1.0 - b0 - b1)
-        length = wp.length(big_n)
-        if length <= 1.0e-12:
-            return zero
-        n = big_n / length
-        # dp = ∂b₀ e₀ + ∂b₁ e₁ in the triangle's plane: the Gram system
-        g00 = wp.dot(e0, e0)
-        g01 = wp.dot(e0, e1)
-        g11 = wp.dot(e1, e1)
-        det = g00 * g11 - g01 * g01
-        if det <= 0.0:
-            return zero
-        r0 = wp.dot(e0, dp)
-        r1 = wp.dot(e1, dp)
-        db0 = (g11 * r0 - g01 * r1) / det
-        db1 = (g00 * r1 - g01 * r0) / det
-        dbig = (scene.normals[i0] - n2) * db0 + (scene.normals[i1] - n2) * db1
-        dn = (dbig - n * wp.dot(n, dbig)) / length
-    if mat.bump_amplitude > 0.0:
-        dn = perturb_normal_derivative(n, dn, si.p, dp, mat.bump_amplitude, mat.bump_frequency)
-        n = perturb_normal(n, si.p, mat.bump_amplitude, mat.bump_frequency)
-    c = wp.dot(n, si.ns)
-    if wp.abs(c) < 0.99999:
-        return zero  # n_s is not this normal: something else perturbed it
-    if c < 0.0:
-        dn = -dn  # n_s was turned to n_g's side
-    return wp.vec4(dn[0], dn[1], dn[2], 1.0)
+    @wp.func
+    def intersect(scene: SceneData, o: wp.vec3, d: wp.vec3, tmax: float) -> SurfaceInteraction:
+        """Closest hit of the ray o + t·d (d unit), 0 < t < tmax: triangles, then analytic shapes before that hit."""
+        si = SurfaceInteraction()
+        si.valid = 0
+        q = wp.mesh_query_ray(scene.mesh, o, d, tmax)
+        shape = int(-1)
+        if wp.static(shapes):
+            if scene.shapes.count > 0:  # uniform
+                t_shape = tmax
+                if q.result:
+                    t_shape = q.t
+                hit = intersect_shapes(scene.shapes, o, d, t_shape)
+                shape = int(hit[1])
+                if shape >= 0:
+                    s = shape_surface(scene.shapes, shape, o, d, hit[0])
+                    si.t = hit[0]
+                    si.tri = scene.shapes.prim_base + shape
+                    si.bary = s.uv
+                    si.p = s.p
+                    si.ng = s.n
+                    si.uv = s.uv
+        if shape < 0:
+            if not q.result:
+                return si
+            tri = q.face
+            i0 = scene.indices[3 * tri + 0]
+            i1 = scene.indices[3 * tri + 1]
+            i2 = scene.indices[3 * tri + 2]
+            b0 = q.u
+            b1 = q.v
+            b2 = 1.0 - b0 - b1
+            si.t = q.t
+            si.tri = tri
+            si.bary = wp.vec2(b0, b1)
+            si.p = o + d * q.t
+            p0 = scene.positions[i0]
+            p1 = scene.positions[i1]
+            p2 = scene.positions[i2]
+            si.ng = wp.normalize(wp.cross(p1 - p0, p2 - p0))
+            flags = scene.tri_flags[tri]
+            si.ns = si.ng
+            if (flags & TRI_HAS_NORMALS) != 0:
+                nn = scene.normals[i0] * b0 + scene.normals[i1] * b1 + scene.normals[i2] * b2
+                if wp.length(nn) > 1.0e-12:
+                    si.ns = wp.normalize(nn)
+            si.uv = wp.vec2(b1, b2)  # Mitsuba's default parametrization for meshes without UVs
+            if (flags & TRI_HAS_UVS) != 0:
+                si.uv = scene.uvs[i0] * b0 + scene.uvs[i1] * b1 + scene.uvs[i2] * b2
+        else:
+            si.ns = si.ng  # analytic shapes shade with their exact normal
+        si.valid = 1
+        ng = si.ng
+        ns = si.ns
+        mat_id = scene.tri_material[si.tri]
+        si.material = mat_id
+        si.object = scene.tri_object[si.tri]
+        mat = scene.materials[mat_id]
+        if mat.bump_amplitude > 0.0:
+            ns = perturb_normal(ns, si.p, mat.bump_amplitude, mat.bump_frequency)
+        if wp.dot(ns, ng) < 0.0:
+            ns = -ns
+        si.ns = ns
+        si.front = int(wp.dot(d, ng) < 0.0)
+        return si
 
+    @wp.func
+    def shading_normal_derivative(scene: SceneData, si: SurfaceInteraction, dp: wp.vec3) -> wp.vec4:
+        """∂n_s at hit ``si`` for the tangent displacement ``dp`` of its point, as (∂n_s, exact).
 
-@wp.func
-def occluded(scene: SceneData, o: wp.vec3, d: wp.vec3, dist: float) -> bool:
-    """Whether anything blocks the segment o → o + dist·d (d unit); the end point's surface is excluded."""
-    t_max = dist * (1.0 - 1.0e-4) - scene.ray_epsilon
-    if wp.mesh_query_ray_anyhit(scene.mesh, o, d, t_max):
-        return True
-    if scene.shapes.count > 0:
-        return shapes_occluded(scene.shapes, o, d, t_max)
-    return False
+        The normal :func:`intersect` shades with, differentiated the way it was built: the base normal (an
+        analytic shape's, :func:`~grisx.scene.analytic.shape_normal_derivative`; a triangle's interpolated vertex
+        normal through its barycentrics; a flat triangle's, constant), then a material's procedural bump
+        (:func:`perturb_normal_derivative`). A normal perturbed by anything else (a normal map) has a derivative
+        this does not know: w = 0 there, and the caller falls back to differences (grisx.scene.caustics).
+        """
+        zero = wp.vec4(0.0, 0.0, 0.0, 0.0)
+        mat = scene.materials[si.material]
+        if mat.perturb != PERTURB_NONE:
+            return zero  # a normal or bump map turns the BSDF's frame (Material.perturbed_n): no derivative here
+        n = si.ng
+        dn = wp.vec3(0.0, 0.0, 0.0)
+        on_shape = False
+        if wp.static(shapes):
+            if si.tri >= scene.shapes.prim_base and scene.shapes.count > 0:
+                dn = shape_normal_derivative(scene.shapes, si.tri - scene.shapes.prim_base, si.p, si.ng, dp)
+                on_shape = True
+        if not on_shape and (scene.tri_flags[si.tri] & TRI_HAS_NORMALS) != 0:
+            i0 = scene.indices[3 * si.tri + 0]
+            i1 = scene.indices[3 * si.tri + 1]
+            i2 = scene.indices[3 * si.tri + 2]
+            p2 = scene.positions[i2]
+            e0 = scene.positions[i0] - p2
+            e1 = scene.positions[i1] - p2
+            n2 = scene.normals[i2]
+            b0 = si.bary[0]
+            b1 = si.bary[1]
+            big_n = scene.normals[i0] * b0 + scene.normals[i1] * b1 + n2 * (1.0 - b0 - b1)
+            length = wp.length(big_n)
+            if length <= 1.0e-12:
+                return zero
+            n = big_n / length
+            # dp = ∂b₀ e₀ + ∂b₁ e₁ in the triangle's plane: the Gram system
+            g00 = wp.dot(e0, e0)
+            g01 = wp.dot(e0, e1)
+            g11 = wp.dot(e1, e1)
+            det = g00 * g11 - g01 * g01
+            if det <= 0.0:
+                return zero
+            r0 = wp.dot(e0, dp)
+            r1 = wp.dot(e1, dp)
+            db0 = (g11 * r0 - g01 * r1) / det
+            db1 = (g00 * r1 - g01 * r0) / det
+            dbig = (scene.normals[i0] - n2) * db0 + (scene.normals[i1] - n2) * db1
+            dn = (dbig - n * wp.dot(n, dbig)) / length
+        if mat.bump_amplitude > 0.0:
+            dn = perturb_normal_derivative(n, dn, si.p, dp, mat.bump_amplitude, mat.bump_frequency)
+            n = perturb_normal(n, si.p, mat.bump_amplitude, mat.bump_frequency)
+        c = wp.dot(n, si.ns)
+        if wp.abs(c) < 0.99999:
+            return zero  # n_s is not this normal: something else perturbed it
+        if c < 0.0:
+            dn = -dn  # n_s was turned to n_g's side
+        return wp.vec4(dn[0], dn[1], dn[2], 1.0)
 
-
-@wp.func
-def segment_occluded(scene: SceneData, p0: wp.vec3, n0: wp.vec3, p1: wp.vec3, n1: wp.vec3) -> bool:
-    """Whether anything blocks the segment between surface points p0 and p1 (geometric normals n0, n1).
-
-    Both ends are lifted off their surfaces toward each other (pbrt-v4's
-    ``SpawnRayTo``). Lifting only the origin moves the point where the ray
-    meets p1's plane by ε/cos θ₁, which at grazing angles lands *before* p1,
-    so p1's own triangle would read as an occluder. A zero ``n1`` (a point
-    light) leaves p1 where it is.
-    """
-    d = p1 - p0
-    o = spawn_origin(scene, p0, n0, d)
-    t = spawn_origin(scene, p1, n1, -d)
-    e = t - o
-    dist = wp.length(e)
-    if dist <= 0.0:
+    @wp.func
+    def occluded(scene: SceneData, o: wp.vec3, d: wp.vec3, dist: float) -> bool:
+        """Whether anything blocks the segment o → o + dist·d (d unit); the end point's surface is excluded."""
+        t_max = dist * (1.0 - 1.0e-4) - scene.ray_epsilon
+        if wp.mesh_query_ray_anyhit(scene.mesh, o, d, t_max):
+            return True
+        if wp.static(shapes):
+            if scene.shapes.count > 0:
+                return shapes_occluded(scene.shapes, o, d, t_max)
         return False
-    if wp.mesh_query_ray_anyhit(scene.mesh, o, e / dist, dist):
-        return True
-    if scene.shapes.count > 0:
-        return shapes_occluded(scene.shapes, o, e / dist, dist)
-    return False
+
+    @wp.func
+    def segment_occluded(scene: SceneData, p0: wp.vec3, n0: wp.vec3, p1: wp.vec3, n1: wp.vec3) -> bool:
+        """Whether anything blocks the segment between surface points p0 and p1 (geometric normals n0, n1).
+
+        Both ends are lifted off their surfaces toward each other (pbrt-v4's
+        ``SpawnRayTo``). Lifting only the origin moves the point where the ray
+        meets p1's plane by ε/cos θ₁, which at grazing angles lands *before* p1,
+        so p1's own triangle would read as an occluder. A zero ``n1`` (a point
+        light) leaves p1 where it is.
+        """
+        d = p1 - p0
+        o = spawn_origin(scene, p0, n0, d)
+        t = spawn_origin(scene, p1, n1, -d)
+        e = t - o
+        dist = wp.length(e)
+        if dist <= 0.0:
+            return False
+        if wp.mesh_query_ray_anyhit(scene.mesh, o, e / dist, dist):
+            return True
+        if wp.static(shapes):
+            if scene.shapes.count > 0:
+                return shapes_occluded(scene.shapes, o, e / dist, dist)
+        return False
+
+    @wp.func
+    def light_occluded(scene: SceneData, p: wp.vec3, ng: wp.vec3, ls: LightSample) -> bool:
+        """Whether next-event sample ``ls`` is hidden from surface point ``p`` (geometric normal ``ng``).
+
+        The environment is a direction (a ray to infinity); emitters are surface
+        points (:func:`segment_occluded`); point lights are points off every surface.
+        """
+        if ls.is_env != 0:
+            return occluded(scene, spawn_origin(scene, p, ng, ls.wi), ls.wi, ls.dist)
+        n1 = ls.n
+        if ls.delta != 0:
+            n1 = wp.vec3(0.0, 0.0, 0.0)
+        return segment_occluded(scene, p, ng, ls.p, n1)
 
 
-@wp.func
-def light_occluded(scene: SceneData, p: wp.vec3, ng: wp.vec3, ls: LightSample) -> bool:
-    """Whether next-event sample ``ls`` is hidden from surface point ``p`` (geometric normal ``ng``).
-
-    The environment is a direction (a ray to infinity); emitters are surface
-    points (:func:`segment_occluded`); point lights are points off every surface.
-    """
-    if ls.is_env != 0:
-        return occluded(scene, spawn_origin(scene, p, ng, ls.wi), ls.wi, ls.dist)
-    n1 = ls.n
-    if ls.delta != 0:
-        n1 = wp.vec3(0.0, 0.0, 0.0)
-    return segment_occluded(scene, p, ng, ls.p, n1)
+    return intersect, occluded, segment_occluded, light_occluded, shading_normal_derivative
 
 
 @wp.func
@@ -703,10 +716,16 @@ def _has_scalar_textures(m: Material) -> bool:
 
 
 class SurfaceFuncs(NamedTuple):
-    """``surface_material`` and ``surface_material_at`` compiled for one set of material kinds (:func:`make_surface`)."""
+    """What a kernel asks of the scene's surfaces, compiled for one set of kinds (:func:`make_surface`): the material
+    at a hit (``surface_material``, ``surface_material_at``) and the ray queries (``_make_ray_queries``)."""
 
     surface_material: Any
     surface_material_at: Any
+    intersect: Any
+    occluded: Any
+    segment_occluded: Any
+    light_occluded: Any
+    shading_normal_derivative: Any
 
 
 @functools.cache
@@ -775,19 +794,26 @@ def _make_surface(kinds: frozenset[int]) -> SurfaceFuncs:
         """The material of a stored surface point (:func:`stored_surface`) with its textures resolved, as at the hit."""
         return surface_material(scene, stored_surface(scene, material, uv, tri, p, ns, ng))
 
-    return SurfaceFuncs(surface_material, surface_material_at)
+    return SurfaceFuncs(surface_material, surface_material_at, *_make_ray_queries(SCENE_ANALYTIC_SHAPES in kinds))
 
 
 def make_surface(kinds: Iterable[int]) -> SurfaceFuncs:
-    """``surface_material`` / ``surface_material_at`` for the material kinds ``kinds`` (with their wrapper and feature
-    pseudo-kinds: normal/bump maps, anisotropy, scalar textures), cached per set. A renderer's kernels take them from
-    here with their BSDF dispatch (``make_bsdf``); a scene whose kinds lack a pseudo-kind has no such material."""
+    """``surface_material`` / ``surface_material_at`` and the ray queries (``intersect``, ``occluded``,
+    ``segment_occluded``, ``light_occluded``, ``shading_normal_derivative``) for the kinds ``kinds`` (the material kinds
+    with their wrapper and feature pseudo-kinds: normal/bump maps, anisotropy, scalar textures, and
+    ``SCENE_ANALYTIC_SHAPES``), cached per set. A renderer's kernels take them from here with their BSDF dispatch
+    (``make_bsdf``); a scene whose kinds lack a pseudo-kind has no such material, or no analytic shape."""
     return _make_surface(frozenset(int(k) for k in kinds))
 
 
-#: every wrapper compiled in (for code outside a kinds-specialised factory)
+#: every wrapper and the analytic shapes compiled in (for code outside a kinds-specialised factory)
 surface_material = make_surface(ALL_MATERIAL_KINDS).surface_material
 surface_material_at = make_surface(ALL_MATERIAL_KINDS).surface_material_at
+intersect = make_surface(ALL_MATERIAL_KINDS).intersect
+occluded = make_surface(ALL_MATERIAL_KINDS).occluded
+segment_occluded = make_surface(ALL_MATERIAL_KINDS).segment_occluded
+light_occluded = make_surface(ALL_MATERIAL_KINDS).light_occluded
+shading_normal_derivative = make_surface(ALL_MATERIAL_KINDS).shading_normal_derivative
 
 
 @wp.kernel
@@ -1035,8 +1061,9 @@ class Scene:
         caustic = any(
             k in (MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, MATERIAL_ROUGH_DIELECTRIC) for k in used_kinds
         ) or any(self._bumpy(i) for i in used)
+        shapes = frozenset({SCENE_ANALYTIC_SHAPES}) if any(o.shape is not None for o in self.objects) else frozenset()
         return SceneFeatures(
-            material_kinds=used_kinds or kinds,
+            material_kinds=(used_kinds or kinds) | shapes,
             has_textures=bool(self.textures),
             has_bump=any(self._bumpy(i) for i in used),
             has_area_lights=any(o.emission is not None for o in self.objects),

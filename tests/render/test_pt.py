@@ -17,7 +17,7 @@ from pathlib import Path
 from grisx.scene.builtin import BUILTIN_SCENES, build_builtin
 from grisx.scene.camera import Camera, CameraData, camera_ray, lookat
 from grisx.scene.lights import ConstantEnvironment
-from grisx.scene.material import MATERIAL_SCALAR_TEXTURES, Diffuse
+from grisx.scene.material import MATERIAL_SCALAR_TEXTURES, SCENE_ANALYTIC_SHAPES, Diffuse
 from grisx.scene.mitsuba import load_mitsuba
 from grisx.render.base.trace import STRATEGIES, make_trace_path, no_first_hit
 from grisx.render.pt import PathTracer
@@ -157,15 +157,17 @@ def test_kernels_specialised_on_the_scene_kinds_give_the_same_image(monkeypatch)
 
 
 #: conformance scenes whose materials resolve something at the hit, by what: a textured mask opacity, a textured α, a
-#: diffuse blend, a principled BSDF's textured lobes, a normal map (a bump map shares its code), an anisotropic rough conductor
-WRAPPER_SCENES = ("mask_checkerboard", "roughdielectric_textured", "blendbsdf", "principled", "normalmap", "roughconductor_anisotropic")
+#: diffuse blend, a principled BSDF's textured lobes, a normal map (a bump map shares its code), an anisotropic rough conductor,
+#: analytic spheres and a disk (the ray queries' shapes)
+WRAPPER_SCENES = ("mask_checkerboard", "roughdielectric_textured", "blendbsdf", "principled", "normalmap", "roughconductor_anisotropic",
+                  "sphere_mirror")
 
 
 @pytest.mark.parametrize("case", WRAPPER_SCENES)
 def test_surfaces_specialised_on_the_scene_kinds_give_the_same_image(case, monkeypatch):
-    """``surface_material`` compiles each wrapper (normal and bump maps, the tangent, the scalar textures) only where
-    the scene's kinds name it (``make_surface``); the suite's all-kinds kernels cannot see a pseudo-kind the loader
-    forgot, so each such scene is rendered both ways here."""
+    """``surface_material`` compiles each wrapper (normal and bump maps, the tangent, the scalar textures) and the ray
+    queries their analytic shapes only where the scene's kinds name them (``make_surface``); the suite's all-kinds
+    kernels cannot see a pseudo-kind the loader forgot, so each such scene is rendered both ways here."""
     built = load_mitsuba(CONFORMANCE / f"{case}.xml").build("cpu")
     monkeypatch.setenv("GRISX_KERNEL_KINDS", "all")
     every = PathTracer(built, 16, 12, spp=2, seed=3, max_depth=4).render_frame(0).numpy()
@@ -183,6 +185,18 @@ def test_surfaces_without_their_scalar_textures_are_caught():
         return PathTracer(built, 16, 12, spp=2, seed=3, max_depth=4, kinds=kinds).render_frame(0).numpy()
 
     assert not np.array_equal(image(kinds - {MATERIAL_SCALAR_TEXTURES}), image(kinds))
+
+
+def test_a_scene_compiled_without_its_analytic_shapes_is_caught():
+    # the sibling for the shapes: the mirror spheres' scene without SCENE_ANALYTIC_SHAPES loses its spheres and disk
+    built = load_mitsuba(CONFORMANCE / "sphere_mirror.xml").build("cpu")
+    kinds = built.features.material_kinds
+    assert SCENE_ANALYTIC_SHAPES in kinds and built.num_shapes > 0
+
+    def image(kinds: frozenset[int]) -> np.ndarray:
+        return PathTracer(built, 16, 12, spp=2, seed=3, max_depth=4, kinds=kinds).render_frame(0).numpy()
+
+    assert not np.array_equal(image(kinds - {SCENE_ANALYTIC_SHAPES}), image(kinds))
 
 
 @pytest.mark.parametrize("name", sorted(BUILTIN_SCENES))

@@ -10,7 +10,7 @@ pixel's integral is
 
 and a sample is (u, l, x̄): the offset u of the primary sample point inside the pixel, the lens
 point l and the path x̄ from the primary vertex x₁ of the camera ray through i + u
-(:class:`FilmSample`, :func:`area_domain`). Moving a sample to pixel j keeps (u, l) and traces
+(:class:`FilmSample`, ``area_domain`` of :func:`make_area_domain`). Moving a sample to pixel j keeps (u, l) and traces
 the ray through j + u — a translation on the film, |∂u'/∂u| = 1 — then shifts x̄ from there with
 :func:`~grisx.render.base.path_shift.make_path_shift`'s ``shift`` (``film_shift``), so the
 Jacobian of the whole shift is the path shift's. Temporal reuse translates by a *fractional*
@@ -42,17 +42,20 @@ ACM TOG 43(4), 2024; M. Kettunen et al., "Gradient-domain path tracing", 2015; s
 
 from __future__ import annotations
 
+import functools
+from typing import Any
+
 import warp as wp
 
 from grisx.render.base.path_shift import Domain, vertex_from_hit
 from grisx.scene.camera import CameraData, camera_ray, film_weight, filter_reach
 from grisx.scene.lights import emitter_radiance, environment_eval
-from grisx.scene.scene import SceneData, intersect
+from grisx.scene.scene import SceneData, make_surface
 from grisx.theory.random import random_uniform
 
 wp.set_module_options({"enable_backward": False})
 
-__all__ = ["FilmSample", "AreaDomain", "film_sample", "area_domain", "film_translate", "temporal_film_offset", "FILM_STREAM"]
+__all__ = ["FilmSample", "AreaDomain", "film_sample", "make_area_domain", "film_translate", "temporal_film_offset", "FILM_STREAM"]
 
 #: the film sample's random stream of a pixel (pixel_key_of), apart from ReSTIR PT's 1–10 and 64+
 FILM_STREAM = 48
@@ -87,29 +90,37 @@ def film_sample(key: wp.uint32, cam: CameraData) -> FilmSample:
     return s
 
 
-@wp.func
-def area_domain(scene: SceneData, cam: CameraData, x: int, y: int, s: FilmSample) -> AreaDomain:
-    """Trace the camera ray of film sample ``s`` in pixel (x, y): its primary vertex and the emission it sees."""
-    out = AreaDomain()
-    out.emission = wp.vec3(0.0)
-    if s.valid == 0:
-        out.dom = Domain()
-        out.dom.valid = 0
+@functools.cache
+def make_area_domain(kinds: frozenset[int]) -> Any:
+    """``area_domain(scene, cam, x, y, s) -> AreaDomain`` with the ray queries of the kinds ``kinds``
+    (:func:`~grisx.scene.scene.make_surface`: the analytic shapes only where the scene has them; cached)."""
+    intersect = make_surface(kinds).intersect
+
+    @wp.func
+    def area_domain(scene: SceneData, cam: CameraData, x: int, y: int, s: FilmSample) -> AreaDomain:
+        """Trace the camera ray of film sample ``s`` in pixel (x, y): its primary vertex and the emission it sees."""
+        out = AreaDomain()
+        out.emission = wp.vec3(0.0)
+        if s.valid == 0:
+            out.dom = Domain()
+            out.dom.valid = 0
+            return out
+        weight = film_weight(cam, x, y, s.offset)
+        if weight <= 0.0:
+            out.dom = Domain()
+            out.dom.valid = 0  # outside the film or the filter: contributes nothing
+            return out
+        ray = camera_ray(cam, float(x) + s.offset[0], float(y) + s.offset[1], s.lens)
+        si = intersect(scene, ray.o, ray.d, cam.far_clip)
+        out.dom = vertex_from_hit(si, -ray.d)  # valid = 0 where the ray missed
+        out.dom.weight = weight
+        if si.valid == 0:
+            out.emission = environment_eval(scene.lights, ray.d) * weight
+        else:
+            out.emission = emitter_radiance(scene.lights, si.tri, si.p, si.ng, -ray.d) * weight
         return out
-    weight = film_weight(cam, x, y, s.offset)
-    if weight <= 0.0:
-        out.dom = Domain()
-        out.dom.valid = 0  # outside the film or the filter: contributes nothing
-        return out
-    ray = camera_ray(cam, float(x) + s.offset[0], float(y) + s.offset[1], s.lens)
-    si = intersect(scene, ray.o, ray.d, cam.far_clip)
-    out.dom = vertex_from_hit(si, -ray.d)  # valid = 0 where the ray missed
-    out.dom.weight = weight
-    if si.valid == 0:
-        out.emission = environment_eval(scene.lights, ray.d) * weight
-    else:
-        out.emission = emitter_radiance(scene.lights, si.tri, si.p, si.ng, -ray.d) * weight
-    return out
+
+    return area_domain
 
 
 @wp.func

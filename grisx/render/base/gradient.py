@@ -11,7 +11,7 @@ on them (timed as the phase ``reconstruction``: it counts in the frame time, as 
 of Gradient-domain path tracing (Kettunen et al. 2015; B.2) and of *Gradient after ReSTIR*
 (seed 000, Sec. 4.1; B.1). Pixel a holds one sample (u, y) with UCW W — a path tracer's
 RIS-chosen path, or ReSTIR's kept path — and shifts it to each of its four neighbours b: the
-film sample keeps u in b (:func:`~grisx.render.base.area.area_domain`) and the path is shifted
+film sample keeps u in b (``area_domain`` of :func:`~grisx.render.base.area.make_area_domain`) and the path is shifted
 from there (the *inner shift* T_ab, the hybrid shift of :mod:`~grisx.render.base.path_shift`).
 For the pair (i, j) = (left, right) or (top, bottom) with Δ_ij = I_i − I_j (seed 000, Eq. 1),
 pixel a contributes
@@ -40,7 +40,7 @@ import warp as wp
 
 from grisx.device import specialized_module
 from grisx.errors import InvalidParameterError
-from grisx.render.base.area import FilmSample, area_domain
+from grisx.render.base.area import FilmSample, make_area_domain
 from grisx.render.base.path_shift import PathReservoir, ShiftParams, make_path_shift, path_target
 from grisx.render.base.screen import kernel_cache
 from grisx.scene.camera import CameraData
@@ -80,6 +80,7 @@ def _pair_side(slot: int) -> int:
 def make_gradient_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     """The gradient passes compiled for the material kinds ``kinds`` (cached)."""
     shift = make_path_shift(kinds).shift
+    area_domain = make_area_domain(kinds)
     module = specialized_module(__name__, kinds)
 
     # ---- gradients from primal samples ----

@@ -118,11 +118,7 @@ from grisx.scene.lights import DeltaArrival, delta_light_arrival, emitter_radian
 from grisx.scene.scene import (
     SceneData,
     SurfaceInteraction,
-    intersect,
-    light_occluded,
     motion_on_segment,
-    occluded,
-    segment_occluded,
     spawn_origin,
     make_surface,
     surface_material_at,
@@ -518,7 +514,9 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
     """The path shifts specialized to the scene's material kinds ``kinds`` (cached)."""
     key = frozenset(kinds)
     bsdf = make_bsdf(key)
-    vertex_material = make_surface(key).surface_material_at  # the wrappers of these kinds only (shadows the all-kinds one)
+    surface = make_surface(key)  # the wrappers and shapes of these kinds only (shadow the all-kinds ones)
+    vertex_material, intersect, occluded, segment_occluded = surface.surface_material_at, surface.intersect, surface.occluded, surface.segment_occluded
+    light_occluded = surface.light_occluded
 
     @wp.func
     def roughness(scene: SceneData, material: int) -> float:

@@ -19,7 +19,7 @@ from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.lights import emitter_radiance, environment_eval, environment_pdf, light_pdf_emitter, sample_light
 from grisx.scene.material import MATERIAL_PRINCIPLED, MATERIAL_PRINCIPLED_THIN, MATERIAL_ROUGH_DIELECTRIC, PERTURB_NONE
 from grisx.scene.caustics import canonical_lobe, caustic_owned
-from grisx.scene.scene import SceneData, SurfaceInteraction, intersect, light_occluded, make_surface, spawn_origin
+from grisx.scene.scene import SceneData, SurfaceInteraction, make_surface, spawn_origin
 from grisx.theory.mis import technique_mis
 from grisx.theory.roulette import roulette_survival
 from grisx.theory.random import random_uniform
@@ -102,7 +102,8 @@ def make_trace_path(kinds: frozenset[int], caustic_chain: int = 0, bounds: bool 
 @functools.cache
 def _make_trace_path(kinds: frozenset[int], caustic_chain: int, bounds: bool) -> Any:
     bsdf = make_bsdf(kinds)
-    surface_material = make_surface(kinds).surface_material  # the wrappers of these kinds only
+    surface = make_surface(kinds)  # the wrappers and shapes of these kinds only
+    surface_material, intersect, light_occluded = surface.surface_material, surface.intersect, surface.light_occluded
     chain_max = caustic_chain
 
     @wp.func
