@@ -91,16 +91,7 @@ from grisx.render.base.registry import RenderMethod, create_renderer, register, 
 from grisx.scene.bsdf import make_bsdf
 from grisx.scene.frame import Frame, frame_from_normal, to_local, to_world
 from grisx.scene.gbuffer import GBuffer
-from grisx.scene.lights import (
-    LightSample,
-    delta_light_arrival,
-    emitter_radiance,
-    environment_eval,
-    environment_pdf,
-    light_pdf_emitter,
-    luminance,
-    sample_light,
-)
+from grisx.scene.lights import LightSample, light_pdf_emitter, luminance, make_lights
 from grisx.render.base.reuse import (
     DomainList,
     domain_code,
@@ -235,7 +226,16 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
     estimate ⟨Ḋ_i⟩ of the auxiliary direct light (seed 002, Sec. 5.3; :mod:`grisx.render.restcv`)."""
     bsdf = make_bsdf(kinds)
     surface = make_surface(kinds)  # the wrappers and shapes of these kinds only
-    surface_material, intersect, occluded, segment_occluded = surface.surface_material, surface.intersect, surface.occluded, surface.segment_occluded
+    lights = make_lights(kinds)  # the lights of these kinds only
+    emitter_radiance = lights.emitter_radiance
+    environment_eval = lights.environment_eval
+    environment_pdf = lights.environment_pdf
+    sample_light = lights.sample_light
+    delta_light_arrival = lights.delta_light_arrival
+    surface_material = surface.surface_material
+    intersect = surface.intersect
+    occluded = surface.occluded
+    segment_occluded = surface.segment_occluded
 
     @wp.func
     def light_eval_at(scene: SceneData, si: SurfaceInteraction, m: Material, frame: Frame, wo: wp.vec3, lp: LightPoint) -> LightEval:

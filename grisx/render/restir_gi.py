@@ -182,7 +182,7 @@ from grisx.scene.bsdf import MATERIAL_ROUGH_DIELECTRIC, cosine_hemisphere_pdf, m
 from grisx.scene.material import MATERIAL_PRINCIPLED, MATERIAL_PRINCIPLED_THIN
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.gbuffer import GBuffer, GBufferData
-from grisx.scene.lights import emitter_radiance, environment_eval, luminance
+from grisx.scene.lights import luminance, make_lights
 from grisx.render.base.screen import ScreenFrame, ScreenSpaceRenderer, frame_key, kernel_cache, pixel_key, screen_frame, visible_normal, write_pixel
 from grisx.render.base.trace import STRATEGIES, make_trace_path
 from grisx.render.base.reuse import (
@@ -376,6 +376,8 @@ def make_restir_gi_kernels(kinds: frozenset[int], moving: bool = False) -> Any:
     """ReSTIR GI's functions and kernels compiled for the material kinds ``kinds`` (cached)."""
     bsdf = make_bsdf(kinds)
     surface = make_surface(kinds)  # the wrappers and shapes of these kinds only
+    lights = make_lights(kinds)  # the lights of these kinds only
+    emitter_radiance, environment_eval = lights.emitter_radiance, lights.environment_eval
     surface_material = surface.surface_material
     surface_material_at = surface.surface_material_at
     intersect, segment_occluded = surface.intersect, surface.segment_occluded

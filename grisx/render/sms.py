@@ -78,7 +78,7 @@ from grisx.scene.camera import CameraData, camera_project, camera_ray
 from grisx.scene.caustics import CHAIN_MAX, CausticSpec, make_caustic_spec, make_caustics, set_view
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.distribution import alias_pmf, sample_alias
-from grisx.scene.lights import sample_given_light, sample_light
+from grisx.scene.lights import make_lights
 from grisx.scene.material import MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, material_kind
 from grisx.scene.scene import SceneData, SurfaceInteraction, make_surface, spawn_origin
 from grisx.theory.gris import resampling_weight
@@ -180,6 +180,8 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
     kinds = frozenset(kinds)
     bsdf = make_bsdf(kinds)
     surface = make_surface(kinds)  # the wrappers and shapes of these kinds only
+    lights = make_lights(kinds)  # the lights of these kinds only
+    sample_given_light, sample_light = lights.sample_given_light, lights.sample_light
     surface_material, intersect = surface.surface_material, surface.intersect
     trace_path = make_trace_path(kinds, caustic_chain=chain)
     caustics = make_caustics(kinds)

@@ -83,7 +83,7 @@ import warp as wp
 from grisx.scene.bsdf import make_bsdf
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.material import MATERIAL_BUMPMAP, MATERIAL_DIELECTRIC, MATERIAL_NORMALMAP, Material
-from grisx.scene.lights import emitter_radiance, environment_eval
+from grisx.scene.lights import make_lights
 from grisx.scene.scene import (
     SceneData,
     SurfaceInteraction,
@@ -334,7 +334,12 @@ class CausticFuncs:
 def _make_caustics(kinds: frozenset[int]) -> CausticFuncs:
     bsdf = make_bsdf(kinds)
     surface = make_surface(kinds)  # the wrappers and shapes of these kinds only
-    surface_material, intersect, occluded, segment_occluded = surface.surface_material, surface.intersect, surface.occluded, surface.segment_occluded
+    lights = make_lights(kinds)  # the lights of these kinds only
+    emitter_radiance, environment_eval = lights.emitter_radiance, lights.environment_eval
+    surface_material = surface.surface_material
+    intersect = surface.intersect
+    occluded = surface.occluded
+    segment_occluded = surface.segment_occluded
     shading_normal_derivative = surface.shading_normal_derivative
     # only a normal or bump map turns a normal whose derivative the shot does not carry: without one, ∂C/∂u is
     # always the differentials', and the four extra shots of the differences are not compiled in at all

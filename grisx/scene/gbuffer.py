@@ -30,7 +30,7 @@ import warp as wp
 from grisx.device import specialized_module
 from grisx.scene.bsdf import make_bsdf
 from grisx.scene.camera import CameraData, camera_project, camera_ray, camera_sample_key, sample_camera
-from grisx.scene.lights import emitter_radiance, environment_eval
+from grisx.scene.lights import make_lights
 from grisx.scene.scene import BuiltScene, SceneData, SurfaceInteraction, make_surface
 
 wp.set_module_options({"enable_backward": False})
@@ -81,6 +81,8 @@ def make_gbuffer_kernel(kinds: frozenset[int]) -> Any:
     1 ms more on an H200 once principled, pplastic and blends joined it)."""
     bsdf = make_bsdf(kinds)
     surface = make_surface(kinds)  # the wrappers and shapes of these kinds only
+    lights = make_lights(kinds)  # the lights of these kinds only
+    emitter_radiance, environment_eval = lights.emitter_radiance, lights.environment_eval
     surface_material, intersect = surface.surface_material, surface.intersect
 
     @wp.kernel(module=specialized_module(__name__, kinds))

@@ -123,10 +123,12 @@ References: M. Pharr, W. Jakob, G. Humphreys, *Physically Based Rendering*,
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import os
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import warp as wp
@@ -134,6 +136,7 @@ import warp as wp
 from grisx.errors import InvalidParameterError, InvalidValueError
 from grisx.imageio import srgb_decode
 from grisx.theory.gris import LUMINANCE_WEIGHTS, luminance
+from grisx.scene.material import SCENE_DELTA_LIGHTS, SCENE_EMITTER_TEXTURES, SCENE_ENVMAP, SCENE_KINDS
 from grisx.scene.texture import Bitmap, TextureSet, pack_textures, texture_lookup
 from grisx.scene.distribution import (
     AliasTable,
@@ -154,6 +157,8 @@ __all__ = [
     "DirectionalLight",
     "DeltaArrival",
     "delta_light_arrival",
+    "LightFuncs",
+    "make_lights",
     "DELTA_POINT",
     "DELTA_PROJECTOR",
     "DELTA_DIRECTIONAL",
@@ -547,17 +552,6 @@ def _triangle_area(ls: LightSet, tri: int) -> float:
 
 
 @wp.func
-def _emitter_radiance_at(ls: LightSet, e: int, b: wp.vec3) -> wp.vec3:
-    """Radiance of emitter ``e`` at barycentrics b of its triangle: its colour, times its image at the point's uv."""
-    radiance = ls.emitter_radiance[e]
-    tex = ls.emitter_texture[e]
-    if tex >= 0:
-        uv = ls.emitter_uv[3 * e] * b[0] + ls.emitter_uv[3 * e + 1] * b[1] + ls.emitter_uv[3 * e + 2] * b[2]
-        radiance = wp.cw_mul(radiance, texture_lookup(ls.textures, tex, uv))
-    return radiance
-
-
-@wp.func
 def triangle_barycentrics(p0: wp.vec3, p1: wp.vec3, p2: wp.vec3, p: wp.vec3) -> wp.vec3:
     """Barycentrics (b₀, b₁, b₂) of p (on the triangle's plane) with p = b₀ p₀ + b₁ p₁ + b₂ p₂."""
     v0 = p1 - p0
@@ -577,21 +571,6 @@ def triangle_barycentrics(p0: wp.vec3, p1: wp.vec3, p2: wp.vec3, p: wp.vec3) -> 
 
 
 @wp.func
-def emitter_radiance(ls: LightSet, tri: int, p: wp.vec3, n_geo: wp.vec3, w: wp.vec3) -> wp.vec3:
-    """Radiance that scene triangle ``tri`` emits at its point ``p`` toward w (pointing away from it): one-sided,
-    front = n_geo's side; a textured emitter's image is looked up at p's uv."""
-    if tri < 0:
-        return wp.vec3(0.0)
-    e = ls.tri_emitter[tri]
-    if e < 0 or wp.dot(n_geo, w) <= 0.0:
-        return wp.vec3(0.0)
-    if ls.emitter_texture[e] < 0:
-        return ls.emitter_radiance[e]
-    b = triangle_barycentrics(_triangle_vertex(ls, tri, 0), _triangle_vertex(ls, tri, 1), _triangle_vertex(ls, tri, 2), p)
-    return _emitter_radiance_at(ls, e, b)
-
-
-@wp.func
 def light_pdf_emitter(ls: LightSet, tri: int, ref_p: wp.vec3, light_p: wp.vec3, light_n: wp.vec3) -> float:
     """Solid-angle density (incl. selection) with which :func:`sample_light` picks light_p on ``tri`` from ref_p."""
     if tri < 0:
@@ -608,29 +587,6 @@ def light_pdf_emitter(ls: LightSet, tri: int, ref_p: wp.vec3, light_p: wp.vec3, 
         return 0.0
     cos_light = wp.dot(light_n, d) / (wp.length(light_n) * wp.sqrt(dist_sq))
     return pdf_area_to_solid_angle(alias_pmf(ls.selection, e) / area, dist_sq, cos_light)
-
-
-@wp.func
-def environment_eval(ls: LightSet, world_dir: wp.vec3) -> wp.vec3:
-    """Radiance arriving from the environment along ``world_dir`` (scene → environment)."""
-    if ls.env_kind == ENV_CONSTANT:
-        return ls.env_radiance
-    if ls.env_kind == ENV_ENVMAP:
-        return _envmap_lookup(ls, envmap_direction_to_uv(wp.normalize(ls.env_to_local * world_dir)))
-    return wp.vec3(0.0)
-
-
-@wp.func
-def environment_pdf(ls: LightSet, world_dir: wp.vec3) -> float:
-    """Solid-angle density (incl. selection) with which :func:`sample_light` picks ``world_dir`` on the environment."""
-    if ls.env_light < 0:
-        return 0.0
-    pmf = alias_pmf(ls.selection, ls.env_light)
-    if ls.env_kind == ENV_CONSTANT:
-        return pmf * uniform_sphere_pdf()
-    if ls.env_kind == ENV_ENVMAP:
-        return pmf * _envmap_pdf_local(ls, wp.normalize(ls.env_to_local * world_dir))
-    return 0.0
 
 
 @wp.func
@@ -720,93 +676,192 @@ def delta_light_arrival(ls: LightSet, k: int, ref_p: wp.vec3) -> DeltaArrival:
     return a
 
 
-@wp.func
-def sample_light(ls: LightSet, ref_p: wp.vec3, u_select: float, u: wp.vec2) -> LightSample:
-    """Pick a light ∝ power with u_select, then a point/direction on it with u (see the module docstring)."""
-    light = sample_alias(ls.selection, u_select)
-    if light < 0:
-        return _invalid_sample()
-    return sample_given_light(ls, light, alias_pmf(ls.selection, light), ref_p, u)
+class LightFuncs(NamedTuple):
+    """Light sampling and emission compiled for one scene's lights (:func:`make_lights`)."""
+
+    emitter_radiance_at: Any
+    emitter_radiance: Any
+    environment_eval: Any
+    environment_pdf: Any
+    sample_given_light: Any
+    sample_light: Any
+    delta_light_arrival: Any
 
 
 @wp.func
-def sample_given_light(ls: LightSet, light: int, pmf: float, ref_p: wp.vec3, u: wp.vec2) -> LightSample:
-    """A point/direction on light ``light`` (a selection index) with u; the densities include ``pmf``, the
-    probability the light was picked with (1: the density on this light alone)."""
-    s = _invalid_sample()
-    if light < 0 or light >= ls.num_lights or pmf <= 0.0:
-        return s
-    s.light = light
-    if light < ls.num_emitters:
-        # ---- emissive triangle: uniform in area, then area → solid angle ----
-        tri = ls.emitter_tri[light]
-        p0 = _triangle_vertex(ls, tri, 0)
-        p1 = _triangle_vertex(ls, tri, 1)
-        p2 = _triangle_vertex(ls, tri, 2)
-        b = sample_uniform_triangle(u)
-        p = p0 * b[0] + p1 * b[1] + p2 * b[2]
-        c = wp.cross(p1 - p0, p2 - p0)
-        twice_area = wp.length(c)
-        d = p - ref_p
-        dist_sq = wp.dot(d, d)
-        if twice_area <= 0.0 or dist_sq <= 0.0:
-            s.light = -1
+def _no_delta_arrival(ls: LightSet, k: int, ref_p: wp.vec3) -> DeltaArrival:
+    """:func:`delta_light_arrival` of a scene without delta lights: never asked, no arrival."""
+    a = DeltaArrival()
+    a.dist = 0.0
+    return a
+
+
+@functools.cache
+def _make_lights(delta: bool, envmap: bool, textured: bool) -> LightFuncs:
+    # each kind of light's code only where the scene has it: every kernel inlines light sampling and emission at each
+    # of its call sites (the textured lookups of a projector, a spot and an emitter, the environment map's 2D
+    # distribution), and a scene of plain area lights would compile them for nothing
+
+    @wp.func
+    def emitter_radiance_at(ls: LightSet, e: int, b: wp.vec3) -> wp.vec3:
+        """Radiance of emitter ``e`` at barycentrics b of its triangle: its colour, times its image at the point's uv."""
+        radiance = ls.emitter_radiance[e]
+        if wp.static(textured):
+            tex = ls.emitter_texture[e]
+            if tex >= 0:
+                uv = ls.emitter_uv[3 * e] * b[0] + ls.emitter_uv[3 * e + 1] * b[1] + ls.emitter_uv[3 * e + 2] * b[2]
+                radiance = wp.cw_mul(radiance, texture_lookup(ls.textures, tex, uv))
+        return radiance
+
+    @wp.func
+    def emitter_radiance(ls: LightSet, tri: int, p: wp.vec3, n_geo: wp.vec3, w: wp.vec3) -> wp.vec3:
+        """Radiance that scene triangle ``tri`` emits at its point ``p`` toward w (pointing away from it): one-sided,
+        front = n_geo's side; a textured emitter's image is looked up at p's uv."""
+        if tri < 0:
+            return wp.vec3(0.0)
+        e = ls.tri_emitter[tri]
+        if e < 0 or wp.dot(n_geo, w) <= 0.0:
+            return wp.vec3(0.0)
+        if wp.static(textured):
+            if ls.emitter_texture[e] >= 0:
+                b = triangle_barycentrics(_triangle_vertex(ls, tri, 0), _triangle_vertex(ls, tri, 1), _triangle_vertex(ls, tri, 2), p)
+                return emitter_radiance_at(ls, e, b)
+        return ls.emitter_radiance[e]
+
+    @wp.func
+    def environment_eval(ls: LightSet, world_dir: wp.vec3) -> wp.vec3:
+        """Radiance arriving from the environment along ``world_dir`` (scene → environment)."""
+        if ls.env_kind == ENV_CONSTANT:
+            return ls.env_radiance
+        if wp.static(envmap):
+            if ls.env_kind == ENV_ENVMAP:
+                return _envmap_lookup(ls, envmap_direction_to_uv(wp.normalize(ls.env_to_local * world_dir)))
+        return wp.vec3(0.0)
+
+    @wp.func
+    def environment_pdf(ls: LightSet, world_dir: wp.vec3) -> float:
+        """Solid-angle density (incl. selection) with which :func:`sample_light` picks ``world_dir`` on the environment."""
+        if ls.env_light < 0:
+            return 0.0
+        pmf = alias_pmf(ls.selection, ls.env_light)
+        if ls.env_kind == ENV_CONSTANT:
+            return pmf * uniform_sphere_pdf()
+        if wp.static(envmap):
+            if ls.env_kind == ENV_ENVMAP:
+                return pmf * _envmap_pdf_local(ls, wp.normalize(ls.env_to_local * world_dir))
+        return 0.0
+
+    @wp.func
+    def sample_given_light(ls: LightSet, light: int, pmf: float, ref_p: wp.vec3, u: wp.vec2) -> LightSample:
+        """A point/direction on light ``light`` (a selection index) with u; the densities include ``pmf``, the
+        probability the light was picked with (1: the density on this light alone)."""
+        s = _invalid_sample()
+        if light < 0 or light >= ls.num_lights or pmf <= 0.0:
             return s
-        n = c / twice_area
-        dist = wp.sqrt(dist_sq)
-        wi = d / dist
-        cos_light = -wp.dot(n, wi)
-        s.p = p
-        s.n = n
+        s.light = light
+        if light < ls.num_emitters:
+            # ---- emissive triangle: uniform in area, then area → solid angle ----
+            tri = ls.emitter_tri[light]
+            p0 = _triangle_vertex(ls, tri, 0)
+            p1 = _triangle_vertex(ls, tri, 1)
+            p2 = _triangle_vertex(ls, tri, 2)
+            b = sample_uniform_triangle(u)
+            p = p0 * b[0] + p1 * b[1] + p2 * b[2]
+            c = wp.cross(p1 - p0, p2 - p0)
+            twice_area = wp.length(c)
+            d = p - ref_p
+            dist_sq = wp.dot(d, d)
+            if twice_area <= 0.0 or dist_sq <= 0.0:
+                s.light = -1
+                return s
+            n = c / twice_area
+            dist = wp.sqrt(dist_sq)
+            wi = d / dist
+            cos_light = -wp.dot(n, wi)
+            s.p = p
+            s.n = n
+            s.wi = wi
+            s.dist = dist
+            s.tri = tri
+            s.pdf_area = pmf / (0.5 * twice_area)
+            s.pdf = pdf_area_to_solid_angle(s.pdf_area, dist_sq, cos_light)
+            if cos_light > 0.0:
+                s.radiance = emitter_radiance_at(ls, light, b)
+            if s.pdf <= 0.0:
+                s.light = -1
+            return s
+        if wp.static(delta):
+            if light < ls.num_emitters + ls.num_points:
+                # ---- delta lights: point, spot, projector (a delta in position), directional (in direction) ----
+                a = delta_light_arrival(ls, light - ls.num_emitters, ref_p)
+                if a.dist <= 0.0:
+                    s.light = -1
+                    return s
+                s.p = a.p
+                s.wi = a.wi
+                s.n = -a.wi
+                s.dist = a.dist
+                s.radiance = a.radiance
+                s.pdf = pmf
+                s.pdf_area = pmf
+                s.delta = 1
+                return s
+        # ---- environment ----
+        s.is_env = 1
+        s.dist = _ENV_DIST
+        wi = wp.vec3(0.0)
+        if ls.env_kind == ENV_CONSTANT:
+            wi = sample_uniform_sphere(u)
+            s.radiance = ls.env_radiance
+            s.pdf = pmf * uniform_sphere_pdf()
+        if wp.static(envmap):
+            if ls.env_kind == ENV_ENVMAP:
+                g = sample_piecewise_constant_2d(ls.env_distribution, u)
+                gu = g.uv[0] + 0.5 / float(ls.env_width)  # back from cell grid to Mitsuba's u (half-texel shift)
+                uv = wp.vec2(gu - wp.floor(gu), g.uv[1])
+                d_local = envmap_uv_to_direction(uv)
+                wi = ls.env_to_world * d_local
+                s.radiance = _envmap_lookup(ls, uv)
+                s.pdf = pmf * _envmap_uv_pdf_to_solid_angle(g.pdf, d_local)
         s.wi = wi
-        s.dist = dist
-        s.tri = tri
-        s.pdf_area = pmf / (0.5 * twice_area)
-        s.pdf = pdf_area_to_solid_angle(s.pdf_area, dist_sq, cos_light)
-        if cos_light > 0.0:
-            s.radiance = _emitter_radiance_at(ls, light, b)
+        s.p = wi
+        s.n = -wi
+        s.pdf_area = s.pdf
         if s.pdf <= 0.0:
             s.light = -1
+            s.radiance = wp.vec3(0.0)
         return s
-    if light < ls.num_emitters + ls.num_points:
-        # ---- delta lights: point, spot, projector (a delta in position), directional (in direction) ----
-        a = delta_light_arrival(ls, light - ls.num_emitters, ref_p)
-        if a.dist <= 0.0:
-            s.light = -1
-            return s
-        s.p = a.p
-        s.wi = a.wi
-        s.n = -a.wi
-        s.dist = a.dist
-        s.radiance = a.radiance
-        s.pdf = pmf
-        s.pdf_area = pmf
-        s.delta = 1
-        return s
-    # ---- environment ----
-    s.is_env = 1
-    s.dist = _ENV_DIST
-    wi = wp.vec3(0.0)
-    if ls.env_kind == ENV_CONSTANT:
-        wi = sample_uniform_sphere(u)
-        s.radiance = ls.env_radiance
-        s.pdf = pmf * uniform_sphere_pdf()
-    else:
-        g = sample_piecewise_constant_2d(ls.env_distribution, u)
-        gu = g.uv[0] + 0.5 / float(ls.env_width)  # back from cell grid to Mitsuba's u (half-texel shift)
-        uv = wp.vec2(gu - wp.floor(gu), g.uv[1])
-        d_local = envmap_uv_to_direction(uv)
-        wi = ls.env_to_world * d_local
-        s.radiance = _envmap_lookup(ls, uv)
-        s.pdf = pmf * _envmap_uv_pdf_to_solid_angle(g.pdf, d_local)
-    s.wi = wi
-    s.p = wi
-    s.n = -wi
-    s.pdf_area = s.pdf
-    if s.pdf <= 0.0:
-        s.light = -1
-        s.radiance = wp.vec3(0.0)
-    return s
+
+    @wp.func
+    def sample_light(ls: LightSet, ref_p: wp.vec3, u_select: float, u: wp.vec2) -> LightSample:
+        """Pick a light ∝ power with u_select, then a point/direction on it with u (see the module docstring)."""
+        light = sample_alias(ls.selection, u_select)
+        if light < 0:
+            return _invalid_sample()
+        return sample_given_light(ls, light, alias_pmf(ls.selection, light), ref_p, u)
+
+    return LightFuncs(emitter_radiance_at, emitter_radiance, environment_eval, environment_pdf, sample_given_light, sample_light,
+                      delta_light_arrival if delta else _no_delta_arrival)
+
+
+def make_lights(kinds: Iterable[int]) -> LightFuncs:
+    """Light sampling and emission for the kinds ``kinds`` (cached): the delta lights' branch only with
+    ``SCENE_DELTA_LIGHTS``, the environment map's with ``SCENE_ENVMAP``, an emitter's radiance image with
+    ``SCENE_EMITTER_TEXTURES`` (:class:`~grisx.scene.scene.SceneFeatures` adds them). A renderer's kernels take
+    them from here, as their BSDF dispatch from ``make_bsdf``."""
+    k = frozenset(int(x) for x in kinds)
+    return _make_lights(SCENE_DELTA_LIGHTS in k, SCENE_ENVMAP in k, SCENE_EMITTER_TEXTURES in k)
+
+
+#: every kind of light compiled in (for code outside a kinds-specialised factory)
+_EVERY_LIGHT = make_lights(SCENE_KINDS)
+_emitter_radiance_at = _EVERY_LIGHT.emitter_radiance_at
+emitter_radiance = _EVERY_LIGHT.emitter_radiance
+environment_eval = _EVERY_LIGHT.environment_eval
+environment_pdf = _EVERY_LIGHT.environment_pdf
+sample_given_light = _EVERY_LIGHT.sample_given_light
+sample_light = _EVERY_LIGHT.sample_light
+
 
 
 # ---- building -----------------------------------------------------------------------------

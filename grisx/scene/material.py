@@ -50,9 +50,10 @@ nested kinds, so a dispatch compiles the wrapper code only for scenes that use i
 likewise ``MATERIAL_ANISOTROPIC`` where some rough conductor has α_u ≠ α_v, and
 ``MATERIAL_SCALAR_TEXTURES`` where some material resolves scalars at the hit
 (:func:`resolves_scalars`: a textured mask opacity or α, a blend, a principled
-BSDF's textured lobes). One pseudo-kind is the scene's, not a material's:
-``SCENE_ANALYTIC_SHAPES`` (:class:`~grisx.scene.scene.SceneFeatures` adds it where
-the scene has analytic shapes), so that the ray queries compile the shapes in.
+BSDF's textured lobes). The ``SCENE_*`` pseudo-kinds are the scene's, not a
+material's (:class:`~grisx.scene.scene.SceneFeatures` adds them): analytic shapes
+(the ray queries compile the shapes in), delta lights, an environment map and
+textured emitters (light sampling compiles their code in).
 
 Every record carries ``two_sided`` (set by the loader for Mitsuba's
 ``twosided`` wrapper): a one-sided reflecting BSDF is black seen from the back,
@@ -138,6 +139,10 @@ __all__ = [
     "MATERIAL_ANISOTROPIC",
     "MATERIAL_SCALAR_TEXTURES",
     "SCENE_ANALYTIC_SHAPES",
+    "SCENE_DELTA_LIGHTS",
+    "SCENE_ENVMAP",
+    "SCENE_EMITTER_TEXTURES",
+    "SCENE_KINDS",
     "MATERIAL_PPLASTIC",
     "MATERIAL_BLEND",
     "MATERIAL_WRAPPERS",
@@ -201,9 +206,6 @@ MATERIAL_ANISOTROPIC = wp.constant(12)
 #: a feature pseudo-kind: some material resolves scalars at the hit (a mask's opacity, a textured α, a blend's
 #: weight, a principled BSDF's textured lobes): ``surface_material`` compiles that loop in only then
 MATERIAL_SCALAR_TEXTURES = wp.constant(13)
-#: a scene pseudo-kind: the scene has analytic shapes (grisx.scene.analytic), so the ray queries compile their BVH
-#: and quadrics in (``SceneFeatures.material_kinds`` holds it beside the materials' kinds)
-SCENE_ANALYTIC_SHAPES = wp.constant(14)
 # ---- principled (grisx.scene.principled); ids 16, 17 leave room for kinds added beside them
 #: Mitsuba 3's ``principled`` and ``principledthin`` (Disney's principled BSDF, Burley 2012, 2015)
 MATERIAL_PRINCIPLED = wp.constant(16)
@@ -215,6 +217,18 @@ MATERIAL_PPLASTIC = wp.constant(20)
 #: rides in ``Material.blend_partner``; the dispatch mixes the two)
 MATERIAL_BLEND = wp.constant(21)
 # ---- end plugins2 ----
+# ---- scene pseudo-kinds: what the scene has besides its materials (``SceneFeatures.material_kinds`` holds them beside
+# the materials' kinds), so that code every kernel inlines is compiled only for scenes that use it
+#: analytic shapes (grisx.scene.analytic): the ray queries compile their BVH and quadrics in (``make_surface``)
+SCENE_ANALYTIC_SHAPES = wp.constant(24)
+#: delta lights (point, spot, projector, directional): light sampling compiles their branch in (``make_lights``)
+SCENE_DELTA_LIGHTS = wp.constant(25)
+#: an environment map: light sampling and environment lookups compile its image and distribution in (``make_lights``)
+SCENE_ENVMAP = wp.constant(26)
+#: an area emitter with a radiance image: emission compiles its texture lookup in (``make_lights``)
+SCENE_EMITTER_TEXTURES = wp.constant(27)
+#: the scene pseudo-kinds
+SCENE_KINDS: tuple[int, ...] = (SCENE_ANALYTIC_SHAPES, SCENE_DELTA_LIGHTS, SCENE_ENVMAP, SCENE_EMITTER_TEXTURES)
 #: the wrapper pseudo-kinds
 MATERIAL_WRAPPERS: tuple[int, ...] = (MATERIAL_MASK, MATERIAL_NORMALMAP, MATERIAL_BUMPMAP)
 #: Material.perturb values: no perturbation, a normal map, a bump map
@@ -238,11 +252,11 @@ MATERIAL_KINDS: tuple[int, ...] = (
     MATERIAL_BUMPMAP,
     MATERIAL_ANISOTROPIC,
     MATERIAL_SCALAR_TEXTURES,
-    SCENE_ANALYTIC_SHAPES,
     MATERIAL_PRINCIPLED,
     MATERIAL_PRINCIPLED_THIN,
     MATERIAL_PPLASTIC,
     MATERIAL_BLEND,
+    *SCENE_KINDS,
 )
 #: Mitsuba plugin name of each kind
 #: microfacet distributions of the rough records → grisx.scene.microfacet's MICROFACET_* ids
@@ -263,11 +277,14 @@ MATERIAL_KIND_NAMES: dict[int, str] = {
     MATERIAL_BUMPMAP: "bumpmap",
     MATERIAL_ANISOTROPIC: "anisotropic",
     MATERIAL_SCALAR_TEXTURES: "scalar textures",
-    SCENE_ANALYTIC_SHAPES: "analytic shapes",
     MATERIAL_PRINCIPLED: "principled",
     MATERIAL_PRINCIPLED_THIN: "principledthin",
     MATERIAL_PPLASTIC: "pplastic",
     MATERIAL_BLEND: "blendbsdf",
+    SCENE_ANALYTIC_SHAPES: "analytic shapes",
+    SCENE_DELTA_LIGHTS: "delta lights",
+    SCENE_ENVMAP: "envmap",
+    SCENE_EMITTER_TEXTURES: "emitter textures",
 }
 
 #: every kind a kernel can be compiled for

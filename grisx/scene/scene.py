@@ -62,6 +62,9 @@ from grisx.scene.material import (
     MATERIAL_NORMALMAP,
     MATERIAL_SCALAR_TEXTURES,
     SCENE_ANALYTIC_SHAPES,
+    SCENE_DELTA_LIGHTS,
+    SCENE_EMITTER_TEXTURES,
+    SCENE_ENVMAP,
     MATERIAL_CONDUCTOR,
     MATERIAL_DIELECTRIC,
     MATERIAL_MASK,
@@ -190,11 +193,16 @@ class _Object:
     attributes: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)  # Mitsuba's mesh attributes
 
 
+def _textured_emission(emission: Any) -> bool:
+    """Whether an object's ``emission`` is a radiance image (Mitsuba's area emitter with a bitmap), not a colour."""
+    return emission is not None and (isinstance(emission, Bitmap) or np.ndim(emission) >= 2)
+
+
 @dataclasses.dataclass(frozen=True)
 class SceneFeatures:
     """What a scene uses; renderers specialize their kernels on it."""
 
-    material_kinds: frozenset[int]  # with the pseudo-kinds (grisx.scene.material), SCENE_ANALYTIC_SHAPES among them
+    material_kinds: frozenset[int]  # with the pseudo-kinds (grisx.scene.material), the SCENE_* ones among them
     has_textures: bool
     has_bump: bool
     has_area_lights: bool
@@ -1061,9 +1069,14 @@ class Scene:
         caustic = any(
             k in (MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, MATERIAL_ROUGH_DIELECTRIC) for k in used_kinds
         ) or any(self._bumpy(i) for i in used)
-        shapes = frozenset({SCENE_ANALYTIC_SHAPES}) if any(o.shape is not None for o in self.objects) else frozenset()
+        scene_kinds = {  # the SCENE_* pseudo-kinds (grisx.scene.material): what the kernels compile in besides materials
+            SCENE_ANALYTIC_SHAPES: any(o.shape is not None for o in self.objects),
+            SCENE_DELTA_LIGHTS: bool(self.point_lights),
+            SCENE_ENVMAP: env == "envmap",
+            SCENE_EMITTER_TEXTURES: any(_textured_emission(o.emission) for o in self.objects),
+        }
         return SceneFeatures(
-            material_kinds=(used_kinds or kinds) | shapes,
+            material_kinds=(used_kinds or kinds) | {k for k, has in scene_kinds.items() if has},
             has_textures=bool(self.textures),
             has_bump=any(self._bumpy(i) for i in used),
             has_area_lights=any(o.emission is not None for o in self.objects),
@@ -1171,7 +1184,7 @@ class BuiltScene:
             tri_flags.append(np.full(nf, flags))
             if o.emission is not None:
                 emitter_tris.append(np.arange(tri_base, tri_base + nf))
-                textured = isinstance(o.emission, Bitmap) or np.ndim(o.emission) >= 2
+                textured = _textured_emission(o.emission)
                 emitter_radiance.append(np.ones((nf, 3)) if textured else np.repeat(o.emission[None, :], nf, axis=0))
                 if textured:
                     emitter_images.append(o.emission)

@@ -17,7 +17,14 @@ from pathlib import Path
 from grisx.scene.builtin import BUILTIN_SCENES, build_builtin
 from grisx.scene.camera import Camera, CameraData, camera_ray, lookat
 from grisx.scene.lights import ConstantEnvironment
-from grisx.scene.material import MATERIAL_SCALAR_TEXTURES, SCENE_ANALYTIC_SHAPES, Diffuse
+from grisx.scene.material import (
+    MATERIAL_SCALAR_TEXTURES,
+    SCENE_ANALYTIC_SHAPES,
+    SCENE_DELTA_LIGHTS,
+    SCENE_EMITTER_TEXTURES,
+    SCENE_ENVMAP,
+    Diffuse,
+)
 from grisx.scene.mitsuba import load_mitsuba
 from grisx.render.base.trace import STRATEGIES, make_trace_path, no_first_hit
 from grisx.render.pt import PathTracer
@@ -158,16 +165,18 @@ def test_kernels_specialised_on_the_scene_kinds_give_the_same_image(monkeypatch)
 
 #: conformance scenes whose materials resolve something at the hit, by what: a textured mask opacity, a textured α, a
 #: diffuse blend, a principled BSDF's textured lobes, a normal map (a bump map shares its code), an anisotropic rough conductor,
-#: analytic spheres and a disk (the ray queries' shapes)
+#: and the scene pseudo-kinds: analytic spheres and a disk (the ray queries' shapes), an environment map, delta lights, a
+#: textured area emitter (light sampling)
 WRAPPER_SCENES = ("mask_checkerboard", "roughdielectric_textured", "blendbsdf", "principled", "normalmap", "roughconductor_anisotropic",
-                  "sphere_mirror")
+                  "sphere_mirror", "envmap", "delta_lights", "area_texture")
 
 
 @pytest.mark.parametrize("case", WRAPPER_SCENES)
 def test_surfaces_specialised_on_the_scene_kinds_give_the_same_image(case, monkeypatch):
-    """``surface_material`` compiles each wrapper (normal and bump maps, the tangent, the scalar textures) and the ray
-    queries their analytic shapes only where the scene's kinds name them (``make_surface``); the suite's all-kinds
-    kernels cannot see a pseudo-kind the loader forgot, so each such scene is rendered both ways here."""
+    """``surface_material`` compiles each wrapper (normal and bump maps, the tangent, the scalar textures), the ray
+    queries their analytic shapes and light sampling each kind of light only where the scene's kinds name them
+    (``make_surface``, ``make_lights``); the suite's all-kinds kernels cannot see a pseudo-kind the loader forgot, so
+    each such scene is rendered both ways here."""
     built = load_mitsuba(CONFORMANCE / f"{case}.xml").build("cpu")
     monkeypatch.setenv("GRISX_KERNEL_KINDS", "all")
     every = PathTracer(built, 16, 12, spp=2, seed=3, max_depth=4).render_frame(0).numpy()
@@ -187,16 +196,20 @@ def test_surfaces_without_their_scalar_textures_are_caught():
     assert not np.array_equal(image(kinds - {MATERIAL_SCALAR_TEXTURES}), image(kinds))
 
 
-def test_a_scene_compiled_without_its_analytic_shapes_is_caught():
-    # the sibling for the shapes: the mirror spheres' scene without SCENE_ANALYTIC_SHAPES loses its spheres and disk
-    built = load_mitsuba(CONFORMANCE / "sphere_mirror.xml").build("cpu")
+@pytest.mark.parametrize("case,kind", [("sphere_mirror", SCENE_ANALYTIC_SHAPES), ("envmap", SCENE_ENVMAP), ("delta_lights", SCENE_DELTA_LIGHTS),
+                                       ("area_texture", SCENE_EMITTER_TEXTURES)],
+                         ids=["analytic-shapes", "envmap", "delta-lights", "emitter-textures"])
+def test_a_scene_compiled_without_its_scene_kind_is_caught(case, kind):
+    # the siblings of the scene pseudo-kinds: compiled without it, the scene loses its spheres, its environment map, its
+    # point and spot lights or its emitter's image
+    built = load_mitsuba(CONFORMANCE / f"{case}.xml").build("cpu")
     kinds = built.features.material_kinds
-    assert SCENE_ANALYTIC_SHAPES in kinds and built.num_shapes > 0
+    assert kind in kinds
 
     def image(kinds: frozenset[int]) -> np.ndarray:
         return PathTracer(built, 16, 12, spp=2, seed=3, max_depth=4, kinds=kinds).render_frame(0).numpy()
 
-    assert not np.array_equal(image(kinds - {SCENE_ANALYTIC_SHAPES}), image(kinds))
+    assert not np.array_equal(image(kinds - {kind}), image(kinds))
 
 
 @pytest.mark.parametrize("name", sorted(BUILTIN_SCENES))

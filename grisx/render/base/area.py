@@ -49,7 +49,7 @@ import warp as wp
 
 from grisx.render.base.path_shift import Domain, vertex_from_hit
 from grisx.scene.camera import CameraData, camera_ray, film_weight, filter_reach
-from grisx.scene.lights import emitter_radiance, environment_eval
+from grisx.scene.lights import make_lights
 from grisx.scene.scene import SceneData, make_surface
 from grisx.theory.random import random_uniform
 
@@ -95,6 +95,8 @@ def make_area_domain(kinds: frozenset[int]) -> Any:
     """``area_domain(scene, cam, x, y, s) -> AreaDomain`` with the ray queries of the kinds ``kinds``
     (:func:`~grisx.scene.scene.make_surface`: the analytic shapes only where the scene has them; cached)."""
     intersect = make_surface(kinds).intersect
+    lights = make_lights(kinds)  # the lights of these kinds only
+    emitter_radiance, environment_eval = lights.emitter_radiance, lights.environment_eval
 
     @wp.func
     def area_domain(scene: SceneData, cam: CameraData, x: int, y: int, s: FilmSample) -> AreaDomain:

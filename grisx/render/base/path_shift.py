@@ -114,7 +114,7 @@ from grisx.errors import InvalidParameterError
 from grisx.scene.bsdf import make_bsdf
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.material import Material
-from grisx.scene.lights import DeltaArrival, delta_light_arrival, emitter_radiance, environment_eval, environment_pdf, light_pdf_emitter, luminance, sample_light
+from grisx.scene.lights import DeltaArrival, light_pdf_emitter, luminance, make_lights
 from grisx.scene.scene import (
     SceneData,
     SurfaceInteraction,
@@ -152,7 +152,6 @@ __all__ = [
     "target_back",
     "jacobian_accepted",
     "EmitterHit",
-    "emitter_hit",
     "SHIFT_MODES",
     "SHIFT_REPLAY",
     "SHIFT_RECONNECTION",
@@ -388,24 +387,6 @@ class EmitterHit:
 
 
 @wp.func
-def emitter_hit(scene: SceneData, p: wp.vec3, d: wp.vec3, si: SurfaceInteraction) -> EmitterHit:
-    """Emission reached from ``p`` along ``d`` (the environment if ``si`` missed)."""
-    # (not named ``e``: Warp 1.19 resolves ``e.dist`` as its constant ``wp.e`` while hashing a module before
-    # code generation, and not after, so a process that had built another module hashed this one differently
-    # and compiled it a second time)
-    hit = EmitterHit()
-    hit.dist = _FAR
-    if si.valid == 0:
-        hit.radiance = environment_eval(scene.lights, d)
-        hit.light_pdf = environment_pdf(scene.lights, d)
-    else:
-        hit.radiance = emitter_radiance(scene.lights, si.tri, si.p, si.ng, -d)
-        hit.light_pdf = light_pdf_emitter(scene.lights, si.tri, p, si.p, si.ng)
-        hit.dist = wp.length(si.p - p)
-    return hit
-
-
-@wp.func
 def jacobian_accepted(jacobian: float, sp: ShiftParams) -> bool:
     """The symmetric bound |J| ∈ [1/J_max, J_max] of :func:`grisx.theory.shift.jacobian_bounded` (T stays a bijection)."""
     return jacobian_bounded(jacobian, sp.jacobian_max, JACOBIAN_BOUND_SYMMETRIC)
@@ -515,8 +496,34 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
     key = frozenset(kinds)
     bsdf = make_bsdf(key)
     surface = make_surface(key)  # the wrappers and shapes of these kinds only (shadow the all-kinds ones)
-    vertex_material, intersect, occluded, segment_occluded = surface.surface_material_at, surface.intersect, surface.occluded, surface.segment_occluded
+    lights = make_lights(key)  # the lights of these kinds only
+    emitter_radiance = lights.emitter_radiance
+    environment_eval = lights.environment_eval
+    environment_pdf = lights.environment_pdf
+    sample_light = lights.sample_light
+    delta_light_arrival = lights.delta_light_arrival
+    vertex_material = surface.surface_material_at
+    intersect = surface.intersect
+    occluded = surface.occluded
+    segment_occluded = surface.segment_occluded
     light_occluded = surface.light_occluded
+
+    @wp.func
+    def emitter_hit(scene: SceneData, p: wp.vec3, d: wp.vec3, si: SurfaceInteraction) -> EmitterHit:
+        """Emission reached from ``p`` along ``d`` (the environment if ``si`` missed)."""
+        # (not named ``e``: Warp 1.19 resolves ``e.dist`` as its constant ``wp.e`` while hashing a module before
+        # code generation, and not after, so a process that had built another module hashed this one differently
+        # and compiled it a second time)
+        hit = EmitterHit()
+        hit.dist = _FAR
+        if si.valid == 0:
+            hit.radiance = environment_eval(scene.lights, d)
+            hit.light_pdf = environment_pdf(scene.lights, d)
+        else:
+            hit.radiance = emitter_radiance(scene.lights, si.tri, si.p, si.ng, -d)
+            hit.light_pdf = light_pdf_emitter(scene.lights, si.tri, p, si.p, si.ng)
+            hit.dist = wp.length(si.p - p)
+        return hit
 
     @wp.func
     def roughness(scene: SceneData, material: int) -> float:

@@ -16,7 +16,7 @@ import warp as wp
 
 from grisx.scene.bsdf import cosine_hemisphere_pdf, make_bsdf, sample_cosine_hemisphere
 from grisx.scene.frame import frame_from_normal, to_local, to_world
-from grisx.scene.lights import emitter_radiance, environment_eval, environment_pdf, light_pdf_emitter, sample_light
+from grisx.scene.lights import light_pdf_emitter, make_lights
 from grisx.scene.material import MATERIAL_PRINCIPLED, MATERIAL_PRINCIPLED_THIN, MATERIAL_ROUGH_DIELECTRIC, PERTURB_NONE
 from grisx.scene.caustics import canonical_lobe, caustic_owned
 from grisx.scene.scene import SceneData, SurfaceInteraction, make_surface, spawn_origin
@@ -103,6 +103,11 @@ def make_trace_path(kinds: frozenset[int], caustic_chain: int = 0, bounds: bool 
 def _make_trace_path(kinds: frozenset[int], caustic_chain: int, bounds: bool) -> Any:
     bsdf = make_bsdf(kinds)
     surface = make_surface(kinds)  # the wrappers and shapes of these kinds only
+    lights = make_lights(kinds)  # the lights of these kinds only
+    emitter_radiance = lights.emitter_radiance
+    environment_eval = lights.environment_eval
+    environment_pdf = lights.environment_pdf
+    sample_light = lights.sample_light
     surface_material, intersect, light_occluded = surface.surface_material, surface.intersect, surface.light_occluded
     chain_max = caustic_chain
 
