@@ -47,7 +47,9 @@ A wrapper may hold another wrapper of a different type (``Mask(NormalMap(...))``
 ``material_kinds`` reports each wrapper present as a pseudo-kind
 (``MATERIAL_MASK``, ``MATERIAL_NORMALMAP``, ``MATERIAL_BUMPMAP``) beside the
 nested kinds, so a dispatch compiles the wrapper code only for scenes that use it;
-likewise ``MATERIAL_ANISOTROPIC`` where some rough conductor has α_u ≠ α_v, and
+likewise ``MATERIAL_ANISOTROPIC`` where some rough conductor has α_u ≠ α_v,
+``MATERIAL_REFLECTANCE_TEXTURE`` where some reflectance is a texture
+(:func:`has_reflectance_texture`), and
 ``MATERIAL_SCALAR_TEXTURES`` where some material resolves scalars at the hit
 (:func:`resolves_scalars`: a textured mask opacity or α, a blend, a principled
 BSDF's textured lobes). The ``SCENE_*`` pseudo-kinds are the scene's, not a
@@ -138,6 +140,7 @@ __all__ = [
     "MATERIAL_BUMPMAP",
     "MATERIAL_ANISOTROPIC",
     "MATERIAL_SCALAR_TEXTURES",
+    "MATERIAL_REFLECTANCE_TEXTURE",
     "SCENE_ANALYTIC_SHAPES",
     "SCENE_DELTA_LIGHTS",
     "SCENE_ENVMAP",
@@ -206,6 +209,9 @@ MATERIAL_ANISOTROPIC = wp.constant(12)
 #: a feature pseudo-kind: some material resolves scalars at the hit (a mask's opacity, a textured α, a blend's
 #: weight, a principled BSDF's textured lobes): ``surface_material`` compiles that loop in only then
 MATERIAL_SCALAR_TEXTURES = wp.constant(13)
+#: a feature pseudo-kind: some material's reflectance is a texture (a diffuse reflectance, a plastic's diffuse
+#: reflectance, a principled base colour): ``surface_material`` compiles the texture lookup in only then
+MATERIAL_REFLECTANCE_TEXTURE = wp.constant(14)
 # ---- principled (grisx.scene.principled); ids 16, 17 leave room for kinds added beside them
 #: Mitsuba 3's ``principled`` and ``principledthin`` (Disney's principled BSDF, Burley 2012, 2015)
 MATERIAL_PRINCIPLED = wp.constant(16)
@@ -252,6 +258,7 @@ MATERIAL_KINDS: tuple[int, ...] = (
     MATERIAL_BUMPMAP,
     MATERIAL_ANISOTROPIC,
     MATERIAL_SCALAR_TEXTURES,
+    MATERIAL_REFLECTANCE_TEXTURE,
     MATERIAL_PRINCIPLED,
     MATERIAL_PRINCIPLED_THIN,
     MATERIAL_PPLASTIC,
@@ -277,6 +284,7 @@ MATERIAL_KIND_NAMES: dict[int, str] = {
     MATERIAL_BUMPMAP: "bumpmap",
     MATERIAL_ANISOTROPIC: "anisotropic",
     MATERIAL_SCALAR_TEXTURES: "scalar textures",
+    MATERIAL_REFLECTANCE_TEXTURE: "reflectance texture",
     MATERIAL_PRINCIPLED: "principled",
     MATERIAL_PRINCIPLED_THIN: "principledthin",
     MATERIAL_PPLASTIC: "pplastic",
@@ -897,6 +905,8 @@ def material_kinds(descs: Iterable[MaterialDesc]) -> set[int]:
             kinds.add(MATERIAL_ANISOTROPIC)
         if resolves_scalars(d):
             kinds.add(MATERIAL_SCALAR_TEXTURES)
+        if has_reflectance_texture(d):
+            kinds.add(MATERIAL_REFLECTANCE_TEXTURE)
         if is_general_blend(unwrap(d)[0]):  # plugins2: the second BSDF's kind compiled in too
             kinds.update((MATERIAL_BLEND, material_kind(unwrap(d)[0].bsdf1)))
     return kinds
@@ -912,6 +922,15 @@ def resolves_scalars(desc: MaterialDesc) -> bool:
     if isinstance(inner, (Principled, PrincipledThin)):  # base_color is the material's texture, resolved apart
         return any(isinstance(getattr(inner, f.name), TextureRef) for f in dataclasses.fields(inner) if f.name != "base_color")
     return any(isinstance(getattr(inner, name, None), TextureRef) for name in ("alpha", "alpha_u", "alpha_v"))
+
+
+def has_reflectance_texture(desc: MaterialDesc) -> bool:
+    """Whether ``desc``'s packed reflectance is a texture (``Material.texture``): a diffuse ``reflectance``, a plastic's
+    ``diffuse_reflectance`` or a principled ``base_color`` given as a texture (a blend's: its first BSDF's)."""
+    inner, _ = unwrap(desc)
+    if isinstance(inner, BlendBSDF):
+        inner = inner.bsdf0
+    return any(isinstance(getattr(inner, name, None), TextureRef) for name in ("reflectance", "diffuse_reflectance", "base_color"))
 
 
 def is_anisotropic(desc: MaterialDesc) -> bool:

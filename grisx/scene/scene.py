@@ -60,6 +60,7 @@ from grisx.scene.material import (
     MATERIAL_ANISOTROPIC,
     MATERIAL_BUMPMAP,
     MATERIAL_NORMALMAP,
+    MATERIAL_REFLECTANCE_TEXTURE,
     MATERIAL_SCALAR_TEXTURES,
     SCENE_ANALYTIC_SHAPES,
     SCENE_DELTA_LIGHTS,
@@ -744,6 +745,7 @@ def _make_surface(kinds: frozenset[int]) -> SurfaceFuncs:
     has_perturb = bool(kinds & {MATERIAL_NORMALMAP, MATERIAL_BUMPMAP})
     has_anisotropic = MATERIAL_ANISOTROPIC in kinds
     has_scalars = MATERIAL_SCALAR_TEXTURES in kinds
+    has_reflectance_texture = MATERIAL_REFLECTANCE_TEXTURE in kinds
 
     @wp.func
     def resolve_wrappers(scene: SceneData, m: Material, si: SurfaceInteraction) -> Material:
@@ -793,8 +795,9 @@ def _make_surface(kinds: frozenset[int]) -> SurfaceFuncs:
         """The material at ``si`` with its texture (if any) resolved into ``reflectance`` (:func:`surface_texture`), and
         its wrappers' textures (``resolve_wrappers``)."""
         m = scene.materials[si.material]
-        if m.texture >= 0:
-            m.reflectance = surface_texture(scene, m.texture, si)
+        if wp.static(has_reflectance_texture):
+            if m.texture >= 0:
+                m.reflectance = surface_texture(scene, m.texture, si)
         return resolve_wrappers(scene, m, si)
 
     @wp.func

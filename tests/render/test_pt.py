@@ -18,6 +18,7 @@ from grisx.scene.builtin import BUILTIN_SCENES, build_builtin
 from grisx.scene.camera import Camera, CameraData, camera_ray, lookat
 from grisx.scene.lights import ConstantEnvironment
 from grisx.scene.material import (
+    MATERIAL_REFLECTANCE_TEXTURE,
     MATERIAL_SCALAR_TEXTURES,
     SCENE_ANALYTIC_SHAPES,
     SCENE_DELTA_LIGHTS,
@@ -165,10 +166,11 @@ def test_kernels_specialised_on_the_scene_kinds_give_the_same_image(monkeypatch)
 
 #: conformance scenes whose materials resolve something at the hit, by what: a textured mask opacity, a textured α, a
 #: diffuse blend, a principled BSDF's textured lobes, a normal map (a bump map shares its code), an anisotropic rough conductor,
+#: textured reflectances (a checkerboard and a bitmap),
 #: and the scene pseudo-kinds: analytic spheres and a disk (the ray queries' shapes), an environment map, delta lights, a
 #: textured area emitter (light sampling)
 WRAPPER_SCENES = ("mask_checkerboard", "roughdielectric_textured", "blendbsdf", "principled", "normalmap", "roughconductor_anisotropic",
-                  "sphere_mirror", "envmap", "delta_lights", "area_texture")
+                  "checkerboard", "sphere_mirror", "envmap", "delta_lights", "area_texture")
 
 
 @pytest.mark.parametrize("case", WRAPPER_SCENES)
@@ -184,16 +186,19 @@ def test_surfaces_specialised_on_the_scene_kinds_give_the_same_image(case, monke
     np.testing.assert_array_equal(PathTracer(built, 16, 12, spp=2, seed=3, max_depth=4).render_frame(0).numpy(), every)
 
 
-def test_surfaces_without_their_scalar_textures_are_caught():
-    # the sibling: the textured mask's scene compiled without MATERIAL_SCALAR_TEXTURES renders another image
-    built = load_mitsuba(CONFORMANCE / "mask_checkerboard.xml").build("cpu")
+@pytest.mark.parametrize("case,kind", [("mask_checkerboard", MATERIAL_SCALAR_TEXTURES), ("checkerboard", MATERIAL_REFLECTANCE_TEXTURE)],
+                         ids=["scalar-textures", "reflectance-texture"])
+def test_surfaces_without_their_texture_kind_are_caught(case, kind):
+    # the siblings: the textured mask's scene compiled without MATERIAL_SCALAR_TEXTURES, the checkerboards' without
+    # MATERIAL_REFLECTANCE_TEXTURE, render another image
+    built = load_mitsuba(CONFORMANCE / f"{case}.xml").build("cpu")
     kinds = built.features.material_kinds
-    assert MATERIAL_SCALAR_TEXTURES in kinds
+    assert kind in kinds
 
     def image(kinds: frozenset[int]) -> np.ndarray:
         return PathTracer(built, 16, 12, spp=2, seed=3, max_depth=4, kinds=kinds).render_frame(0).numpy()
 
-    assert not np.array_equal(image(kinds - {MATERIAL_SCALAR_TEXTURES}), image(kinds))
+    assert not np.array_equal(image(kinds - {kind}), image(kinds))
 
 
 @pytest.mark.parametrize("case,kind", [("sphere_mirror", SCENE_ANALYTIC_SHAPES), ("envmap", SCENE_ENVMAP), ("delta_lights", SCENE_DELTA_LIGHTS),

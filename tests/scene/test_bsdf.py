@@ -75,6 +75,7 @@ from grisx.scene.material import (
     MATERIAL_MASK,
     MATERIAL_NORMALMAP,
     MATERIAL_NULL,
+    MATERIAL_REFLECTANCE_TEXTURE,
     MATERIAL_SCALAR_TEXTURES,
     _pack_one,
     conductor_material,
@@ -916,7 +917,7 @@ def test_material_records_and_packing():
     assert conductor_material("none") == ((0.0, 0.0, 0.0), (1.0, 1.0, 1.0))
     assert Conductor().eta == (0.0, 0.0, 0.0) and Conductor().k == (1.0, 1.0, 1.0)
     descs = [Diffuse(TextureRef(3)), Conductor(), RoughDielectric(two_sided=True), Diffuse(two_sided=True)]
-    assert material_kinds(descs) == {MATERIAL_DIFFUSE, MATERIAL_CONDUCTOR, MATERIAL_ROUGH_DIELECTRIC}
+    assert material_kinds(descs) == {MATERIAL_DIFFUSE, MATERIAL_CONDUCTOR, MATERIAL_ROUGH_DIELECTRIC, MATERIAL_REFLECTANCE_TEXTURE}  # a textured ρ
     assert material_kinds([RoughConductor(), Dielectric()]) == {MATERIAL_ROUGH_CONDUCTOR, MATERIAL_DIELECTRIC}
     packed = pack_materials(descs, "cpu").numpy()
     assert packed["texture"].tolist() == [3, -1, -1, -1] and packed["two_sided"].tolist() == [0, 0, 1, 1]
@@ -1090,7 +1091,7 @@ def test_smooth_plastic_splits_its_lobes_and_samples_its_pdf(theta, device):
 
 def test_plastic_kinds_flags_and_packing(device):
     descs = [Plastic(diffuse_reflectance=TextureRef(2), diffuse_mean=0.25), RoughPlastic(alpha=0.35), Plastic(specular_reflectance=0.5)]
-    assert material_kinds(descs) == {MATERIAL_PLASTIC, MATERIAL_ROUGH_PLASTIC}
+    assert material_kinds(descs) == {MATERIAL_PLASTIC, MATERIAL_ROUGH_PLASTIC, MATERIAL_REFLECTANCE_TEXTURE}  # the textured diffuse ρ
     mats = pack_materials(descs, device)
     packed = mats.numpy()
     assert packed["texture"].tolist() == [2, -1, -1]
@@ -1453,7 +1454,7 @@ def test_pplastic_albedo_from_sampling_and_from_eval_agree_and_conserve_energy(d
 def test_pplastic_kinds_packing_and_refusals():
     descs = [PolarizedPlastic(diffuse_reflectance=TextureRef(4), diffuse_mean=0.25, alpha=TextureRef(2)),
              PolarizedPlastic(alpha_u=0.1, alpha_v=TextureRef(3), specular_reflectance=(0.2, 0.4, 0.6))]
-    assert material_kinds(descs) == {MATERIAL_PPLASTIC, 12, MATERIAL_SCALAR_TEXTURES}  # 12: the anisotropic pseudo-kind of the second
+    assert material_kinds(descs) == {MATERIAL_PPLASTIC, 12, MATERIAL_SCALAR_TEXTURES, MATERIAL_REFLECTANCE_TEXTURE}  # 12: the anisotropic pseudo-kind of the second
     packed = pack_materials(descs, "cpu").numpy()
     assert packed["kind"].tolist() == [MATERIAL_PPLASTIC] * 2 and packed["texture"].tolist() == [4, -1]
     assert packed["alpha_u_texture"].tolist() == [2, -1] and packed["alpha_v_texture"].tolist() == [2, 3]
