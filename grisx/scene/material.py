@@ -55,7 +55,8 @@ likewise ``MATERIAL_ANISOTROPIC`` where some rough conductor has α_u ≠ α_v,
 BSDF's textured lobes). The ``SCENE_*`` pseudo-kinds are the scene's, not a
 material's (:class:`~grisx.scene.scene.SceneFeatures` adds them): analytic shapes
 (the ray queries compile the shapes in), delta lights, an environment map and
-textured emitters (light sampling compiles their code in).
+textured emitters (light sampling compiles their code in), and objects that move
+(shifts across frames compile their suffix replay in).
 
 Every record carries ``two_sided`` (set by the loader for Mitsuba's
 ``twosided`` wrapper): a one-sided reflecting BSDF is black seen from the back,
@@ -145,6 +146,7 @@ __all__ = [
     "SCENE_DELTA_LIGHTS",
     "SCENE_ENVMAP",
     "SCENE_EMITTER_TEXTURES",
+    "SCENE_MOVING_OBJECTS",
     "SCENE_KINDS",
     "MATERIAL_PPLASTIC",
     "MATERIAL_BLEND",
@@ -233,8 +235,11 @@ SCENE_DELTA_LIGHTS = wp.constant(25)
 SCENE_ENVMAP = wp.constant(26)
 #: an area emitter with a radiance image: emission compiles its texture lookup in (``make_lights``)
 SCENE_EMITTER_TEXTURES = wp.constant(27)
+#: objects that move between frames: shifts across frames compile the suffix replay that tests what moved in
+#: (``make_path_shift``'s ``suffix_moved``)
+SCENE_MOVING_OBJECTS = wp.constant(28)
 #: the scene pseudo-kinds
-SCENE_KINDS: tuple[int, ...] = (SCENE_ANALYTIC_SHAPES, SCENE_DELTA_LIGHTS, SCENE_ENVMAP, SCENE_EMITTER_TEXTURES)
+SCENE_KINDS: tuple[int, ...] = (SCENE_ANALYTIC_SHAPES, SCENE_DELTA_LIGHTS, SCENE_ENVMAP, SCENE_EMITTER_TEXTURES, SCENE_MOVING_OBJECTS)
 #: the wrapper pseudo-kinds
 MATERIAL_WRAPPERS: tuple[int, ...] = (MATERIAL_MASK, MATERIAL_NORMALMAP, MATERIAL_BUMPMAP)
 #: Material.perturb values: no perturbation, a normal map, a bump map
@@ -293,6 +298,7 @@ MATERIAL_KIND_NAMES: dict[int, str] = {
     SCENE_DELTA_LIGHTS: "delta lights",
     SCENE_ENVMAP: "envmap",
     SCENE_EMITTER_TEXTURES: "emitter textures",
+    SCENE_MOVING_OBJECTS: "moving objects",
 }
 
 #: every kind a kernel can be compiled for

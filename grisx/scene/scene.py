@@ -66,6 +66,7 @@ from grisx.scene.material import (
     SCENE_DELTA_LIGHTS,
     SCENE_EMITTER_TEXTURES,
     SCENE_ENVMAP,
+    SCENE_MOVING_OBJECTS,
     MATERIAL_CONDUCTOR,
     MATERIAL_DIELECTRIC,
     MATERIAL_MASK,
@@ -1077,6 +1078,7 @@ class Scene:
             SCENE_DELTA_LIGHTS: bool(self.point_lights),
             SCENE_ENVMAP: env == "envmap",
             SCENE_EMITTER_TEXTURES: any(_textured_emission(o.emission) for o in self.objects),
+            SCENE_MOVING_OBJECTS: any(o.motion is not None for o in self.objects),
         }
         return SceneFeatures(
             material_kinds=(used_kinds or kinds) | {k for k, has in scene_kinds.items() if has},

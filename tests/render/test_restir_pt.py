@@ -170,3 +170,26 @@ def test_params_are_checked():
         render("cornell-box", "restir-pt", res=(8, 8), params={"candidates": 0})
     with pytest.raises(UnknownNameError):
         render("cornell-box", "restir-pt", res=(8, 8), params={"bounces": 3})
+
+
+def test_the_suffix_replay_is_compiled_only_for_scenes_whose_objects_move(monkeypatch):
+    """Shifts across frames replay a reused suffix to test it against what moved (``suffix_moved``); that replay, a
+    path walk in every temporal stage, is compiled only where the scene's kinds hold SCENE_MOVING_OBJECTS. A static
+    scene renders the same with its kinds as with every kind; the scene whose boxes slide, compiled without the
+    pseudo-kind (the sibling), reuses suffixes through what moved and renders another image."""
+    from reuse_checks import HARD_SCENES
+
+    from grisx.scene.material import SCENE_MOVING_OBJECTS, kernel_kinds
+    from grisx.scene.scene import SceneFeatures
+
+    moving = HARD_SCENES["cornell-box-fast-objects"]()
+    assert SCENE_MOVING_OBJECTS in moving.features().material_kinds
+    assert SCENE_MOVING_OBJECTS not in build_builtin("cornell-box").features().material_kinds
+
+    def image(scene, kinds: str, drop: frozenset[int] = frozenset()) -> np.ndarray:
+        monkeypatch.setenv("GRISX_KERNEL_KINDS", kinds)
+        monkeypatch.setattr(SceneFeatures, "kernel_kinds", property(lambda f: kernel_kinds(f.material_kinds) - drop))
+        return render(scene, "restir-pt", frames=4, seed=3, res=(16, 12)).image
+
+    np.testing.assert_array_equal(image("cornell-box", "scene"), image("cornell-box", "all"))
+    assert not np.array_equal(image(moving, "scene", frozenset({SCENE_MOVING_OBJECTS})), image(moving, "all"))

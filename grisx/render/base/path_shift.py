@@ -113,7 +113,7 @@ from grisx.render.base.screen import kernel_cache
 from grisx.errors import InvalidParameterError
 from grisx.scene.bsdf import make_bsdf
 from grisx.scene.frame import frame_from_normal, to_local, to_world
-from grisx.scene.material import Material
+from grisx.scene.material import SCENE_MOVING_OBJECTS, Material
 from grisx.scene.lights import DeltaArrival, light_pdf_emitter, luminance, make_lights
 from grisx.scene.scene import (
     SceneData,
@@ -703,7 +703,7 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
 
     # ---- shifts across frames: the reused suffix must be the same path in both ----
     @wp.func
-    def suffix_moved(scene: SceneData, x: PathSample) -> bool:
+    def suffix_replay_moved(scene: SceneData, x: PathSample) -> bool:
         """Across frames (``scene.moved_count`` > 0): whether x's suffix x_k … x_n, which a reconnection reuses
         as it is, runs through a box of what moved in between (:func:`~grisx.scene.scene.motion_on_segment`).
 
@@ -748,6 +748,14 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
             v = vertex_from_hit(si, -d)
             i += 1
         return False
+
+    @wp.func
+    def nothing_moves(scene: SceneData, x: PathSample) -> bool:
+        """``suffix_moved`` of a scene whose objects never move: no suffix meets what moved."""
+        return False
+
+    # the replay is a whole path walk inlined into every temporal stage: only for scenes with moving objects
+    suffix_moved = suffix_replay_moved if SCENE_MOVING_OBJECTS in key else nothing_moves
 
     @wp.func
     def shift_across(scene: SceneData, dst: Domain, x: PathSample, sp: ShiftParams) -> PathShiftResult:
