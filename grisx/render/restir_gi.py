@@ -179,7 +179,7 @@ from grisx.device import PATH_REGISTERS, specialized_module
 from grisx.params import Param
 from grisx.render.base.registry import RenderMethod, composed_direct, create_renderer, register, renderer_params
 from grisx.scene.bsdf import MATERIAL_ROUGH_DIELECTRIC, cosine_hemisphere_pdf, make_bsdf, sample_cosine_hemisphere
-from grisx.scene.material import MATERIAL_PRINCIPLED, MATERIAL_PRINCIPLED_THIN
+from grisx.scene.material import MATERIAL_PRINCIPLED, MATERIAL_PRINCIPLED_THIN, SCENE_MOVING_OBJECTS
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.gbuffer import GBuffer, GBufferData
 from grisx.scene.lights import luminance, make_lights
@@ -372,8 +372,10 @@ class SampleRadiance:
 
 
 @kernel_cache
-def make_restir_gi_kernels(kinds: frozenset[int], moving: bool = False) -> Any:
-    """ReSTIR GI's functions and kernels compiled for the material kinds ``kinds`` (cached)."""
+def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
+    """ReSTIR GI's functions and kernels compiled for the material kinds ``kinds`` (cached; with SCENE_MOVING_OBJECTS,
+    the box of what each L_o depends on)."""
+    moving = SCENE_MOVING_OBJECTS in kinds
     bsdf = make_bsdf(kinds)
     surface = make_surface(kinds)  # the wrappers and shapes of these kinds only
     lights = make_lights(kinds)  # the lights of these kinds only
@@ -740,7 +742,7 @@ def make_restir_gi_kernels(kinds: frozenset[int], moving: bool = False) -> Any:
         tile = (y // _TILE_H) * ((width + _TILE_W - 1) // _TILE_W) + x // _TILE_W
         return int(random_uniform(random_subkey(frame_key(sf, 1), tile), 0) < mb_fraction)
 
-    module = specialized_module(__name__ + (".moving" if moving else ""), kinds)
+    module = specialized_module(__name__, kinds)
 
     # ---- the initial pass (Alg. 2) in three stages, one path tracer each: validation, direct light, the sample ----
     @wp.kernel(module=module, cuda_max_registers=PATH_REGISTERS)
@@ -1241,7 +1243,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
         self.max_jacobian = float(max_jacobian)
         self.jitter = bool(jitter)
         self.timer = timer
-        self.k = make_restir_gi_kernels(built.features.kernel_kinds, built.features.animated_objects)
+        self.k = make_restir_gi_kernels(built.features.kernel_kinds)
         dev = self.device = built.device
         shape = (self.height, self.width)
         self.di = None

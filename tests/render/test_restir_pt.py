@@ -172,11 +172,13 @@ def test_params_are_checked():
         render("cornell-box", "restir-pt", res=(8, 8), params={"bounces": 3})
 
 
-def test_the_suffix_replay_is_compiled_only_for_scenes_whose_objects_move(monkeypatch):
-    """Shifts across frames replay a reused suffix to test it against what moved (``suffix_moved``); that replay, a
-    path walk in every temporal stage, is compiled only where the scene's kinds hold SCENE_MOVING_OBJECTS. A static
-    scene renders the same with its kinds as with every kind; the scene whose boxes slide, compiled without the
-    pseudo-kind (the sibling), reuses suffixes through what moved and renders another image."""
+@pytest.mark.parametrize("method", ["restir-pt", "restir-gi"])
+def test_the_motion_tests_are_compiled_only_for_scenes_whose_objects_move(method, monkeypatch):
+    """Shifts across frames test what they reuse against what moved: ReSTIR PT replays a reused suffix
+    (``suffix_moved``, a path walk in every temporal stage), ReSTIR GI keeps the box of the path behind each L_o. Both
+    are compiled only where the scene's kinds hold SCENE_MOVING_OBJECTS. A static scene renders the same with its kinds
+    as with every kind; the scene whose boxes slide, compiled without the pseudo-kind (the sibling), reuses what moved
+    and renders another image."""
     from reuse_checks import HARD_SCENES
 
     from grisx.scene.material import SCENE_MOVING_OBJECTS, kernel_kinds
@@ -189,7 +191,7 @@ def test_the_suffix_replay_is_compiled_only_for_scenes_whose_objects_move(monkey
     def image(scene, kinds: str, drop: frozenset[int] = frozenset()) -> np.ndarray:
         monkeypatch.setenv("GRISX_KERNEL_KINDS", kinds)
         monkeypatch.setattr(SceneFeatures, "kernel_kinds", property(lambda f: kernel_kinds(f.material_kinds) - drop))
-        return render(scene, "restir-pt", frames=4, seed=3, res=(16, 12)).image
+        return render(scene, method, frames=4, seed=3, res=(16, 12)).image
 
     np.testing.assert_array_equal(image("cornell-box", "scene"), image("cornell-box", "all"))
     assert not np.array_equal(image(moving, "scene", frozenset({SCENE_MOVING_OBJECTS})), image(moving, "all"))
