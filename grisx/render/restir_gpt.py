@@ -280,7 +280,8 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         e = _axis(orient)
         ukey = pixel_key_of(seed, frame, x, y, w, _STREAM_PAIR_INITIAL + orient)
         # (y_i, 0) and (y_j, 1): each pixel's canonical sample with its UCW, alone on its half of X (m = 1)
-        for k in range(2):
+        sides = int(2)  # a dynamic bound: Warp unrolls a constant range, and this body inlines a shift (pair_value_at)
+        for k in range(sides):
             px = x + k * e[0]
             py = y + k * e[1]
             pr = canonical[py, px]
@@ -354,7 +355,8 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
                             ny = nb.y
         if nx < 0:
             return
-        for slot in range(2):
+        slots = int(2)  # dynamic bounds here: Warp unrolls a constant range, and each ``outer`` inlines two shifts
+        for slot in range(slots):
             if slot == 0 or positivize != 0:
                 sign = pair_slot_sign(positivize, slot)
                 mine = own[slot, orient, y, x]
@@ -374,23 +376,22 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
                 r = pair_update(r, sign, luminance(mine.value), pair_balance_mis(b, c_own), mine.res.ucw, 1.0, c_own, random_uniform(ukey, 0))
                 res = keep(r, as_candidate(mine))
                 # the source pair's reservoirs of this sign (and of the other, across signs) through T*
-                for input_e in range(2):
-                    if input_e < n_src:
-                        theirs = src[pair_input_slot(slot, input_e), orient, ny, nx]
-                        c_e = c_same
-                        if input_e == 1:
-                            c_e = c_other
-                        cand = outer(scene, cam, x, y, orient, theirs.film, to_dst, theirs.k, theirs.path, sp, use_outer_jacobian, symmetric)
-                        inv_j = float(0.0)
-                        if cand.valid:
-                            inv_j = 1.0 / cand.jacobian
-                        b = pair_balance_empty()
-                        b = pair_balance_add(b, sign, 1, c_own, 0.0, luminance(cand.value), 1.0, cand.valid, -1)
-                        b = pair_balance_add(b, sign, n_src, c_same, c_other, luminance(theirs.value), inv_j, cand.valid, input_e)
-                        mis = pair_balance_mis(b, c_e)
-                        r = pair_update(r, sign, luminance(cand.value), mis, theirs.res.ucw, cand.jacobian, c_e, random_uniform(ukey, 1 + input_e))  # Eq. 20
-                        if r.selected:
-                            res = keep(r, cand)
+                for input_e in range(n_src):  # 1 or 2 (pair_source_inputs)
+                    theirs = src[pair_input_slot(slot, input_e), orient, ny, nx]
+                    c_e = c_same
+                    if input_e == 1:
+                        c_e = c_other
+                    cand = outer(scene, cam, x, y, orient, theirs.film, to_dst, theirs.k, theirs.path, sp, use_outer_jacobian, symmetric)
+                    inv_j = float(0.0)
+                    if cand.valid:
+                        inv_j = 1.0 / cand.jacobian
+                    b = pair_balance_empty()
+                    b = pair_balance_add(b, sign, 1, c_own, 0.0, luminance(cand.value), 1.0, cand.valid, -1)
+                    b = pair_balance_add(b, sign, n_src, c_same, c_other, luminance(theirs.value), inv_j, cand.valid, input_e)
+                    mis = pair_balance_mis(b, c_e)
+                    r = pair_update(r, sign, luminance(cand.value), mis, theirs.res.ucw, cand.jacobian, c_e, random_uniform(ukey, 1 + input_e))  # Eq. 20
+                    if r.selected:
+                        res = keep(r, cand)
                 res.res = reservoir_finalize(r)
                 out[slot, orient, y, x] = res
 

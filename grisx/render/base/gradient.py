@@ -121,7 +121,8 @@ def make_gradient_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         primal[y, x] = primal[y, x] + finite_or_dropped(L, nonfinite) * scale
         t_a = path_target(pr.path)
         same_film = fs.offset == fs_direct.offset and fs.lens == fs_direct.lens
-        for slot in range(4):
+        slots = int(4)  # a dynamic bound: Warp unrolls a constant range, and this body inlines a shift and two camera rays
+        for slot in range(slots):
             o = _neighbor(slot)
             bx = x + o[0]
             by = y + o[1]
