@@ -114,6 +114,13 @@ toward the light; ``dist`` is 1e30 for the environment (whose ``p`` holds the
 direction). A sample with ``pdf == 0`` is invalid (no light, zero power,
 degenerate geometry) and must be skipped.
 
+Renderers' kernels take ``sample_light``, ``sample_given_light``, ``emitter_radiance``,
+``environment_eval``, ``environment_pdf`` and ``delta_light_arrival`` from
+:func:`make_lights` with their scene's kinds, which compiles each kind of light
+only where the scene has it (the ``SCENE_*`` pseudo-kinds of
+:mod:`grisx.scene.material`); the module-level functions of the same names have
+every kind compiled in.
+
 References: M. Pharr, W. Jakob, G. Humphreys, *Physically Based Rendering*,
 4th ed. (2023), §4.2 (solid angle ↔ area), §12.2–12.5 (light sampling,
 ``PowerLightSampler``, ``ImageInfiniteLight``); W. Jakob et al., Mitsuba 3,
