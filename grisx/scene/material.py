@@ -49,7 +49,8 @@ A wrapper may hold another wrapper of a different type (``Mask(NormalMap(...))``
 nested kinds, so a dispatch compiles the wrapper code only for scenes that use it;
 likewise ``MATERIAL_ANISOTROPIC`` where some rough conductor has α_u ≠ α_v,
 ``MATERIAL_REFLECTANCE_TEXTURE`` where some reflectance is a texture
-(:func:`has_reflectance_texture`), and
+(:func:`has_reflectance_texture`), ``MATERIAL_PROCEDURAL_BUMP`` where some
+material has a procedural bump (:func:`has_procedural_bump`), and
 ``MATERIAL_SCALAR_TEXTURES`` where some material resolves scalars at the hit
 (:func:`resolves_scalars`: a textured mask opacity or α, a blend, a principled
 BSDF's textured lobes). The ``SCENE_*`` pseudo-kinds are the scene's, not a
@@ -142,6 +143,7 @@ __all__ = [
     "MATERIAL_ANISOTROPIC",
     "MATERIAL_SCALAR_TEXTURES",
     "MATERIAL_REFLECTANCE_TEXTURE",
+    "MATERIAL_PROCEDURAL_BUMP",
     "SCENE_ANALYTIC_SHAPES",
     "SCENE_DELTA_LIGHTS",
     "SCENE_ENVMAP",
@@ -214,6 +216,9 @@ MATERIAL_SCALAR_TEXTURES = wp.constant(13)
 #: a feature pseudo-kind: some material's reflectance is a texture (a diffuse reflectance, a plastic's diffuse
 #: reflectance, a principled base colour): ``surface_material`` compiles the texture lookup in only then
 MATERIAL_REFLECTANCE_TEXTURE = wp.constant(14)
+#: a feature pseudo-kind: some material has a procedural bump (``bump_amplitude`` > 0: seed 003's caustic casters):
+#: ``intersect`` perturbs the shading normal, and the caustics differentiate it, only then
+MATERIAL_PROCEDURAL_BUMP = wp.constant(15)
 # ---- principled (grisx.scene.principled); ids 16, 17 leave room for kinds added beside them
 #: Mitsuba 3's ``principled`` and ``principledthin`` (Disney's principled BSDF, Burley 2012, 2015)
 MATERIAL_PRINCIPLED = wp.constant(16)
@@ -264,6 +269,7 @@ MATERIAL_KINDS: tuple[int, ...] = (
     MATERIAL_ANISOTROPIC,
     MATERIAL_SCALAR_TEXTURES,
     MATERIAL_REFLECTANCE_TEXTURE,
+    MATERIAL_PROCEDURAL_BUMP,
     MATERIAL_PRINCIPLED,
     MATERIAL_PRINCIPLED_THIN,
     MATERIAL_PPLASTIC,
@@ -290,6 +296,7 @@ MATERIAL_KIND_NAMES: dict[int, str] = {
     MATERIAL_ANISOTROPIC: "anisotropic",
     MATERIAL_SCALAR_TEXTURES: "scalar textures",
     MATERIAL_REFLECTANCE_TEXTURE: "reflectance texture",
+    MATERIAL_PROCEDURAL_BUMP: "procedural bump",
     MATERIAL_PRINCIPLED: "principled",
     MATERIAL_PRINCIPLED_THIN: "principledthin",
     MATERIAL_PPLASTIC: "pplastic",
@@ -913,6 +920,8 @@ def material_kinds(descs: Iterable[MaterialDesc]) -> set[int]:
             kinds.add(MATERIAL_SCALAR_TEXTURES)
         if has_reflectance_texture(d):
             kinds.add(MATERIAL_REFLECTANCE_TEXTURE)
+        if has_procedural_bump(d):
+            kinds.add(MATERIAL_PROCEDURAL_BUMP)
         if is_general_blend(unwrap(d)[0]):  # plugins2: the second BSDF's kind compiled in too
             kinds.update((MATERIAL_BLEND, material_kind(unwrap(d)[0].bsdf1)))
     return kinds
@@ -937,6 +946,14 @@ def has_reflectance_texture(desc: MaterialDesc) -> bool:
     if isinstance(inner, BlendBSDF):
         inner = inner.bsdf0
     return any(isinstance(getattr(inner, name, None), TextureRef) for name in ("reflectance", "diffuse_reflectance", "base_color"))
+
+
+def has_procedural_bump(desc: MaterialDesc) -> bool:
+    """Whether ``desc``'s packed record has a procedural bump (``bump_amplitude`` > 0; a blend's: its first BSDF's)."""
+    inner, _ = unwrap(desc)
+    if isinstance(inner, BlendBSDF):
+        inner = inner.bsdf0
+    return getattr(inner, "bump_amplitude", 0.0) > 0.0
 
 
 def is_anisotropic(desc: MaterialDesc) -> bool:

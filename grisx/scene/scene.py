@@ -60,6 +60,7 @@ from grisx.scene.material import (
     MATERIAL_ANISOTROPIC,
     MATERIAL_BUMPMAP,
     MATERIAL_NORMALMAP,
+    MATERIAL_PROCEDURAL_BUMP,
     MATERIAL_REFLECTANCE_TEXTURE,
     MATERIAL_SCALAR_TEXTURES,
     SCENE_ANALYTIC_SHAPES,
@@ -368,8 +369,9 @@ def perturb_normal_derivative(n: wp.vec3, dn: wp.vec3, p: wp.vec3, dp: wp.vec3, 
 
 
 @functools.cache
-def _make_ray_queries(shapes: bool) -> tuple[Any, ...]:
-    """The ray queries (the last fields of :class:`SurfaceFuncs`, in its order) with or without the analytic shapes."""
+def _make_ray_queries(shapes: bool, bump: bool) -> tuple[Any, ...]:
+    """The ray queries (the last fields of :class:`SurfaceFuncs`, in its order) with or without the analytic shapes,
+    and with or without the materials' procedural bump."""
     # the analytic-shape queries (a BVH traversal and three quadrics) only where the scene has shapes: each query is
     # inlined at every call site of every kernel, and a scene without shapes would compile them for nothing
     # (benchmarks/README, "A compile-time regression")
@@ -431,9 +433,10 @@ def _make_ray_queries(shapes: bool) -> tuple[Any, ...]:
         mat_id = scene.tri_material[si.tri]
         si.material = mat_id
         si.object = scene.tri_object[si.tri]
-        mat = scene.materials[mat_id]
-        if mat.bump_amplitude > 0.0:
-            ns = perturb_normal(ns, si.p, mat.bump_amplitude, mat.bump_frequency)
+        if wp.static(bump):
+            mat = scene.materials[mat_id]
+            if mat.bump_amplitude > 0.0:
+                ns = perturb_normal(ns, si.p, mat.bump_amplitude, mat.bump_frequency)
         if wp.dot(ns, ng) < 0.0:
             ns = -ns
         si.ns = ns
@@ -489,9 +492,10 @@ def _make_ray_queries(shapes: bool) -> tuple[Any, ...]:
             db1 = (g00 * r1 - g01 * r0) / det
             dbig = (scene.normals[i0] - n2) * db0 + (scene.normals[i1] - n2) * db1
             dn = (dbig - n * wp.dot(n, dbig)) / length
-        if mat.bump_amplitude > 0.0:
-            dn = perturb_normal_derivative(n, dn, si.p, dp, mat.bump_amplitude, mat.bump_frequency)
-            n = perturb_normal(n, si.p, mat.bump_amplitude, mat.bump_frequency)
+        if wp.static(bump):
+            if mat.bump_amplitude > 0.0:
+                dn = perturb_normal_derivative(n, dn, si.p, dp, mat.bump_amplitude, mat.bump_frequency)
+                n = perturb_normal(n, si.p, mat.bump_amplitude, mat.bump_frequency)
         c = wp.dot(n, si.ns)
         if wp.abs(c) < 0.99999:
             return zero  # n_s is not this normal: something else perturbed it
@@ -806,14 +810,14 @@ def _make_surface(kinds: frozenset[int]) -> SurfaceFuncs:
         """The material of a stored surface point (:func:`stored_surface`) with its textures resolved, as at the hit."""
         return surface_material(scene, stored_surface(scene, material, uv, tri, p, ns, ng))
 
-    return SurfaceFuncs(surface_material, surface_material_at, *_make_ray_queries(SCENE_ANALYTIC_SHAPES in kinds))
+    return SurfaceFuncs(surface_material, surface_material_at, *_make_ray_queries(SCENE_ANALYTIC_SHAPES in kinds, MATERIAL_PROCEDURAL_BUMP in kinds))
 
 
 def make_surface(kinds: Iterable[int]) -> SurfaceFuncs:
     """``surface_material`` / ``surface_material_at`` and the ray queries (``intersect``, ``occluded``,
     ``segment_occluded``, ``light_occluded``, ``shading_normal_derivative``) for the kinds ``kinds`` (the material kinds
-    with their wrapper and feature pseudo-kinds: normal/bump maps, anisotropy, scalar textures, and
-    ``SCENE_ANALYTIC_SHAPES``), cached per set. A renderer's kernels take them from here with their BSDF dispatch
+    with their wrapper and feature pseudo-kinds: normal/bump maps, anisotropy, scalar and reflectance textures, a
+    procedural bump, and ``SCENE_ANALYTIC_SHAPES``), cached per set. A renderer's kernels take them from here with their BSDF dispatch
     (``make_bsdf``); a scene whose kinds lack a pseudo-kind has no such material, or no analytic shape."""
     return _make_surface(frozenset(int(k) for k in kinds))
 

@@ -18,6 +18,7 @@ from grisx.scene.builtin import BUILTIN_SCENES, build_builtin
 from grisx.scene.camera import Camera, CameraData, camera_ray, lookat
 from grisx.scene.lights import ConstantEnvironment
 from grisx.scene.material import (
+    MATERIAL_PROCEDURAL_BUMP,
     MATERIAL_REFLECTANCE_TEXTURE,
     MATERIAL_SCALAR_TEXTURES,
     SCENE_ANALYTIC_SHAPES,
@@ -166,11 +167,16 @@ def test_kernels_specialised_on_the_scene_kinds_give_the_same_image(monkeypatch)
 
 #: conformance scenes whose materials resolve something at the hit, by what: a textured mask opacity, a textured α, a
 #: diffuse blend, a principled BSDF's textured lobes, a normal map (a bump map shares its code), an anisotropic rough conductor,
-#: textured reflectances (a checkerboard and a bitmap),
+#: textured reflectances (a checkerboard and a bitmap), a procedural bump (caustic-slab),
 #: and the scene pseudo-kinds: analytic spheres and a disk (the ray queries' shapes), an environment map, delta lights, a
 #: textured area emitter (light sampling)
 WRAPPER_SCENES = ("mask_checkerboard", "roughdielectric_textured", "blendbsdf", "principled", "normalmap", "roughconductor_anisotropic",
-                  "checkerboard", "sphere_mirror", "envmap", "delta_lights", "area_texture")
+                  "checkerboard", "sphere_mirror", "envmap", "delta_lights", "area_texture", "caustic-slab")
+
+
+def _scene(case: str):
+    """A conformance scene file by name, or a built-in scene (``caustic-slab``: seed 003's bumped glass)."""
+    return build_builtin(case) if case in BUILTIN_SCENES else load_mitsuba(CONFORMANCE / f"{case}.xml")
 
 
 @pytest.mark.parametrize("case", WRAPPER_SCENES)
@@ -179,19 +185,20 @@ def test_surfaces_specialised_on_the_scene_kinds_give_the_same_image(case, monke
     queries their analytic shapes and light sampling each kind of light only where the scene's kinds name them
     (``make_surface``, ``make_lights``); the suite's all-kinds kernels cannot see a pseudo-kind the loader forgot, so
     each such scene is rendered both ways here."""
-    built = load_mitsuba(CONFORMANCE / f"{case}.xml").build("cpu")
+    built = _scene(case).build("cpu")
     monkeypatch.setenv("GRISX_KERNEL_KINDS", "all")
     every = PathTracer(built, 16, 12, spp=2, seed=3, max_depth=4).render_frame(0).numpy()
     monkeypatch.setenv("GRISX_KERNEL_KINDS", "scene")
     np.testing.assert_array_equal(PathTracer(built, 16, 12, spp=2, seed=3, max_depth=4).render_frame(0).numpy(), every)
 
 
-@pytest.mark.parametrize("case,kind", [("mask_checkerboard", MATERIAL_SCALAR_TEXTURES), ("checkerboard", MATERIAL_REFLECTANCE_TEXTURE)],
-                         ids=["scalar-textures", "reflectance-texture"])
-def test_surfaces_without_their_texture_kind_are_caught(case, kind):
+@pytest.mark.parametrize("case,kind", [("mask_checkerboard", MATERIAL_SCALAR_TEXTURES), ("checkerboard", MATERIAL_REFLECTANCE_TEXTURE),
+                                       ("caustic-slab", MATERIAL_PROCEDURAL_BUMP)],
+                         ids=["scalar-textures", "reflectance-texture", "procedural-bump"])
+def test_surfaces_without_their_material_feature_kind_are_caught(case, kind):
     # the siblings: the textured mask's scene compiled without MATERIAL_SCALAR_TEXTURES, the checkerboards' without
-    # MATERIAL_REFLECTANCE_TEXTURE, render another image
-    built = load_mitsuba(CONFORMANCE / f"{case}.xml").build("cpu")
+    # MATERIAL_REFLECTANCE_TEXTURE, the bumped glass slab's without MATERIAL_PROCEDURAL_BUMP, render another image
+    built = _scene(case).build("cpu")
     kinds = built.features.material_kinds
     assert kind in kinds
 
