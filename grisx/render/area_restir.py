@@ -90,7 +90,7 @@ from grisx.render.base.reuse import (
     temporal_neighbor,
 )
 from grisx.render.base.screen import kernel_cache, pixel_key_of
-from grisx.render.restir_pt import ReSTIRPT, confidence_total, make_restir_pt_kernels, path_reservoir
+from grisx.render.restir_pt import ReSTIRPT, confidence_total, finalize_kept, make_restir_pt_kernels
 from grisx.scene.camera import CameraData
 from grisx.scene.gbuffer import GBufferData
 from grisx.scene.scene import SceneData
@@ -194,8 +194,7 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         if code < 0:
             return  # no history: the canonical stage passed the canonical sample through
         nb = domain_pixel(code, g.hit.shape[1])
-        can = canonical[y, x]
-        fs_c = film_can[y, x]
+        can = canonical[y, x]  # its film sample (film_can) is in film_out already, passed through by the canonical stage
         prev = history[nb.y, nb.x]
         ukey = pixel_key_of(seed, frame, x, y, g.hit.shape[1], _STREAM_TEMPORAL)
         c_i = can.res.confidence
@@ -210,16 +209,14 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         m_t = two_domain_balance(c_j, t_tj, c_i, t_ti)
         r = reservoir_empty()
         r = reservoir_update(r, resampling_weight(m_c, t_c, can.res.ucw, 1.0), t_c, c_i, random_uniform(ukey, 0))
-        sel = can.path
-        sel_fs = fs_c
         other = prev.res
         other.confidence = c_j
         r = reservoir_merge(r, other, m_t, t_ti, s_t.jacobian, random_uniform(ukey, 1))  # seed 000, Eq. 9
+        # the kept sample written where it is kept; the canonical stage left the canonical one in out (no path carried)
         if r.selected:
-            sel = s_t.path
-            sel_fs = fs_t
-        out[y, x] = path_reservoir(r, sel)
-        film_out[y, x] = sel_fs
+            out[y, x].path = s_t.path
+            film_out[y, x] = fs_t
+        finalize_kept(out, y, x, r)
 
     # ---- spatial reuse, in two stages (one film shift each): the canonical sample's pairwise weight, then the merge ----
     @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
@@ -285,8 +282,9 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         m_c = m_canonical[y, x]
         r = reservoir_empty()
         r = reservoir_update(r, resampling_weight(m_c, t_c, can.res.ucw, 1.0), t_c, c_c, random_uniform(ukey, 100))
-        sel = can.path
-        sel_fs = fs_c
+        # the kept sample goes to out as it is kept, not carried across the neighbours' shifts
+        out[y, x].path = can.path
+        film_out[y, x] = fs_c
         # each neighbour's sample moved here by the whole-pixel translation, weighted against the canonical
         for j in range(k):
             nb = domain_pixel(codes[y, x, j], width)
@@ -298,10 +296,9 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             m_q = pairwise_mis_neighbor(other.res.confidence, t_qq, c_c, t_qi, k, total)
             r = reservoir_merge(r, other.res, m_q, t_qi, s.jacobian, random_uniform(ukey, 101 + slots[y, x, j]))  # seed 000, Eq. 9
             if r.selected:
-                sel = s.path
-                sel_fs = fs_q
-        out[y, x] = path_reservoir(r, sel)
-        film_out[y, x] = sel_fs
+                out[y, x].path = s.path
+                film_out[y, x] = fs_q
+        finalize_kept(out, y, x, r)
 
     pt = make_restir_pt_kernels(kinds)  # ReSTIR PT's candidate walk, settle and shade passes serve as they are
     return {"primary": primary_pass, "initial": pt["initial"], "settle": pt["settle"], "temporal_canonical": temporal_canonical_pass, "temporal_merge": temporal_merge_pass,

@@ -151,6 +151,14 @@ def path_reservoir(r: Reservoir, path: PathSample) -> PathReservoir:
 
 
 @wp.func
+def finalize_kept(out: wp.array2d(dtype=PathReservoir), y: int, x: int, r: Reservoir):
+    """:func:`path_reservoir` for a pass that wrote the kept path into ``out[y, x].path`` as it kept it (a path carried
+    in registers across the shifts of a merge spilled): the finalized reservoir beside it, and no estimate."""
+    out[y, x].res = reservoir_finalize(r)
+    out[y, x].estimate = wp.vec3(0.0)
+
+
+@wp.func
 def confidence_total(inp: wp.array2d(dtype=PathReservoir), codes: wp.array3d(dtype=wp.int32), y: int, x: int, k: int, c_c: float) -> float:
     """Pairwise MIS's total confidence C = c_c + Σ of the k domains drawn into ``codes`` (in drawing order,
     as the canonical stage summed it)."""
@@ -268,7 +276,7 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
     shifts = make_path_shift(kinds)
     shift = shifts.shift
     shift_across = shifts.shift_across  # between frames: fails where the reused suffix met something that moved
-    sample_paths = shifts.stream_candidates
+    sample_paths = shifts.stream_candidates_kept
     settle = shifts.settle
     est = hooks  # the variant's code is compiled in only where it is not None (wp.static)
     est_temporal = None if hooks is None else hooks.temporal
@@ -315,14 +323,17 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
         pr.path = path_sample_empty()
         pr.estimate = wp.vec3(0.0)
         inv_n = 1.0 / float(candidates)
+        out[y, x] = pr
         if dom.valid != 0:
             for cand in range(candidates):
                 key = pixel_key_of(seed, frame, x, y, width, _STREAM_PATHS + cand)  # the path's seed: shifts replay it
-                pr = sample_paths(scene, dom, key, max_bounces, inv_n, sp, pr, random_subkey(ukey, cand))
+                # the kept candidate goes to out[y, x].path as it is kept (not carried across the walk's rays)
+                pr = sample_paths(scene, dom, key, max_bounces, inv_n, sp, pr, random_subkey(ukey, cand), out, y, x)
             pr.res.confidence = 1.0  # one frame's canonical sample: the unit of the history cap
         else:
             pr.res.confidence = missed_confidence
-        out[y, x] = pr  # finalized by settle_pass: the path walk and the shift are two kernels, not one
+        out[y, x].res = pr.res  # finalized by settle_pass: the path walk and the shift are two kernels, not one
+        out[y, x].estimate = pr.estimate
 
     @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
     def settle_pass(scene: SceneData, sp: ShiftParams, domains: wp.array2d(dtype=Domain), out: wp.array2d(dtype=PathReservoir)):
@@ -406,19 +417,26 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
         m_t = two_domain_balance(c_j, t_tj, c_i, t_ti)
         r = reservoir_empty()
         r = reservoir_update(r, resampling_weight(m_c, t_c, can.res.ucw, 1.0), t_c, c_i, random_uniform(ukey, 0))
-        sel = path_sample_empty()
-        if r.selected:
-            sel = can.path
         other = prev.res
         other.confidence = c_j
-        r = reservoir_merge(r, other, m_t, t_ti, s_t.jacobian, random_uniform(ukey, 1))  # seed 000, Eq. 9
-        if r.selected:
-            sel = s_t.path
-        res = path_reservoir(r, sel)
-        if wp.static(est is not None):
+        if wp.static(est is None):
+            # the kept path written where it is kept, no path carried across the shift: out[y, x] holds the canonical
+            # reservoir already (the canonical stage passed it through)
+            if not r.selected:
+                out[y, x].path = path_sample_empty()
+            r = reservoir_merge(r, other, m_t, t_ti, s_t.jacobian, random_uniform(ukey, 1))  # seed 000, Eq. 9
+            if r.selected:
+                out[y, x].path = s_t.path
+            finalize_kept(out, y, x, r)
+        else:
+            sel = path_sample_empty()
+            if r.selected:
+                sel = can.path
+            r = reservoir_merge(r, other, m_t, t_ti, s_t.jacobian, random_uniform(ukey, 1))
+            if r.selected:
+                sel = s_t.path
             step = TemporalStep(x=x, y=y, nb=nb, can=can, prev=prev, c_j=c_j, s_cj=shifted[y, x], s_t=s_t, m_c=m_c, m_t=m_t)
-            res = est_temporal(cvo, g, g_prev, step, res)
-        out[y, x] = res
+            out[y, x] = est_temporal(cvo, g, g_prev, step, path_reservoir(r, sel))
 
     # ---- spatial reuse, in two stages (one shift each): the canonical path's pairwise weight, then the merge ----
     @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
@@ -517,9 +535,16 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
             state = states[y, x]
         r = reservoir_empty()
         r = reservoir_update(r, resampling_weight(m_c, t_c, can.res.ucw, 1.0), t_c, c_c, random_uniform(ukey, 100))
+        # the kept path goes to out[y, x].path as it is kept, not carried across the neighbours' shifts (a variant's
+        # hooks read the whole reservoir, and keep it in registers)
         sel = path_sample_empty()
+        if wp.static(est is None):
+            out[y, x].path = sel
         if r.selected:
-            sel = can.path
+            if wp.static(est is None):
+                out[y, x].path = can.path
+            else:
+                sel = can.path
         # each neighbour's path shifted here, weighted against the canonical domain
         for j in range(k):
             nb = domain_pixel(codes[y, x, j], width)
@@ -532,11 +557,14 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
                 state = est_spatial_add(cvo, state, g, SpatialStep(x=x, y=y, nb=nb, j=j, can=can, other=other, s_qi=s, m_q=m_q))
             r = reservoir_merge(r, other.res, m_q, t_qi, s.jacobian, random_uniform(ukey, 101 + slots[y, x, j]))  # seed 000, Eq. 9
             if r.selected:
-                sel = s.path
-        res = path_reservoir(r, sel)
-        if wp.static(est is not None):
-            res = est_spatial_end(state, can, m_c, res)
-        out[y, x] = res
+                if wp.static(est is None):
+                    out[y, x].path = s.path
+                else:
+                    sel = s.path
+        if wp.static(est is None):
+            finalize_kept(out, y, x, r)
+        else:
+            out[y, x] = est_spatial_end(state, can, m_c, path_reservoir(r, sel))
 
     # ---- shading ----
     @wp.kernel(module=module)

@@ -450,7 +450,8 @@ class PathShiftFuncs:
     ``roughness(scene, material) -> float`` is the hybrid rule's roughness of a material id;
     ``stream_candidates(scene, dom, key, max_bounces, weight_scale, sp, pr, ukey) -> PathReservoir``
     traces one path and streams its candidates (with their reconnection data) into a path
-    reservoir, and ``settle(scene, dom, pr, sp) -> PathReservoir`` finalizes it; ``stream_prefix`` (the same arguments,
+    reservoir, and ``settle(scene, dom, pr, sp) -> PathReservoir`` finalizes it; ``stream_candidates_kept`` (the same
+    arguments, then ``kept, ky, kx``) writes the path it keeps into ``kept[ky, kx].path`` instead of returning it; ``stream_prefix`` (the same arguments,
     then ``cut_sp, cut_rule``; returns :class:`StreamedPath`) walks a path for ``estimate`` alone (Σ f/(N p) of its
     candidates; the reservoir is left as given) up to where :func:`prefix_cut_here` ends its prefix.
     ``shift_across`` is ``shift`` between the frames of :meth:`~grisx.scene.scene.BuiltScene.across_frames`,
@@ -463,6 +464,7 @@ class PathShiftFuncs:
     shift: Any
     roughness: Any
     stream_candidates: Any
+    stream_candidates_kept: Any
     stream_prefix: Any
     settle: Any
     suffix_moved: Any
@@ -769,7 +771,11 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
     # data (Suffix ReSTIR's gather walks a prefix for its light alone: two thirds of its prefix pass was that bookkeeping).
     # ``cut``: the walk also ends its prefix where ``prefix_cut_here`` says (the gather sampled the prefix in a walk of its
     # own before, the same directions traced twice)
-    def make_stream(estimate_only: bool, cut: bool) -> Any:
+    # ``kept_in_memory``: the walk writes the candidate it keeps into ``kept[ky, kx].path`` when it keeps it, instead of
+    # carrying it across every ray of the walk: a third 32-word PathSample live beside the walk's reconnection data and
+    # the candidate being composed, it spilled (sm_90, glossy-room: initial_pass 2160 -> 1152 B of stack at 128
+    # registers). ``pr.path`` is then left as given
+    def make_stream(estimate_only: bool, cut: bool, kept_in_memory: bool) -> Any:
         @wp.func
         def stream_path(
             scene: SceneData,
@@ -782,6 +788,9 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
             ukey: wp.uint32,
             cut_sp: ShiftParams,
             cut_rule: int,
+            kept: Any,
+            ky: int,
+            kx: int,
         ) -> StreamedPath:
             """Trace one path from ``dom`` with seed ``key`` and stream every light connection and emitter hit into ``pr``.
 
@@ -801,7 +810,9 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
             prefix fails (escape, an invalid sample, no pair within ``max_bounces``), the walk is the whole path's.
             """
             r = pr.res
-            sel = pr.path
+            sel = path_sample_empty()
+            if wp.static(not kept_in_memory):
+                sel = pr.path
             estimate = pr.estimate  # Σ f/(N p) over the candidates (seed 002, Listing 1 line 36)
             ucount = int(0)
             out = StreamedPath()
@@ -826,6 +837,10 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                 frame_l = frame_from_normal(v.ns)
                 wo_l = to_local(frame_l, v.wo)
                 rough = bsdf.roughness(m)
+                # x_i's BSDF sample is drawn before NEE's shadow ray (its own random dimensions, so the order changes no
+                # number): the material is then dead across that ray, and across every later one
+                c = path_dim(i, DIM_BSDF)
+                bs = bsdf.sample(m, wo_l, random_uniform(key, c), wp.vec2(random_uniform(key, c + 1), random_uniform(key, c + 2)))
                 # -- next-event estimation: candidate x₁ … x_i → light --
                 if lit and bsdf.is_delta(m) == 0 and i >= sp.min_bounces:
                     c = path_dim(i, DIM_NEE)
@@ -833,9 +848,10 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                     if ls.pdf > 0.0 and wp.length_sq(ls.radiance) > 0.0:
                         wi_l = to_local(frame_l, ls.wi)
                         fo = bsdf.eval(m, wo_l, wi_l)
+                        pdf_bsdf = bsdf.pdf(m, wo_l, wi_l)  # before the shadow ray, as the BSDF sample
                         if wp.length_sq(fo) > 0.0:
                             if not light_occluded(scene, v.p, v.ng, ls):
-                                mis = technique_mis(1, ls.delta, 0, ls.pdf, bsdf.pdf(m, wo_l, wi_l))  # Veach Eq. 9.13
+                                mis = technique_mis(1, ls.delta, 0, ls.pdf, pdf_bsdf)  # Veach Eq. 9.13
                                 s_nee = segment_measure(ls.delta)
                                 fo = fo * s_nee
                                 cand_x = cur
@@ -873,10 +889,11 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                                     r = reservoir_update(r, w, t, 0.0, random_uniform(ukey, ucount))
                                     ucount += 1
                                     if r.selected:
-                                        sel = cand_x
-                # -- BSDF sampling --
-                c = path_dim(i, DIM_BSDF)
-                bs = bsdf.sample(m, wo_l, random_uniform(key, c), wp.vec2(random_uniform(key, c + 1), random_uniform(key, c + 2)))
+                                        if wp.static(kept_in_memory):
+                                            kept[ky, kx].path = cand_x
+                                        else:
+                                            sel = cand_x
+                # -- BSDF sampling (drawn above) --
                 if bs.valid == 0 or not (bs.pdf > 0.0):
                     break
                 s_bsdf = segment_measure(bs.delta)
@@ -940,7 +957,10 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                         r = reservoir_update(r, w, t, 0.0, random_uniform(ukey, ucount))
                         ucount += 1
                         if r.selected:
-                            sel = cand_x
+                            if wp.static(kept_in_memory):
+                                kept[ky, kx].path = cand_x
+                            else:
+                                sel = cand_x
                 if wp.static(cut):
                     # -- does the prefix end at x_{i+1}? (the light beyond it is its suffix's) --
                     if seeking and si.valid != 0:
@@ -974,21 +994,40 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                 v = vertex_from_hit(si, -d)
                 i += 1
             out.pr.res = r
-            out.pr.path = sel
+            if wp.static(not kept_in_memory):
+                out.pr.path = sel
             out.pr.estimate = estimate
             return out
 
         return stream_path
 
-    stream_path = make_stream(False, False)
-    stream_path_prefix = make_stream(True, True)
+    stream_path = make_stream(False, False, False)
+    stream_path_kept = make_stream(False, False, True)
+    stream_path_prefix_walk = make_stream(True, True, False)
+
+    @wp.func
+    def stream_path_prefix(
+        scene: SceneData, dom: Domain, key: wp.uint32, max_bounces: int, weight_scale: float, sp: ShiftParams, pr: PathReservoir,
+        ukey: wp.uint32, cut_sp: ShiftParams, cut_rule: int,
+    ) -> StreamedPath:
+        """:func:`stream_path` for ``estimate`` alone, cut where :func:`prefix_cut_here` ends the prefix."""
+        return stream_path_prefix_walk(scene, dom, key, max_bounces, weight_scale, sp, pr, ukey, cut_sp, cut_rule, int(0), 0, 0)
 
     @wp.func
     def stream_path_candidates(
         scene: SceneData, dom: Domain, key: wp.uint32, max_bounces: int, weight_scale: float, sp: ShiftParams, pr: PathReservoir, ukey: wp.uint32
     ) -> PathReservoir:
         """:func:`stream_path` without a cut: one path's candidates streamed into ``pr``."""
-        return stream_path(scene, dom, key, max_bounces, weight_scale, sp, pr, ukey, sp, CUT_NONE).pr
+        return stream_path(scene, dom, key, max_bounces, weight_scale, sp, pr, ukey, sp, CUT_NONE, int(0), 0, 0).pr
+
+    @wp.func
+    def stream_path_candidates_kept(
+        scene: SceneData, dom: Domain, key: wp.uint32, max_bounces: int, weight_scale: float, sp: ShiftParams, pr: PathReservoir,
+        ukey: wp.uint32, kept: wp.array2d(dtype=PathReservoir), ky: int, kx: int,
+    ) -> PathReservoir:
+        """:func:`stream_path_candidates` that writes the candidate it keeps into ``kept[ky, kx].path`` when it keeps it
+        (``pr.path`` is left as given: the kept path is the one in memory)."""
+        return stream_path_kept(scene, dom, key, max_bounces, weight_scale, sp, pr, ukey, sp, CUT_NONE, kept, ky, kx).pr
 
     @wp.func
     def settle(scene: SceneData, dom: Domain, pr: PathReservoir, sp: ShiftParams) -> PathReservoir:
@@ -1015,6 +1054,7 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
         return out
 
     funcs = PathShiftFuncs(kinds=key, shift=shift, roughness=roughness, stream_candidates=stream_path_candidates,
+                           stream_candidates_kept=stream_path_candidates_kept,
                            stream_prefix=stream_path_prefix, settle=settle,
                            suffix_moved=suffix_moved, shift_across=shift_across, vertex_material=vertex_material)
     return funcs
