@@ -419,24 +419,18 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
         r = reservoir_update(r, resampling_weight(m_c, t_c, can.res.ucw, 1.0), t_c, c_i, random_uniform(ukey, 0))
         other = prev.res
         other.confidence = c_j
+        # the kept path written where it is kept, no path carried across the shift: out[y, x] holds the canonical
+        # reservoir already (the canonical stage passed it through)
+        if not r.selected:
+            out[y, x].path = path_sample_empty()
+        r = reservoir_merge(r, other, m_t, t_ti, s_t.jacobian, random_uniform(ukey, 1))  # seed 000, Eq. 9
+        if r.selected:
+            out[y, x].path = s_t.path
         if wp.static(est is None):
-            # the kept path written where it is kept, no path carried across the shift: out[y, x] holds the canonical
-            # reservoir already (the canonical stage passed it through)
-            if not r.selected:
-                out[y, x].path = path_sample_empty()
-            r = reservoir_merge(r, other, m_t, t_ti, s_t.jacobian, random_uniform(ukey, 1))  # seed 000, Eq. 9
-            if r.selected:
-                out[y, x].path = s_t.path
             finalize_kept(out, y, x, r)
         else:
-            sel = path_sample_empty()
-            if r.selected:
-                sel = can.path
-            r = reservoir_merge(r, other, m_t, t_ti, s_t.jacobian, random_uniform(ukey, 1))
-            if r.selected:
-                sel = s_t.path
             step = TemporalStep(x=x, y=y, nb=nb, can=can, prev=prev, c_j=c_j, s_cj=shifted[y, x], s_t=s_t, m_c=m_c, m_t=m_t)
-            out[y, x] = est_temporal(cvo, g, g_prev, step, path_reservoir(r, sel))
+            out[y, x] = est_temporal(cvo, g, g_prev, step, path_reservoir(r, out[y, x].path))  # the kept path read back
 
     # ---- spatial reuse, in two stages (one shift each): the canonical path's pairwise weight, then the merge ----
     @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
@@ -535,16 +529,10 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
             state = states[y, x]
         r = reservoir_empty()
         r = reservoir_update(r, resampling_weight(m_c, t_c, can.res.ucw, 1.0), t_c, c_c, random_uniform(ukey, 100))
-        # the kept path goes to out[y, x].path as it is kept, not carried across the neighbours' shifts (a variant's
-        # hooks read the whole reservoir, and keep it in registers)
-        sel = path_sample_empty()
-        if wp.static(est is None):
-            out[y, x].path = sel
+        # the kept path goes to out[y, x].path as it is kept, not carried across the neighbours' shifts
+        out[y, x].path = path_sample_empty()
         if r.selected:
-            if wp.static(est is None):
-                out[y, x].path = can.path
-            else:
-                sel = can.path
+            out[y, x].path = can.path
         # each neighbour's path shifted here, weighted against the canonical domain
         for j in range(k):
             nb = domain_pixel(codes[y, x, j], width)
@@ -557,14 +545,11 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
                 state = est_spatial_add(cvo, state, g, SpatialStep(x=x, y=y, nb=nb, j=j, can=can, other=other, s_qi=s, m_q=m_q))
             r = reservoir_merge(r, other.res, m_q, t_qi, s.jacobian, random_uniform(ukey, 101 + slots[y, x, j]))  # seed 000, Eq. 9
             if r.selected:
-                if wp.static(est is None):
-                    out[y, x].path = s.path
-                else:
-                    sel = s.path
+                out[y, x].path = s.path
         if wp.static(est is None):
             finalize_kept(out, y, x, r)
         else:
-            out[y, x] = est_spatial_end(state, can, m_c, path_reservoir(r, sel))
+            out[y, x] = est_spatial_end(state, can, m_c, path_reservoir(r, out[y, x].path))  # the kept path read back
 
     # ---- shading ----
     @wp.kernel(module=module)

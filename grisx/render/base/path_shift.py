@@ -589,6 +589,7 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                 fo = bsdf.eval(m, wo_l, to_local(frame, d))
                 if wp.length_sq(fo) <= 0.0:
                     return res
+                pdf_bsdf = bsdf.pdf(m, wo_l, to_local(frame, d))  # for m_t when x_k is the end vertex (before the shadow ray: m dies here)
                 if x.rc_kind == VERTEX_ENV:
                     if occluded(scene, spawn_origin(scene, v.p, v.ng, d), d, dist):
                         return res
@@ -601,7 +602,6 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                 if x.rc_kind != VERTEX_POINT_LIGHT:
                     fo = fo * MEASURE_SCALE  # the segment x'_{k−1} → x_k is a direction (a point light's is a delta)
                 f = wp.cw_mul(f, fo)
-                pdf_bsdf = bsdf.pdf(m, wo_l, to_local(frame, d))  # for m_t when x_k is the end vertex
                 if x.rc_kind == VERTEX_SURFACE:
                     mk = vertex_material(scene, x.rc_material, x.rc_uv, x.rc_tri, x.rc_p, x.rc_ns, x.rc_ng)
                     frame_k = frame_from_normal(x.rc_ns)
@@ -643,12 +643,13 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                 fo = bsdf.eval(m, wo_l, to_local(frame, ls.wi))
                 if wp.length_sq(fo) <= 0.0:
                     return res
-                if light_occluded(scene, v.p, v.ng, ls):
-                    return res
+                pdf_bsdf = bsdf.pdf(m, wo_l, to_local(frame, ls.wi))  # before the shadow ray, as above
                 if rc_pair_ok(sp, rough, 1.0, ls.dist, n):
                     return res  # the shifted path would reconnect here; the source did not
+                if light_occluded(scene, v.p, v.ng, ls):
+                    return res
                 s = segment_measure(ls.delta)
-                f = wp.cw_mul(f, wp.cw_mul(fo, ls.radiance)) * (s * technique_mis(1, ls.delta, 0, ls.pdf, bsdf.pdf(m, wo_l, to_local(frame, ls.wi))))
+                f = wp.cw_mul(f, wp.cw_mul(fo, ls.radiance)) * (s * technique_mis(1, ls.delta, 0, ls.pdf, pdf_bsdf))
                 pdf = pdf * ls.pdf * s
                 done = True
             else:
