@@ -107,7 +107,7 @@ from typing import Any
 import numpy as np
 import warp as wp
 
-from grisx.device import specialized_module
+from grisx.device import SHIFT_REGISTERS, specialized_module
 from grisx.errors import InvalidParameterError
 from grisx.params import Param
 from grisx.render.base.path_shift import (
@@ -468,7 +468,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         direct[y, x] = g.emission[y, x]
 
     # ---- supporting prefixes, then temporal suffix reuse ----
-    @wp.kernel(module=module)
+    @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
     def support_pass(
         spec: SuffixSpec,
         seed: int,
@@ -557,7 +557,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         out[y, x] = res
 
     # ---- spatial suffix reuse ----
-    @wp.kernel(module=module)
+    @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
     def spatial_pass(
         spec: SuffixSpec,
         seed: int,
@@ -668,7 +668,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         """Whether prefix j has its canonical suffix domain (α = 0 without it: canonical=false, biased)."""
         return canonical != 0 and (j < own_suffixes or roulette == 0 or j == chosen)
 
-    @wp.kernel(module=module)
+    @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
     def gather_prefix_pass(
         spec: SuffixSpec,
         full_sp: ShiftParams,
@@ -746,7 +746,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             if l != j:
                 row_set(rows, t, e, own_z[t, l], own_x[t, l], own_res[t, l], 1.0)
 
-    @wp.kernel(module=module)
+    @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
     def gather_mis_pass(
         spec: SuffixSpec,
         seed: int,
@@ -792,7 +792,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         image[y, x] = finite_or_dropped(accum[y, x], nonfinite)
 
     # ---- MMIS: the pixel's own prefixes and suffixes ----
-    @wp.kernel(module=module)
+    @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
     def own_suffix_pass(
         spec: SuffixSpec,
         seed: int,
