@@ -19,9 +19,10 @@ integrates the pixel's footprint (antialiasing and defocus). Per frame:
 ``# ---- temporal reuse ----``
     with *fractional* motion vectors: the G-buffer's motion δ of the pixel (previous minus current
     film position) and the previous pixel p that holds i + δ define the translation
-    u ↦ u + i + δ − p between the two pixels' sub-squares (:func:`~grisx.render.base.area.film_translate`);
-    the history sample (u', l, x̄) is shifted to (u' + p − i − δ, l, T(x̄)) where that offset stays
-    inside pixel i, T the hybrid path shift from the new primary vertex. MIS is the generalized
+    u ↦ u + i + δ − p, wrapped into the pixel's support (:func:`~grisx.render.base.area.film_translate_wrapped`:
+    a translation on its torus, |J| = 1); the history sample (u', l, x̄) is shifted to (u' + p − i − δ wrapped, l,
+    T(x̄)), T the hybrid path shift from the new primary vertex. (Unwrapped, the shift is undefined where the offset
+    leaves pixel i, and under sub-pixel motion a box filter loses |δx| + |δy| of the history a frame: that compounds.) MIS is the generalized
     balance heuristic over the two domains (seed 001, Eq. 15–16), the canonical sample's
     p̂_{←p} evaluated through the inverse translation on the previous frame's camera; history
     confidence capped at ``history_cap``.
@@ -67,7 +68,7 @@ import warp as wp
 from grisx.device import SHIFT_REGISTERS, specialized_module
 from grisx.errors import InvalidParameterError
 from grisx.params import Param
-from grisx.render.base.area import FILM_STREAM, FilmSample, film_sample, make_area_domain, film_translate, temporal_film_offset
+from grisx.render.base.area import FILM_STREAM, FilmSample, film_sample, film_translate_wrapped, make_area_domain, temporal_film_offset
 from grisx.render.base.path_shift import (
     Domain,
     PathReservoir,
@@ -176,7 +177,7 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             return
         # canonical sample: p̂_{←p}(y_c) through the inverse translation, on the previous camera and in the
         # previous frame's scene (each domain in its own frame)
-        t_cj = target_to(film_shift_across(scene_prev, cam_prev, nb.x, nb.y, film_translate(fs_c, temporal_film_offset(x, y, nb.x, nb.y, g.motion[y, x]), cam), can, sp))
+        t_cj = target_to(film_shift_across(scene_prev, cam_prev, nb.x, nb.y, film_translate_wrapped(fs_c, temporal_film_offset(x, y, nb.x, nb.y, g.motion[y, x]), cam), can, sp))
         target_cj[y, x] = t_cj
         history_pixel[y, x] = domain_code(nb.x, nb.y, g.hit.shape[1], 0)
 
@@ -202,7 +203,7 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         t_c = path_target(can.path)
         m_c = two_domain_balance(c_i, t_c, c_j, target_cj[y, x])  # seed 001, Eq. 15
         # history sample translated into pixel i (fractional motion vector), its path shifted from the new x₁
-        fs_t = film_translate(film_hist[nb.y, nb.x], -temporal_film_offset(x, y, nb.x, nb.y, g.motion[y, x]), cam)
+        fs_t = film_translate_wrapped(film_hist[nb.y, nb.x], -temporal_film_offset(x, y, nb.x, nb.y, g.motion[y, x]), cam)
         s_t = film_shift_across(scene, cam, x, y, fs_t, prev, sp)
         t_ti = path_target(s_t.path)
         t_tj = target_back(prev.path, s_t)

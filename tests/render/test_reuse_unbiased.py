@@ -37,8 +37,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import warp as wp
 from reuse_checks import check, screen_motion
 
+from grisx.render.base.area import FilmSample, film_translate, film_translate_wrapped
+from grisx.scene.camera import CameraData
 from grisx.testing import BIASED_K, DEFAULT_K
 
 METHODS = [
@@ -175,3 +178,49 @@ def test_unbiased_under_a_moving_orthographic_camera(method):
     result = check(method, scene=scene, camera="moving", frames=HARD_FRAMES, runs=256, reference_spp=2048)
     print(method, "orthographic image z", np.round(result.image.z, 2), "blocks z", np.round(result.blocks.z.min(), 2), np.round(result.blocks.z.max(), 2))
     assert result.passed, result
+
+
+# ---- Area ReSTIR's temporal shift: a translation on the torus of the pixel's filter support ----
+
+def _translate(offsets: np.ndarray, shifts: np.ndarray, reach: float, wrapped: bool) -> tuple[np.ndarray, np.ndarray]:
+    """``film_translate_wrapped`` (or ``film_translate``) of each (offset, shift) pair, with a filter of ``reach``."""
+    translate = film_translate_wrapped if wrapped else film_translate
+
+    @wp.kernel(module="unique")
+    def run(cam: CameraData, u: wp.array(dtype=wp.vec2), d: wp.array(dtype=wp.vec2), out: wp.array(dtype=wp.vec2), valid: wp.array(dtype=int)):
+        i = wp.tid()
+        s = FilmSample()
+        s.offset = u[i]
+        s.valid = 1
+        t = translate(s, d[i], cam)
+        out[i] = t.offset
+        valid[i] = t.valid
+
+    cam = CameraData()
+    cam.filter_stddev = reach / 4.0 if reach > 0.5 else 0.0  # Mitsuba's gaussian reaches r = 4σ
+    n = len(offsets)
+    out, valid = wp.zeros(n, dtype=wp.vec2, device="cpu"), wp.zeros(n, dtype=int, device="cpu")
+    wp.launch(run, dim=n, inputs=[cam, wp.array(offsets, dtype=wp.vec2, device="cpu"), wp.array(shifts, dtype=wp.vec2, device="cpu")],
+              outputs=[out, valid], device="cpu")
+    return out.numpy(), valid.numpy()
+
+
+@pytest.mark.parametrize("reach", [0.5, 2.0], ids=["box", "gaussian"])
+def test_area_restirs_temporal_translation_is_a_bijection_of_the_pixel(reach):
+    rng = np.random.default_rng(7)
+    n = 20000
+    lo, hi = 0.5 - reach, 0.5 + reach
+    u = (lo + (hi - lo) * rng.random((n, 2))).astype(np.float32)
+    d = rng.uniform(-3.0, 3.0, (n, 2)).astype(np.float32)  # sub-pixel and multi-pixel motion, either sign
+    there, valid = _translate(u, d, reach, wrapped=True)
+    back, _ = _translate(there, -d, reach, wrapped=True)
+    assert valid.all()
+    assert np.all((there >= lo) & (there < hi))  # a sample of the pixel's support stays in it
+    assert np.max(np.abs(back - u)) < 1e-5  # the inverse is the translation by −δ: T⁻¹(T(u)) = u
+    # where the unwrapped translation is defined, the wrapped one is the same point (mod the support's side)
+    plain, plain_valid = _translate(u, d, reach, wrapped=False)
+    assert plain_valid.mean() < 0.9
+    assert np.max(np.abs(plain[plain_valid == 1] - there[plain_valid == 1])) < 1e-5
+    # a translation that is not the inverse (the sign slipped on one side) does not bring the samples back
+    slipped, _ = _translate(there, d, reach, wrapped=True)
+    assert np.mean(np.abs(slipped - u).max(axis=1) < 1e-3) < 0.1
