@@ -147,23 +147,29 @@ def film_translate_wrapped(s: FilmSample, shift: wp.vec2, cam: CameraData) -> Fi
     pixel of where the motion puts it, and is shifted from there like a spatial neighbour's."""
     reach = filter_reach(cam)
     lo = 0.5 - reach
-    side = 2.0 * reach
     out = s
-    u = s.offset + shift - wp.vec2(lo, lo)
-    u = wp.vec2(u[0] - side * wp.floor(u[0] / side), u[1] - side * wp.floor(u[1] / side))
-    # floor's rounding can leave u = side for a tiny negative u: that point is the support's first
-    if u[0] >= side:
-        u = wp.vec2(u[0] - side, u[1])
-    if u[1] >= side:
-        u = wp.vec2(u[0], u[1] - side)
-    out.offset = u + wp.vec2(lo, lo)
+    # where the plain translation stays in the support the offset is its own, to the bit (film_translate's)
+    out.offset = wp.vec2(_wrap_into(s.offset[0] + shift[0], lo, 2.0 * reach), _wrap_into(s.offset[1] + shift[1], lo, 2.0 * reach))
     return out
+
+
+@wp.func
+def _wrap_into(u: float, lo: float, side: float) -> float:
+    """u itself inside [lo, lo + side), else lo + (u − lo) mod side."""
+    if u >= lo and u < lo + side:
+        return u
+    t = u - lo
+    t = t - side * wp.floor(t / side)
+    if t >= side:  # floor's rounding, for a tiny negative t: that point is the support's first
+        t = t - side
+    return lo + t
 
 
 @wp.func
 def film_translate(s: FilmSample, shift: wp.vec2, cam: CameraData) -> FilmSample:
     """u + ``shift``, valid only inside the filter's support [½ − r, ½ + r)² (a translation between two
-    pixels' supports, |J| = 1; [0,1)² for a box filter)."""
+    pixels' supports, |J| = 1; [0,1)² for a box filter). The temporal shifts use :func:`film_translate_wrapped`,
+    which equals it wherever it is valid."""
     reach = filter_reach(cam)
     out = s
     u = s.offset + shift
