@@ -74,7 +74,7 @@ import warp as wp
 from grisx.device import specialized_module
 from grisx.errors import InvalidParameterError
 from grisx.params import Param
-from grisx.render.base.area import FilmSample, film_translate, make_area_domain, temporal_film_offset
+from grisx.render.base.area import FilmSample, film_translate_wrapped, make_area_domain, temporal_film_offset
 from grisx.render.base.path_shift import PathReservoir, PathSample, ShiftParams, make_path_shift, path_sample_empty, path_target
 from grisx.render.base.registry import RenderMethod, create_renderer, register, renderer_params
 from grisx.render.base.reuse import SIMILARITY_DEPTH, SIMILARITY_NORMAL_COS, pixels_similar, spatial_neighbor, temporal_neighbor
@@ -209,11 +209,15 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         scene: SceneData, cam: CameraData, x: int, y: int, orient: int, fs_src: FilmSample, to_dst: wp.vec2, k: int,
         path: PathSample, sp: ShiftParams, use_jacobian: int, symmetric: int,
     ) -> PairCandidate:
-        """T*(y, k) = (τ(y), k) into pair (x, y, orient) (Eq. 21–22): τ translates the film offset by ``to_dst``
-        and shifts the path from the primary vertex of the corresponding pixel; ω*G evaluated there."""
+        """T*(y, k) = (τ(y), k) into pair (x, y, orient) (Eq. 21–22): τ translates the film offset by ``to_dst`` (wrapped into
+        the pixel's support, :func:`~grisx.render.base.area.film_translate_wrapped`) and shifts the path from the primary
+        vertex of the corresponding pixel; ω*G evaluated there."""
         c = PairCandidate()
         c.k = k
-        c.film = film_translate(fs_src, to_dst, cam)
+        # wrapped into the pixel's support (a temporal to_dst that carries the film sample out of the pixel would
+        # otherwise leave the shift undefined, losing history under motion, as Area ReSTIR's did); to_dst = 0 (spatial)
+        # and every translation that stays inside are film_translate's, to the bit
+        c.film = film_translate_wrapped(fs_src, to_dst, cam)
         c.path = path_sample_empty()
         c.value = wp.vec3(0.0)
         c.jacobian = 0.0
