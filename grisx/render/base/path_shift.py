@@ -774,7 +774,7 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
     # own before, the same directions traced twice)
     # ``kept_in_memory``: the walk writes the candidate it keeps into ``kept[ky, kx].path`` when it keeps it, instead of
     # carrying it across every ray of the walk: a third 32-word PathSample live beside the walk's reconnection data and
-    # the candidate being composed, it spilled (sm_90, glossy-room: initial_pass 2160 -> 1152 B of stack at 128
+    # the candidate being composed, it spilled (sm_90, glossy-room: initial_pass 2160 -> 1104 B of stack at 128
     # registers). ``pr.path`` is then left as given
     def make_stream(estimate_only: bool, cut: bool, kept_in_memory: bool) -> Any:
         @wp.func
