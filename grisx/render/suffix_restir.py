@@ -488,7 +488,6 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         y, x = wp.tid()
         width = domains.shape[1]
         t = y * width + x
-        scene = spec.scene
         dom_i = domains[y, x]
         ukey = pixel_key_of(seed, frame, x, y, width, _STREAM_TEMPORAL)
         # the canonical prefix x₁ → … → x_k (Alg. 1 line 4), W = 1/p
@@ -539,22 +538,25 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             r.ucw = ucw_from_source_pdf(z_can.pdf)
             r.confidence = 1.0
             r.target = t_c
-        res = SupportReservoir()
-        res.prefix = z
-        res.prefix_res = r
+        # the supporting prefix is final: written now, and read back after the suffix's walk with the old reservoir (the
+        # store keeps the compiler from holding either in registers across the walk, where they spilled)
+        out[y, x].prefix = z
+        out[y, x].prefix_res = r
+        reuse_suffix = have_prev != 0 and temporal_suffix != 0 and z.dom.valid != 0
         # ---- temporal suffix reuse: conditional RIS between the canonical and the old suffix (Alg. 1 lines 8–9) ----
         skey = pixel_key_of(seed, frame, x, y, width, _STREAM_SUPPORT_SUFFIX)
-        can = trace_suffix(spec, z, skey, random_subkey(skey, 1))
-        res.suffix = can
-        if have_prev != 0 and temporal_suffix != 0 and z.dom.valid != 0:
-            row_set(rows, t, 0, z, can.path, can.res, 1.0)
+        suffix = trace_suffix(spec, z, skey, random_subkey(skey, 1))
+        if reuse_suffix:
+            z_k = out[y, x].prefix
+            old = history[nb.y, nb.x]
+            row_set(rows, t, 0, z_k, suffix.path, suffix.res, 1.0)
             # old suffixes weigh more: their confidence (capped) is their domain weight
-            row_set(rows, t, 1, prev.prefix, prev.suffix.path, prev.suffix.res, confidence_capped(prev.suffix.res.confidence, history_cap))
-            cr = CRIS.conditional_ris(spec, z, 0, rows.z[t], rows.x[t], rows.res[t], rows.conf[t], rows.targets[t], ukey, 2)
-            res.suffix.res = cr.reservoir
-            res.suffix.res.confidence = confidence_capped(cr.reservoir.confidence, history_cap)
-            res.suffix.path = cr.y
-        out[y, x] = res
+            row_set(rows, t, 1, old.prefix, old.suffix.path, old.suffix.res, confidence_capped(old.suffix.res.confidence, history_cap))
+            cr = CRIS.conditional_ris(spec, z_k, 0, rows.z[t], rows.x[t], rows.res[t], rows.conf[t], rows.targets[t], ukey, 2)
+            suffix.res = cr.reservoir
+            suffix.res.confidence = confidence_capped(cr.reservoir.confidence, history_cap)
+            suffix.path = cr.y
+        out[y, x].suffix = suffix
 
     # ---- spatial suffix reuse ----
     @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
@@ -809,9 +811,9 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         for j in range(own_z.shape[1]):
             # prefix j is the gather's prefix j (same key): its suffix is traced once, here
             z = sample_prefix(spec, domains[y, x], random_subkey(gkey, _STREAM_GATHER_PREFIX + j))
+            own_z[t, j] = z  # stored before the suffix's walk: what the walk does not read is not held across it
             skey = random_subkey(gkey, _STREAM_GATHER_SUFFIX + j)
             c = trace_suffix(spec, z, skey, random_subkey(skey, 1))
-            own_z[t, j] = z
             own_x[t, j] = c.path
             own_res[t, j] = c.res
 
