@@ -430,7 +430,7 @@ def area_params(keep: tuple[str, ...] = AREA_KEYS) -> tuple[Param, ...]:
 register(
     RenderMethod(
         "area-restir",
-        "Area ReSTIR (Zhang et al. 2024) on ReSTIR PT paths: the film sample inside the resampled sample, reused by pixel and fractional-motion translations",
+        "Area ReSTIR (Zhang et al. 2024) on ReSTIR PT paths: the film sample inside the resampled sample, reused by pixel and fractional-motion translations (wrapped into the pixel)",
         create_area_restir,
         params=area_params(),
     )
