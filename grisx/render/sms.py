@@ -5,7 +5,8 @@ The image is the path tracer's, split by *who owns which path*:
 * **SMS owns** every camera path whose first non-delta vertex is x₁, followed by
   1 … ``chain`` delta vertices, each left by its canonical lobe (refraction at a
   dielectric, reflection at a conductor), the first on a caster object O with the
-  direction from x₁ inside O's seed square, then a point x_n on an emitter triangle
+  direction from x₁ inside O's seed square and meeting O at |cos| ≥ 0.1 (not grazing),
+  then a point x_n on an emitter triangle
   (:func:`grisx.scene.caustics.caustic_owned`) or escaping to the environment. At x₁ it picks a
   caster (uniformly, P(O) = 1/#casters) and an emitter point or environment direction
   (``sample_light``, density p_A per area or per solid angle), runs
@@ -16,8 +17,8 @@ The image is the path tracer's, split by *who owns which path*:
   with ``caustic_chain``): the very same ``trace_path`` as ``pt``, whose emitter hits
   on SMS-owned paths add nothing. Nothing is counted twice, nothing dropped, so
   ``pt`` and every method here estimate the same image; caustics through a
-  dielectric's reflection lobe, longer than ``chain``, or starting outside a caster's
-  seed square stay (noisy) with the path tracer (point lights: nobody reaches them).
+  dielectric's reflection lobe, longer than ``chain``, starting outside a caster's
+  seed square or grazing it stay (noisy) with the path tracer (point lights: nobody reaches them).
 
 Methods:
 

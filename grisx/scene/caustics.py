@@ -57,7 +57,12 @@ from x₁, as footnote 2 recommends, so the map is continuous):
 **Which paths a chain owns** (:func:`caustic_owned`): a camera path whose first
 non-delta vertex is x₁, followed by 1 … ``chain_max`` delta vertices, each left
 by its canonical lobe, the first on object O with ω₁ inside O's seed space from
-x₁, then a hit on an emitter triangle or the escape to the environment. The
+x₁ and meeting O at |cos θ| ≥ ``GRAZING_COS`` (0.1), then a hit on an emitter
+triangle or the escape to the environment. The grazing bound keeps what SMS claims
+reachable: near O's silhouette ∂C/∂u is ill-conditioned, Newton steps leave O,
+and a solution's basin has almost no measure (on a glass sphere's caustic one such
+solution carried half the pixel and no walk of 65k seeds reached it), while the
+ends of walks that do reach it scatter far in U. The
 path tracer built with ``make_trace_path(kinds, caustic_chain=K)`` drops exactly
 those emissions and SMS adds them, so the two together estimate the path
 tracer's image. Non-canonical lobes (a dielectric's reflection), longer chains
@@ -91,12 +96,14 @@ from grisx.scene.scene import (
     make_surface,
 )
 from grisx.theory.gris import luminance
-from grisx.theory.manifold import NEWTON_THRESHOLD, ManifoldLinearization, ManifoldSampler, make_manifold_sampler
+from grisx.theory.manifold import ManifoldLinearization, ManifoldSampler, make_manifold_sampler, seed_space
+from grisx.theory.random import random_key
 
 wp.set_module_options({"enable_backward": False})
 
 __all__ = [
     "CHAIN_MAX",
+    "GRAZING_COS",
     "JACOBIAN_STEP",
     "CausticSpec",
     "CausticChain",
@@ -112,12 +119,15 @@ __all__ = [
     "make_caustic_spec",
     "set_view",
     "solve_chains",
+    "sms_estimates",
     "transfer_differential",
     "scatter_differential",
 ]
 
 #: the longest chain a walk solves (2: a slab's two refractions)
 CHAIN_MAX = 2
+#: SMS owns a chain only where its ray from x₁ meets O at |cos θ| ≥ this (module docstring, "Which paths a chain owns")
+GRAZING_COS = wp.constant(0.1)
 #: central-difference step of ∂C/∂u in U
 JACOBIAN_STEP = wp.constant(1.0e-3)
 #: C(u) of a seed whose chain is not admissible at all (misses O, escapes, runs parallel to the light)
@@ -328,6 +338,7 @@ class CausticFuncs:
     target: Any
     sms: ManifoldSampler
     probe: Any  # kernel of :func:`solve_chains`
+    estimate: Any  # kernel of :func:`sms_estimates`
 
 
 @functools.cache
@@ -378,8 +389,8 @@ def _make_caustics(kinds: frozenset[int]) -> CausticFuncs:
             m = surface_material(scene, si)
             if bsdf.is_delta(m) == 0:
                 break
-            if k == 0 and si.object != caster:
-                return out  # x₂ must lie on O (another object in front: not this chain)
+            if k == 0 and (si.object != caster or wp.abs(wp.dot(d, si.ng)) < GRAZING_COS):
+                return out  # x₂ must lie on O (another object in front: not this chain), met at |cos| ≥ GRAZING_COS
             frame = frame_from_normal(si.ns)
             wo = to_local(frame, -d)
             bs = bsdf.sample(m, wo, 1.0, wp.vec2(0.5, 0.5))  # u_lobe = 1: the canonical lobe
@@ -481,12 +492,11 @@ def _make_caustics(kinds: frozenset[int]) -> CausticFuncs:
 
     @wp.func
     def linearize(spec: CausticSpec, view: int, u: wp.vec2) -> ManifoldLinearization:
-        """C(u) and ∂C/∂u from one shot (its differentials), or C and, if a step needs it, differences."""
+        """C(u) and ∂C/∂u from one shot (its differentials), or from differences where a normal map turns it."""
         ch = shoot(spec, view, u)
         out = ManifoldLinearization()
         out.c = ch.c
-        if ch.exact != 0 or wp.length(ch.c) >= NEWTON_THRESHOLD:
-            out.jacobian = jacobian_of(spec, view, u, ch)
+        out.jacobian = jacobian_of(spec, view, u, ch)
         return out
 
     @wp.func
@@ -573,7 +583,16 @@ def _make_caustics(kinds: frozenset[int]) -> CausticFuncs:
             vertices[i, 5] = si.ng
         vertices[i, 6] = wp.vec3(float(ch.length), float(ch.valid), float(ch.exact))
 
-    return CausticFuncs(shoot, constraint, jacobian, geometry, value, target, sms, probe)
+    @wp.kernel
+    def estimate(spec: CausticSpec, tiles: int, max_trials: int, seed: int, prior: wp.array(dtype=int), g_out: wp.array(dtype=float)):
+        # one SMS sample of problem 0 per thread: |∂ω₁/∂A(x_n)| W, whose mean is Σ over solutions of |∂ω₁/∂A|
+        i = wp.tid()
+        s = sms.sample(spec, 0, seed_space(tiles, 0.0, 0), prior, random_key(seed, i), max_trials)
+        g_out[i] = float(0.0)
+        if s.found:
+            g_out[i] = geometry(spec, 0, s.u) * s.ucw
+
+    return CausticFuncs(shoot, constraint, jacobian, geometry, value, target, sms, probe, estimate)
 
 
 def make_caustics(kinds: Iterable[int]) -> CausticFuncs:
@@ -639,3 +658,28 @@ def solve_chains(
     wp.launch(funcs.probe, dim=n, inputs=[spec, wp.array(seeds, dtype=wp.vec2, device=dev), int(max_iterations)],
               outputs=[out["u"], out["converged"], out["vertices"], out["c"], out["jacobian"], out["geometry"]], device=dev)
     return {k: v.numpy() for k, v in out.items()}
+
+
+def sms_estimates(
+    built: Any, x1: Any, x1_ng: Any, caster: int, xn: Any, xn_n: Any, n: int, *, seed: int = 0, tiles: int = 0, max_trials: int = 0,
+    chain_max: int = CHAIN_MAX, light_tri: int = 0,
+) -> np.ndarray:
+    """``n`` independent SMS samples of one problem (x₁, its normal, caster, x_n, its normal): |∂ω₁/∂A(x_n)| · W each.
+
+    Their mean estimates Σ over the problem's solutions of |∂ω₁/∂A(x_n)| (W the Bernoulli-trial UCW:
+    K for ``tiles`` = 0, K / P(C) with trust regions; no prior). For tests: the renderers draw the same
+    ``sample`` in their kernels.
+    """
+    dev = built.device
+    spec = make_caustic_spec(built, 1, chain_max)
+    spec.x1.assign(np.asarray(x1, dtype=np.float32).reshape(1, 3))
+    spec.x1_ng.assign(np.asarray(x1_ng, dtype=np.float32).reshape(1, 3))
+    spec.caster.assign(np.array([int(caster)], dtype=np.int32))
+    spec.xn.assign(np.asarray(xn, dtype=np.float32).reshape(1, 3))
+    spec.xn_n.assign(np.asarray(xn_n, dtype=np.float32).reshape(1, 3))
+    spec.light_tri.assign(np.array([int(light_tri)], dtype=np.int32))
+    funcs = make_caustics(built.features.kernel_kinds)
+    out = wp.zeros(int(n), dtype=float, device=dev)
+    prior = wp.zeros(1, dtype=int, device=dev)
+    wp.launch(funcs.estimate, dim=int(n), inputs=[spec, int(tiles), int(max_trials), int(seed), prior], outputs=[out], device=dev)
+    return out.numpy()

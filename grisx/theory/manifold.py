@@ -63,7 +63,8 @@ everything else (tiles, Eq. 5–9 and the UCW) is plain ``@wp.func``. The toy
 
 =======================  ==============================================
 Newton solver            ≤ 20 iterations, |C| < 1e-5 converged (SMS)
-same solution            periodic distance < 1e-4 (uniqueness threshold)
+same solution            |∂C/∂u (b − a)| < 1e-4 and |b − a| < 1e-2 (Newton's
+                         own uncertainty, not a fixed distance in U)
 manifold shift           ≤ 5 iterations each way, Jacobian 1
 =======================  ==============================================
 
@@ -91,6 +92,7 @@ __all__ = [
     "NEWTON_MAX_ITERATIONS",
     "NEWTON_THRESHOLD",
     "SOLUTION_THRESHOLD",
+    "SOLUTION_RADIUS",
     "SHIFT_MAX_ITERATIONS",
     "TRUST_REGION_TILES",
     "UNBOUNDED_TRIALS",
@@ -108,6 +110,7 @@ __all__ = [
     "ManifoldLinearization",
     "wrap_unit",
     "periodic_distance",
+    "periodic_delta",
     "same_solution",
     "tile_of",
     "tile_offset",
@@ -128,7 +131,10 @@ __all__ = [
 
 NEWTON_MAX_ITERATIONS = wp.constant(20)
 NEWTON_THRESHOLD = wp.constant(1.0e-5)
+#: two converged walks name one solution when ∂C/∂u maps their difference below this (C's units, 10× Newton's)
 SOLUTION_THRESHOLD = wp.constant(1.0e-4)
+#: ... and they lie this close in U (a guard along a near-null direction of ∂C/∂u)
+SOLUTION_RADIUS = wp.constant(1.0e-2)
 SHIFT_MAX_ITERATIONS = wp.constant(5)
 #: M: a trust region / conditional sample space is M × M tiles (seed 003 uses 3 × 3)
 TRUST_REGION_TILES = wp.constant(3)
@@ -144,7 +150,7 @@ _SINGULAR = wp.constant(1.0e-12)
 
 @wp.struct
 class ManifoldLinearization:
-    """C(u) and, where a Newton step needs it (|C| ≥ the threshold), ∂C/∂u: what one walk step reads."""
+    """C(u) and ∂C/∂u: what one walk step reads (the Jacobian also names a converged solution)."""
 
     c: wp.vec2
     jacobian: wp.mat22
@@ -152,11 +158,13 @@ class ManifoldLinearization:
 
 @wp.struct
 class ManifoldWalk:
-    """Result of one Newton walk: where it ended, whether |C| < threshold there, steps taken."""
+    """Result of one Newton walk: where it ended, whether |C| < threshold there, steps taken, ∂C/∂u there
+    (when converged: what :func:`same_solution` measures a difference with)."""
 
     u: wp.vec2
     converged: wp.bool
     iterations: int
+    jacobian: wp.mat22
 
 
 @wp.struct
@@ -243,6 +251,13 @@ def wrap_unit(u: wp.vec2) -> wp.vec2:
 
 
 @wp.func
+def periodic_delta(a: wp.vec2, b: wp.vec2) -> wp.vec2:
+    """The shortest b − a on the unit torus (each coordinate in [−½, ½])."""
+    d = b - a
+    return d - wp.vec2(wp.round(d[0]), wp.round(d[1]))
+
+
+@wp.func
 def periodic_distance(a: wp.vec2, b: wp.vec2) -> float:
     """Euclidean distance on the unit torus."""
     dx = wp.abs(a[0] - b[0])
@@ -253,9 +268,19 @@ def periodic_distance(a: wp.vec2, b: wp.vec2) -> float:
 
 
 @wp.func
-def same_solution(a: wp.vec2, b: wp.vec2) -> wp.bool:
-    """Do two converged walks name the same solution (uniqueness threshold 1e-4)?"""
-    return periodic_distance(a, b) < SOLUTION_THRESHOLD
+def same_solution(a: wp.vec2, b: wp.vec2, jacobian: wp.mat22) -> wp.bool:
+    """Do two converged walks name the same solution? ``jacobian`` is ∂C/∂u at ``a``.
+
+    A walk stops anywhere |C| < NEWTON_THRESHOLD, so the ends of walks to one solution scatter
+    over an ellipse of U whose size is Newton's, |∂C/∂u δu| ≲ threshold: tiny where the chain is
+    well conditioned, ~10⁻³ of U near a fold, where caustics are brightest. A fixed distance in U
+    splits one solution there (K counts trials that did reach it: W too large) or merges two.
+    The difference is therefore measured where Newton measures it, in C: |∂C/∂u (b − a)| below
+    SOLUTION_THRESHOLD (10× the walk's own tolerance), and within SOLUTION_RADIUS in U."""
+    d = periodic_delta(a, b)
+    if wp.length(d) >= SOLUTION_RADIUS:
+        return False
+    return wp.length(jacobian @ d) < SOLUTION_THRESHOLD
 
 
 @wp.func
@@ -471,8 +496,9 @@ class ManifoldSampler:
     ``walk(spec, view, u0, tiles, max_iterations) -> ManifoldWalk``
         Newton's method on C(u) = 0 from seed u0; with ``tiles`` > 0 the walk
         stops (unconverged) when it leaves R(u0) (Sec. 3.3).
-    ``bernoulli(spec, view, u_star, space, prior, key, max_trials) -> BernoulliTrials``
-        fresh seeds from p/P(C(u*)) until one walks to u*: W = K / P(C) (Eq. 5).
+    ``bernoulli(spec, view, u_star, jacobian_star, space, prior, key, max_trials) -> BernoulliTrials``
+        fresh seeds from p/P(C(u*)) until one walks to u* (∂C/∂u there: :func:`same_solution`):
+        W = K / P(C) (Eq. 5).
     ``sample(spec, view, space, prior, key, max_trials) -> SMSSample``
         seed u ~ p (Eq. 7), walk with trust region, Bernoulli UCW if it converged.
     ``shift(spec, src_view, dst_view, x) -> ManifoldShift``
@@ -496,7 +522,7 @@ def make_manifold_sampler(
     """Build the SMS functions for ``constraint(spec, view, u) -> vec2`` and its ∂C/∂u ``-> mat22``;
     with ``target(spec, view, u) -> float`` (p̂ of solution u of a view, Eq. 13) also ``reuse``.
     ``linearize(spec, view, u) -> ManifoldLinearization`` gives both at once where a problem can (a chain
-    shot with its ray differentials: one shot per Newton step); by default C, then ∂C/∂u when a step needs it."""
+    shot with its ray differentials: one shot per Newton step); by default the two functions in turn."""
 
     if linearize is None:
 
@@ -504,8 +530,7 @@ def make_manifold_sampler(
         def linearize(spec: spec_type, view: int, u: wp.vec2) -> ManifoldLinearization:
             out = ManifoldLinearization()
             out.c = constraint(spec, view, u)
-            if wp.length(out.c) >= NEWTON_THRESHOLD:
-                out.jacobian = constraint_jacobian(spec, view, u)
+            out.jacobian = constraint_jacobian(spec, view, u)
             return out
 
     @wp.func
@@ -524,6 +549,7 @@ def make_manifold_sampler(
             if wp.length(c) < NEWTON_THRESHOLD:
                 out.u = u
                 out.converged = True
+                out.jacobian = lin.jacobian  # names the solution (same_solution)
                 return out
             if it == max_iterations:
                 break
@@ -542,6 +568,7 @@ def make_manifold_sampler(
         spec: spec_type,
         view: int,
         u_star: wp.vec2,
+        jacobian_star: wp.mat22,
         space: SeedSpace,
         prior: wp.array(dtype=int),
         key: wp.uint32,
@@ -562,7 +589,7 @@ def make_manifold_sampler(
             out.trials = out.trials + 1
             w = walk(spec, view, u, space.tiles, NEWTON_MAX_ITERATIONS)
             out.newton = out.newton + w.iterations
-            if w.converged and same_solution(w.u, u_star):
+            if w.converged and same_solution(u_star, w.u, jacobian_star):
                 out.capped = False
                 break
         out.ucw = bernoulli_ucw(out.trials, p_c)  # Eq. 5: E[W] = 1/P'(u*)
@@ -584,7 +611,7 @@ def make_manifold_sampler(
         out.newton_sample = w.iterations
         if w.converged:
             # ---- inverse probability by Bernoulli trials (Eq. 2, 5) ----
-            b = bernoulli(spec, view, w.u, space, prior, random_subkey(key, 1), max_trials)
+            b = bernoulli(spec, view, w.u, w.jacobian, space, prior, random_subkey(key, 1), max_trials)
             out.found = True
             out.ucw = b.ucw
             out.trials = b.trials
@@ -604,7 +631,7 @@ def make_manifold_sampler(
             return out
         back = walk(spec, src_view, there.u, 0, SHIFT_MAX_ITERATIONS)  # T⁻¹(T(x)) must give x back
         out.iterations = out.iterations + back.iterations
-        if back.converged and same_solution(back.u, x):
+        if back.converged and same_solution(back.u, x, back.jacobian):
             out.u = there.u
             out.jacobian = 1.0  # discrete solutions: no density change (Sec. 5.2)
             out.valid = True

@@ -235,3 +235,38 @@ def test_runs_are_deterministic_and_free_of_nan(device):
 def test_bad_parameters_raise_named_errors(method, params, text):
     with pytest.raises(InvalidParameterError, match=text):
         get_problem("sms-toy").run(method, trials=10, params=params)
+
+
+def test_same_solution_measures_a_difference_in_c_not_in_u():
+    # Walks stop anywhere |C| < NEWTON_THRESHOLD: their ends scatter along a near-null direction of ∂C/∂u
+    # (a fold, where a caustic is bright) much further than a fixed distance in U would allow, and two
+    # solutions of a stiff constraint can lie closer than that distance. The rule follows ∂C/∂u.
+    import warp as wp
+
+    from grisx.theory.manifold import NEWTON_THRESHOLD, SOLUTION_RADIUS, same_solution
+
+    @wp.kernel
+    def same(a: wp.array(dtype=wp.vec2), b: wp.array(dtype=wp.vec2), jac: wp.array(dtype=wp.mat22), out: wp.array(dtype=int)):
+        i = wp.tid()
+        out[i] = int(same_solution(a[i], b[i], jac[i]))
+
+    fold = np.array([[100.0, 0.0], [0.0, 0.002]], dtype=np.float32)  # stiff along u₀, nearly singular along u₁
+    stiff = np.array([[2000.0, 0.0], [0.0, 2000.0]], dtype=np.float32)
+    a = np.array([[0.3, 0.4]] * 5 + [[0.999, 0.5]], dtype=np.float32)
+    d = np.array(
+        [
+            [0.0, 3e-3],  # along the fold's null direction, |J d| = 6e-6: one solution (a fixed 1e-4 in U splits it)
+            [5e-7, 0.0],  # along its stiff direction within Newton's own tolerance (|J d| = 5e-5): one solution
+            [3e-5, 0.0],  # |J d| = 3e-3: two solutions
+            [0.0, 2.0 * SOLUTION_RADIUS],  # beyond the radius: never one solution, however flat C is there
+            [5e-5, 0.0],  # a stiff constraint: 5e-5 apart in U (inside a fixed 1e-4) but |J d| = 0.1: two solutions
+            [2e-3, 0.0],  # across the torus' seam (0.999 → 0.001), flat along u₀ there: measured the short way
+        ],
+        dtype=np.float32,
+    )
+    jac = np.stack([fold, fold, fold, fold, stiff, fold[::-1, ::-1]])
+    b = (a + d) % 1.0
+    out = wp.zeros(len(a), dtype=int, device="cpu")
+    wp.launch(same, dim=len(a), inputs=[wp.array(a, dtype=wp.vec2), wp.array(b, dtype=wp.vec2), wp.array(jac, dtype=wp.mat22)], outputs=[out], device="cpu")
+    assert NEWTON_THRESHOLD < 1e-4
+    assert out.numpy().tolist() == [1, 1, 0, 0, 0, 1]

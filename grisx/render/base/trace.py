@@ -18,7 +18,7 @@ from grisx.scene.bsdf import cosine_hemisphere_pdf, make_bsdf, sample_cosine_hem
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.lights import light_pdf_emitter, make_lights
 from grisx.scene.material import MATERIAL_PRINCIPLED, MATERIAL_PRINCIPLED_THIN, MATERIAL_ROUGH_DIELECTRIC, PERTURB_NONE
-from grisx.scene.caustics import canonical_lobe, caustic_owned
+from grisx.scene.caustics import GRAZING_COS, canonical_lobe, caustic_owned
 from grisx.scene.scene import SceneData, SurfaceInteraction, make_surface, spawn_origin
 from grisx.theory.mis import technique_mis
 from grisx.theory.roulette import roulette_survival
@@ -93,7 +93,7 @@ def make_trace_path(kinds: frozenset[int], caustic_chain: int = 0, bounds: bool 
     ``caustic_chain`` = K > 0 (specular manifold sampling, :mod:`grisx.render.sms`): the paths that SMS
     owns (:func:`grisx.scene.caustics.caustic_owned`: x₁ the first non-delta vertex, then 1 … K delta
     vertices left by their canonical lobes, the first on a caster whose seed square holds the direction
-    from x₁, then an emitter triangle) add no emission here, and x₁ is recorded for SMS's own estimate.
+    from x₁, met at |cos| ≥ ``GRAZING_COS``, then an emitter triangle) add no emission here, and x₁ is recorded for SMS's own estimate.
 
     ``bounds``: fill :class:`PathRadiance`'s box (compiled in only where asked: scenes with moving objects)."""
     return _make_trace_path(frozenset(int(k) for k in kinds), int(caustic_chain), bool(bounds))
@@ -210,6 +210,8 @@ def _make_trace_path(kinds: frozenset[int], caustic_chain: int, bounds: bool) ->
                         chain_len += 1
                         if chain_len == 1:
                             chain_obj = si.object
+                            if wp.abs(wp.dot(d, si.ng)) < GRAZING_COS:
+                                chain_state = 2  # met at a grazing angle: the path tracer's (caustic_owned)
                         if chain_len > chain_max:
                             chain_state = 2
             # record: a view-independent first vertex (cosine-weighted continuation), where the BSDF allows

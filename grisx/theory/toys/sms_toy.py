@@ -371,7 +371,7 @@ def _basin_kernel(
     out[i, j] = -1
     if w.converged:
         for k in range(sols.shape[0]):
-            if same_solution(w.u, sols[k]):
+            if same_solution(w.u, sols[k], w.jacobian):
                 out[i, j] = k
 
 
@@ -391,7 +391,7 @@ def _bernoulli_kernel(
 ):
     t = wp.tid()
     space = seed_space(tiles, alpha, prior_count)
-    b = SMS.bernoulli(spec, view, u_star, space, prior, random_key(seed, t), max_trials)
+    b = SMS.bernoulli(spec, view, u_star, sms_toy_jacobian(spec, view, u_star), space, prior, random_key(seed, t), max_trials)
     trials[t] = b.trials
     ucw[t] = b.ucw
 
