@@ -29,7 +29,9 @@ Methods:
                      pixel block, each from a random pixel to a random light–object pair: the tiles
                      that held solutions per caster (Eq. 7–9, α = 0.8) and the pairs that did, from
                      which a pixel draws its pair w.p. α, else from the whole scene, P(pair) =
-                     α [pair ∈ I]/#I + (1 − α) p_scene entering W (Sec. 4.2);
+                     α [pair ∈ I]/#I + (1 − α) p_scene entering W (Sec. 4.2). The presamples run one
+                     thread each (``prior_walks``), then one thread per block gathers the sets in
+                     presample order (``prior_sets``);
 ``sms-restir``       one ``sms-partitioned`` sample per pixel and frame as a reservoir x̂ = (u*, O, x_n)
                      with p̂ = lum f(x̂) and W = K / (P(C) p_A P(O)); temporal reuse of the pixel's
                      reservoir of the last frame, found by reprojecting x₁ (confidence cap ``history_cap`` 20), and one spatial
@@ -279,7 +281,7 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
         set_view(spec, view, x1.si, x1.wo, x1.depth, y.caster, y.xn, y.xn_n, y.light_tri)
 
     @wp.kernel(module=module)
-    def prior_pass(
+    def prior_walks(
         spec: CausticSpec,
         cam: CameraData,
         casters: wp.array(dtype=int),
@@ -287,46 +289,61 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
         frame: int,
         block: int,
         tiles: int,
-        presamples: int,
         blocks_x: int,
         view_base: int,
+        hits: wp.array2d(dtype=wp.vec3i),
+        stats: wp.array2d(dtype=wp.float64),
+    ):
+        # ---- per-frame prior, stage 1: presample j of pixel block (bx, by), one thread each: an unrestricted walk
+        # from a random pixel of the B × B block to a random light–object pair (seed 003, Sec. 4.1–4.2); its
+        # (tile, caster, pair) when it converged, else tile −1 ----
+        by, bx, j = wp.tid()
+        presamples = hits.shape[1]
+        n_casters = casters.shape[0]
+        blk = by * blocks_x + bx
+        view = view_base + blk * presamples + j
+        hits[blk, j] = wp.vec3i(-1, 0, 0)
+        jkey = random_subkey(random_subkey(random_subkey(random_key(seed, frame), 1), blk), j)
+        x = wp.min(bx * block + int(random_uniform(jkey, 0) * float(block)), cam.width - 1)
+        y = wp.min(by * block + int(random_uniform(jkey, 1) * float(block)), cam.height - 1)
+        ray = camera_ray(cam, float(x) + 0.5, float(y) + 0.5, wp.vec2(0.5, 0.5))
+        si = first_non_delta(spec.scene, ray.o, ray.d, random_subkey(jkey, 1))
+        if si.valid == 0:
+            return
+        ci = wp.min(int(random_uniform(jkey, 7) * float(n_casters)), n_casters - 1)
+        ls = sample_light(spec.scene.lights, si.p, random_uniform(jkey, 2), wp.vec2(random_uniform(jkey, 3), random_uniform(jkey, 4)))
+        if ls.light < 0 or ls.delta != 0:
+            return
+        set_view(spec, view, si, -ray.d, 0, casters[ci], ls.p, ls.n, ls.tri)
+        w = SMS.walk(spec, view, wp.vec2(random_uniform(jkey, 5), random_uniform(jkey, 6)), 0, NEWTON_MAX_ITERATIONS)
+        _tally(stats, blk, 6, 1.0)
+        _tally(stats, blk, 8, float(w.iterations))
+        if w.converged:
+            _tally(stats, blk, 7, 1.0)
+            hits[blk, j] = wp.vec3i(tile_of(w.u, tiles), ci, ls.light * n_casters + ci)
+
+    @wp.kernel(module=module)
+    def prior_sets(
+        n_casters: int,
+        hits: wp.array2d(dtype=wp.vec3i),
         prior_tiles: wp.array2d(dtype=int),
         prior_count: wp.array(dtype=int),
         prior_pairs: wp.array2d(dtype=int),
         prior_pair_count: wp.array(dtype=int),
         stats: wp.array2d(dtype=wp.float64),
     ):
-        # ---- per-frame prior: unrestricted walks from random pixels of a B × B block, each to a random
-        # light–object pair (seed 003, Sec. 4.1–4.2): the tiles that held solutions, per caster, and the pairs ----
-        by, bx = wp.tid()
-        n_casters = casters.shape[0]
-        blk = by * blocks_x + bx
-        view = view_base + blk
-        key = random_subkey(random_subkey(random_key(seed, frame), 1), blk)
+        # ---- stage 2, one thread per block: the sets I of tiles that held solutions (per caster) and of the pairs,
+        # in presample order ----
+        blk = wp.tid()
         for ci in range(n_casters):
             prior_count[blk * n_casters + ci] = 0
         pairs = int(0)
-        for j in range(presamples):
-            jkey = random_subkey(key, j)
-            x = wp.min(bx * block + int(random_uniform(jkey, 0) * float(block)), cam.width - 1)
-            y = wp.min(by * block + int(random_uniform(jkey, 1) * float(block)), cam.height - 1)
-            ray = camera_ray(cam, float(x) + 0.5, float(y) + 0.5, wp.vec2(0.5, 0.5))
-            si = first_non_delta(spec.scene, ray.o, ray.d, random_subkey(jkey, 1))
-            if si.valid == 0:
-                continue
-            ci = wp.min(int(random_uniform(jkey, 7) * float(n_casters)), n_casters - 1)
-            ls = sample_light(spec.scene.lights, si.p, random_uniform(jkey, 2), wp.vec2(random_uniform(jkey, 3), random_uniform(jkey, 4)))
-            if ls.light < 0 or ls.delta != 0:
-                continue
-            set_view(spec, view, si, -ray.d, 0, casters[ci], ls.p, ls.n, ls.tri)
-            w = SMS.walk(spec, view, wp.vec2(random_uniform(jkey, 5), random_uniform(jkey, 6)), 0, NEWTON_MAX_ITERATIONS)
-            _tally(stats, blk, 6, 1.0)
-            _tally(stats, blk, 8, float(w.iterations))
-            if w.converged:
-                _tally(stats, blk, 7, 1.0)
-                row = blk * n_casters + ci
-                prior_count[row] = prior_add_tile(prior_tiles[row], prior_count[row], tile_of(w.u, tiles))
-                pairs = prior_add_tile(prior_pairs[blk], pairs, ls.light * n_casters + ci)
+        for j in range(hits.shape[1]):
+            h = hits[blk, j]
+            if h[0] >= 0:
+                row = blk * n_casters + h[1]
+                prior_count[row] = prior_add_tile(prior_tiles[row], prior_count[row], h[0])
+                pairs = prior_add_tile(prior_pairs[blk], pairs, h[2])
         prior_pair_count[blk] = pairs
         for ci in range(n_casters):
             _tally(stats, blk, 9, float(prior_count[blk * n_casters + ci]))
@@ -471,7 +488,7 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
             L += wp.cw_mul(pc.beta, caustics.value(spec, q, smp.u)) * r.ucw
         add_sample(total, total_sq, nonfinite, y, x, L)
 
-    out = {"prior_pass": prior_pass, "sample_pass": sample_pass, "restir_initial": restir_initial, "restir_reuse": restir_reuse, "restir_shade": restir_shade, "first_non_delta": first_non_delta, "caustics": caustics}
+    out = {"prior_walks": prior_walks, "prior_sets": prior_sets, "sample_pass": sample_pass, "restir_initial": restir_initial, "restir_reuse": restir_reuse, "restir_shade": restir_shade, "first_non_delta": first_non_delta, "caustics": caustics}
     _KERNELS[key] = out
     return out
 
@@ -522,13 +539,15 @@ class SMSRenderer(PathTracer):
         n_blocks = self.blocks_x * self.blocks_y
         self.prior_pairs = wp.zeros((n_blocks, max(self.presamples, 1)), dtype=int, device=dev)
         self.prior_pair_count = wp.zeros(n_blocks, dtype=int, device=dev)
-        self.spec = make_caustic_spec(built, self.width * self.height + n_rows, self.chain, self.max_depth)
+        self.prior_hits = wp.zeros((n_blocks, max(self.presamples, 1)), dtype=wp.vec3i, device=dev)
+        self.prior_rows = n_blocks * max(self.presamples, 1) if self.prior else 0  # a problem row per presample
+        self.spec = make_caustic_spec(built, self.width * self.height + self.prior_rows, self.chain, self.max_depth)
         self.prior_view_base = self.width * self.height
         self.stats = wp.zeros((STAT_ROWS, _N_STATS), dtype=wp.float64, device=dev)
         self.frames = 0
 
     def kernels(self) -> list[Any]:
-        return [self.kernels_["prior_pass"], self.kernels_["sample_pass"], image_from_sum]
+        return [self.kernels_["prior_walks"], self.kernels_["prior_sets"], self.kernels_["sample_pass"], image_from_sum]
 
     def _timed(self, name: str) -> Any:
         return self.timer(name) if self.timer is not None else contextlib.nullcontext()
@@ -539,12 +558,20 @@ class SMSRenderer(PathTracer):
         self.prior_pair_count.zero_()
         if not self.prior or not self.casters_host:
             return
+        dev = self.built.device
         wp.launch(
-            self.kernels_["prior_pass"],
-            dim=(self.blocks_y, self.blocks_x),
-            inputs=[self.spec, cam, self.casters, self.seed, int(frame), self.block, self.tiles, self.presamples, self.blocks_x, self.prior_view_base],
+            self.kernels_["prior_walks"],
+            dim=(self.blocks_y, self.blocks_x, self.presamples),
+            inputs=[self.spec, cam, self.casters, self.seed, int(frame), self.block, self.tiles, self.blocks_x, self.prior_view_base],
+            outputs=[self.prior_hits, self.stats],
+            device=dev,
+        )
+        wp.launch(
+            self.kernels_["prior_sets"],
+            dim=self.blocks_x * self.blocks_y,
+            inputs=[len(self.casters_host), self.prior_hits],
             outputs=[self.prior_tiles, self.prior_count, self.prior_pairs, self.prior_pair_count, self.stats],
-            device=self.built.device,
+            device=dev,
         )
 
     def pass_record(self, frame: int, cam: CameraData) -> SMSPass:
@@ -601,8 +628,7 @@ class SMSReSTIR(SMSRenderer):
         n = self.width * self.height
         dev = built.device
         # views: 4 per pixel (canonical, a neighbour's sample here, ours there, the neighbour's own) + prior rows
-        n_rows = self.prior_count.shape[0]
-        self.spec = make_caustic_spec(built, 4 * n + n_rows, self.chain, self.max_depth)
+        self.spec = make_caustic_spec(built, 4 * n + self.prior_rows, self.chain, self.max_depth)
         self.prior_view_base = 4 * n
         self.radiance = wp.zeros(n, dtype=wp.vec3, device=dev)
         self.points = wp.zeros(n, dtype=ShadingPoint, device=dev)
@@ -613,7 +639,7 @@ class SMSReSTIR(SMSRenderer):
 
     def kernels(self) -> list[Any]:
         k = self.kernels_
-        return [k["prior_pass"], k["restir_initial"], k["restir_reuse"], k["restir_shade"], image_from_sum]
+        return [k["prior_walks"], k["prior_sets"], k["restir_initial"], k["restir_reuse"], k["restir_shade"], image_from_sum]
 
     def _reuse(self, frame: int, spatial: int, points_n: wp.array, src: int, nb: int, dst: int) -> None:
         cam_prev = self.built.camera_data(float(frame - 1), self.width, self.height)
