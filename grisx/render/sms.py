@@ -189,7 +189,11 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
     trace_path = make_trace_path(kinds, caustic_chain=chain)
     caustics = make_caustics(kinds)
     SMS = caustics.sms
+    # three Warp modules, each compiled on first use: the prior (sms-partitioned, sms-restir), the sample pass
+    # (sms, sms-partitioned) and the reuse passes (sms-restir); one module of all six doubled a method's first compile
+    prior_module = specialized_module(f"{__name__}.chain{chain}.prior", kinds)
     module = specialized_module(f"{__name__}.chain{chain}", kinds)
+    reuse_module = specialized_module(f"{__name__}.chain{chain}.reuse", kinds)
 
     @wp.func
     def first_non_delta(scene: SceneData, o: wp.vec3, d: wp.vec3, key: wp.uint32) -> SurfaceInteraction:
@@ -280,7 +284,7 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
     def set_sample_view(spec: CausticSpec, view: int, x1: ShadingPoint, y: CausticSample):
         set_view(spec, view, x1.si, x1.wo, x1.depth, y.caster, y.xn, y.xn_n, y.light_tri)
 
-    @wp.kernel(module=module)
+    @wp.kernel(module=prior_module)
     def prior_walks(
         spec: CausticSpec,
         cam: CameraData,
@@ -322,7 +326,7 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
             _tally(stats, blk, 7, 1.0)
             hits[blk, j] = wp.vec3i(tile_of(w.u, tiles), ci, ls.light * n_casters + ci)
 
-    @wp.kernel(module=module)
+    @wp.kernel(module=prior_module)
     def prior_sets(
         n_casters: int,
         hits: wp.array2d(dtype=wp.vec3i),
@@ -369,7 +373,7 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
                 L += wp.cw_mul(sp.beta, caustics.value(spec, pixel, wp.vec2(c[0], c[1]))) * c[2]
         add_sample(total, total_sq, nonfinite, y, x, L)
 
-    @wp.kernel(module=module)
+    @wp.kernel(module=reuse_module)
     def restir_initial(
         spec: CausticSpec,
         p: SMSPass,
@@ -399,7 +403,7 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
         res[q] = reservoir_finalize(rc)
         samples[q] = smp
 
-    @wp.kernel(module=module)
+    @wp.kernel(module=reuse_module)
     def restir_reuse(
         spec: CausticSpec,
         cam_prev: CameraData,
@@ -464,7 +468,7 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
         res_out[q] = out.r
         samples_out[q] = kept
 
-    @wp.kernel(module=module)
+    @wp.kernel(module=reuse_module)
     def restir_shade(
         spec: CausticSpec,
         width: int,
@@ -547,7 +551,8 @@ class SMSRenderer(PathTracer):
         self.frames = 0
 
     def kernels(self) -> list[Any]:
-        return [self.kernels_["prior_walks"], self.kernels_["prior_sets"], self.kernels_["sample_pass"], image_from_sum]
+        prior = [self.kernels_["prior_walks"], self.kernels_["prior_sets"]] if self.prior and self.casters_host else []
+        return [*prior, self.kernels_["sample_pass"], image_from_sum]
 
     def _timed(self, name: str) -> Any:
         return self.timer(name) if self.timer is not None else contextlib.nullcontext()
@@ -639,7 +644,8 @@ class SMSReSTIR(SMSRenderer):
 
     def kernels(self) -> list[Any]:
         k = self.kernels_
-        return [k["prior_walks"], k["prior_sets"], k["restir_initial"], k["restir_reuse"], k["restir_shade"], image_from_sum]
+        prior = [k["prior_walks"], k["prior_sets"]] if self.prior and self.casters_host else []
+        return [*prior, k["restir_initial"], k["restir_reuse"], k["restir_shade"], image_from_sum]
 
     def _reuse(self, frame: int, spatial: int, points_n: wp.array, src: int, nb: int, dst: int) -> None:
         cam_prev = self.built.camera_data(float(frame - 1), self.width, self.height)
