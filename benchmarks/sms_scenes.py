@@ -94,7 +94,7 @@ def table1(scene: str, res: tuple[int, int], device: str, frames: int) -> dict[s
 
 
 def reference(scene: str, res: tuple[int, int], device: str, spp: int, out: Path, method: str = "pt") -> np.ndarray:
-    path = out / f"sms_reference_{scene}_{res[0]}x{res[1]}_{method}_{spp}spp.npy"
+    path = out / f"sms_reference_{Path(scene).stem}_{res[0]}x{res[1]}_{method}_{spp}spp.npy"  # a scene may be a file
     if path.exists():
         return np.load(path)
     img = render(scene, method, res=res, device=device, spp=spp, seed=12345).image.astype(np.float32)
