@@ -149,7 +149,9 @@ print("basin areas P(u*_k):", np.round(areas, 4), "  mean Newton steps per walk:
 # %% [markdown]
 # ## 2. Bernoulli trials: E[K] = 1/P
 #
-# Draw fresh seeds until one reaches the same solution. The count K is
+# Draw fresh seeds until one reaches the same solution (the same, as Newton
+# measures it: ∂C/∂u maps the two ends within 10× the walk's tolerance, for a
+# walk stops anywhere |C| is small enough). The count K is
 # geometric with success probability P(u*), so E[K] = 1/P(u*) (Eq. 2), and
 # f(u*)·K estimates f(u*)/P(u*) without knowing P. With trust regions the
 # seeds come from C(u*) only, E[K] = P(C)/P'(u*), and W = K/P(C) (Eq. 5).
@@ -262,7 +264,9 @@ save(fig, "08_table.png")
 #
 # The renderers split the image by ownership: SMS owns the paths
 # x₁ → (1–2 delta vertices on their canonical lobes) → emitter whose first
-# direction lies in a caster's seed square; the path tracer drops exactly
+# direction lies in a caster's seed square (at most 2r wide) and meets the
+# caster at |cos| ≥ 0.1 (near the silhouette no walk converges reliably);
+# the path tracer drops exactly
 # those emitter hits. So `pt` and every SMS method estimate the same image,
 # and the comparison below is at equal time against a `pt` reference.
 

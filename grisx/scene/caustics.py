@@ -10,8 +10,11 @@ from x₁, as footnote 2 recommends, so the map is continuous):
 * **seed space** of a caster object O seen from x₁: the square of half-size
   s on the plane through O's bounding-sphere centre c, perpendicular to the
   axis a = (c − x₁)/D, D = |c − x₁|, that covers the sphere's silhouette
-  (s = r D / √(D² − r²); s = 2r when x₁ is inside the sphere, which then covers
-  only part of O). The seed is the direction ω₁(u) from x₁ to the square's
+  (s = r D / √(D² − r²)), but never wider than s = 2r, reached at D = 2r/√3: near
+  and inside the sphere the square covers only part of O. The bound keeps s
+  continuous in x₁ — as D → r the silhouette's square grows without bound, every
+  solution's basin shrinks with it, and SMS's image showed a dark ring on the
+  floor where O's bounding sphere meets it. The seed is the direction ω₁(u) from x₁ to the square's
   point c + s(2u₀ − 1) t + s(2u₁ − 1) b (a gnomonic map), whose density is
   |∂ω₁/∂u| = (2s)² D / ρ³, ρ the distance to that point. :func:`seed_direction`,
   :func:`invert_seed_direction` are the sampling pair;
@@ -237,10 +240,9 @@ def seed_frame(scene: SceneData, caster: int, x1: wp.vec3) -> SeedFrame:
     f.t = fr.s
     f.b = fr.t
     f.dist = dist
-    if dist > r * 1.0001:
-        f.half = r * dist / wp.sqrt(dist * dist - r * r)
-    else:
-        f.half = 2.0 * r  # x₁ inside the sphere: part of O only (the rest stays with the path tracer)
+    f.half = 2.0 * r  # x₁ inside or near the sphere: part of O only (the rest stays with the path tracer)
+    if dist * dist > r * r * (4.0 / 3.0):
+        f.half = r * dist / wp.sqrt(dist * dist - r * r)  # the silhouette, where that is < 2r
     f.valid = 1
     return f
 
