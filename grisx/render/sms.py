@@ -56,8 +56,8 @@ includes the path tracer's sample of the pixel), ``temporal``, ``spatial`` and `
 Simplified against the paper (said plainly): one emitter point and caster per sample (p_scene: the
 caster uniform, the light by power; a "light" is one emitter triangle, as the light set has it);
 the tile prior is per block and caster, not per pair (linked lists in the paper); delta casters only (no
-offset manifolds for glossy casters); the chain is shot from x₁ with a
-numerical Jacobian (:mod:`grisx.scene.caustics`); ``sms-restir``'s temporal neighbour is found by
+offset manifolds for glossy casters); the chain is shot from x₁, its Jacobian
+carried by ray differentials (:mod:`grisx.scene.caustics`; differences only through normal maps); ``sms-restir``'s temporal neighbour is found by
 reprojecting x₁ (not a G-buffer similarity test) and temporal reuse is off while objects move.
 """
 
