@@ -19,6 +19,8 @@ renders without NaN/Inf, and without casters ``sms`` is ``pt`` bit for bit.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pytest
 from reuse_checks import check
@@ -143,14 +145,20 @@ def _sphere_solutions(built, x1, xn, grid=256):
     return total, len(firsts)
 
 
+@functools.cache
+def _sphere_built_and_truths():
+    """The glass sphere scene and each problem's (Σ over solutions, count), once per process (three tests read them)."""
+    built = load_scene(_SPHERE_XML).build("cpu")
+    assert built.scene.objects[2].name.startswith("sphere")
+    return built, [_sphere_solutions(built, x1, xn) for x1, xn in _SPHERE_PROBLEMS]
+
+
 def _sphere_weight_z(tiles, max_trials, n=100_000):
     from grisx.scene.caustics import sms_estimates
 
-    built = load_scene(_SPHERE_XML).build("cpu")
-    assert built.scene.objects[2].name.startswith("sphere")
+    built, truths = _sphere_built_and_truths()
     zs = []
-    for k, (x1, xn) in enumerate(_SPHERE_PROBLEMS):
-        truth, count = _sphere_solutions(built, x1, xn)
+    for k, ((x1, xn), (truth, count)) in enumerate(zip(_SPHERE_PROBLEMS, truths)):
         assert truth > 0.5 and count >= 1, (x1, xn, truth, count)
         e = sms_estimates(built, x1, (0, 1, 0), 2, xn, (0, -1, 0), n, seed=100 + k, tiles=tiles, max_trials=max_trials)
         assert np.all(np.isfinite(e))
