@@ -107,6 +107,7 @@ wp.set_module_options({"enable_backward": False})
 __all__ = [
     "CHAIN_MAX",
     "GRAZING_COS",
+    "grazing",
     "JACOBIAN_STEP",
     "CausticSpec",
     "CausticChain",
@@ -276,6 +277,12 @@ def invert_seed_direction(f: SeedFrame, x1: wp.vec3, d: wp.vec3) -> wp.vec3:
 
 
 @wp.func
+def grazing(d: wp.vec3, ng: wp.vec3) -> wp.bool:
+    """Does a ray along ``d`` meet a surface of geometric normal ``ng`` below ``GRAZING_COS``? Such a chain is not SMS's."""
+    return wp.abs(wp.dot(d, ng)) < GRAZING_COS
+
+
+@wp.func
 def caustic_owned(scene: SceneData, x1: wp.vec3, d1: wp.vec3, caster: int) -> int:
     """Does SMS own the chain that leaves x₁ along ``d1`` and first meets object ``caster``? (ω₁ in its seed square)"""
     return int(invert_seed_direction(seed_frame(scene, caster, x1), x1, d1)[2] > 0.0)
@@ -391,7 +398,7 @@ def _make_caustics(kinds: frozenset[int]) -> CausticFuncs:
             m = surface_material(scene, si)
             if bsdf.is_delta(m) == 0:
                 break
-            if k == 0 and (si.object != caster or wp.abs(wp.dot(d, si.ng)) < GRAZING_COS):
+            if k == 0 and (si.object != caster or grazing(d, si.ng)):
                 return out  # x₂ must lie on O (another object in front: not this chain), met at |cos| ≥ GRAZING_COS
             frame = frame_from_normal(si.ns)
             wo = to_local(frame, -d)

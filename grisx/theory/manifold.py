@@ -260,11 +260,7 @@ def periodic_delta(a: wp.vec2, b: wp.vec2) -> wp.vec2:
 @wp.func
 def periodic_distance(a: wp.vec2, b: wp.vec2) -> float:
     """Euclidean distance on the unit torus."""
-    dx = wp.abs(a[0] - b[0])
-    dy = wp.abs(a[1] - b[1])
-    dx = wp.min(dx, 1.0 - dx)
-    dy = wp.min(dy, 1.0 - dy)
-    return wp.sqrt(dx * dx + dy * dy)
+    return wp.length(periodic_delta(a, b))
 
 
 @wp.func

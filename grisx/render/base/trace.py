@@ -18,7 +18,7 @@ from grisx.scene.bsdf import cosine_hemisphere_pdf, make_bsdf, sample_cosine_hem
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.lights import light_pdf_emitter, make_lights
 from grisx.scene.material import MATERIAL_PRINCIPLED, MATERIAL_PRINCIPLED_THIN, MATERIAL_ROUGH_DIELECTRIC, PERTURB_NONE
-from grisx.scene.caustics import GRAZING_COS, canonical_lobe, caustic_owned
+from grisx.scene.caustics import canonical_lobe, caustic_owned, grazing
 from grisx.scene.scene import SceneData, SurfaceInteraction, make_surface, spawn_origin
 from grisx.theory.mis import technique_mis
 from grisx.theory.roulette import roulette_survival
@@ -210,7 +210,7 @@ def _make_trace_path(kinds: frozenset[int], caustic_chain: int, bounds: bool) ->
                         chain_len += 1
                         if chain_len == 1:
                             chain_obj = si.object
-                            if wp.abs(wp.dot(d, si.ng)) < GRAZING_COS:
+                            if grazing(d, si.ng):
                                 chain_state = 2  # met at a grazing angle: the path tracer's (caustic_owned)
                         if chain_len > chain_max:
                             chain_state = 2
