@@ -49,6 +49,10 @@ Renderers pass Warp arrays straight in (``(H, W)``/``(H, W, C)`` float32 or
 ``(H, W)`` of ``wp.vec3``); on CUDA nothing is copied to the host and the
 result is a Warp array on the same device. :func:`solve` also returns the
 residual, iteration counts, energy and time as a :class:`PoissonResult`.
+A renderer that reconstructs every frame from the same buffers binds a
+:class:`ScreenedPoisson` to them instead: buffers and CUDA graph made once,
+the stopping rule on the device, the previous frame's image as the start
+(:mod:`grisx.poisson.system`).
 
 References
 ----------
@@ -71,10 +75,12 @@ from grisx.poisson.gradient import (
 )
 from grisx.poisson.l1 import DEFAULT_EPS, L1_PRESETS, IRLSPreset
 from grisx.poisson.reconstruct import DEFAULT_TOL, NORMS, SOLVERS, PoissonResult, reconstruct, solve
+from grisx.poisson.system import ScreenedPoisson
 
 __all__ = [
     "reconstruct",
     "solve",
+    "ScreenedPoisson",
     "PoissonResult",
     "ImageGradients",
     "forward_gradient",

@@ -21,9 +21,14 @@ Images live *planar*, as ``(C, H*W)`` float32 arrays, pixel ``i = y*W + x``;
 each colour channel is an independent system with its own CG scalars. CG needs
 two dot products per iteration; they are fused into the kernels that produce
 their operands (``p·Ap`` into the mat-vec, ``r·z`` and ``r·r`` into the update)
-and reduced per block with Warp tiles, one atomic add per block and channel;
-each lane handles several pixels (``per``) so that a block covers
-``block × per`` pixels (see :mod:`grisx.poisson.cg` for the launch shape).
+and reduced per block with Warp tiles, one atomic add per block and channel.
+A block covers a tile of ``rows`` image rows by ``lanes × strips`` columns:
+lane ``l`` of strip ``s`` takes column ``(bx·strips + s)·lanes + l`` in every
+row of the tile, so consecutive lanes read consecutive pixels (coalesced), a
+pixel's row neighbours were just read by its neighbour lanes, and no index is
+divided by the width (see :mod:`grisx.poisson.cg` for the launch shape). The
+unweighted (L2) system never stores its diagonal: it is ``α²`` plus the
+pixel's number of neighbours.
 The scalars stay on the device: a kernel reads ``ρ_k = r_k·z_k`` and
 ``p_k·Ap_k`` from a small array, so an iteration needs no host round trip. The
 scalars rotate through three slots (iteration ``k`` uses slot ``k % 3``) so that
@@ -88,10 +93,8 @@ def _weight(w: wp.array2d(dtype=wp.float32), c: int, i: int, weighted: int) -> f
 @wp.func
 def _apply(x: wp.array2d(dtype=wp.float32), wpri: wp.array2d(dtype=wp.float32),
            wx: wp.array2d(dtype=wp.float32), wy: wp.array2d(dtype=wp.float32),
-           weighted: int, a2: float, c: int, i: int, h: int, w: int) -> float:
-    """(α² W_p + ∇ᵀ W_g ∇) x at pixel i: a Neumann 5-point stencil."""
-    y = i / w
-    xx = i - y * w
+           weighted: int, a2: float, c: int, i: int, y: int, xx: int, h: int, w: int) -> float:
+    """(α² W_p + ∇ᵀ W_g ∇) x at pixel i = (y, xx): a Neumann 5-point stencil."""
     xi = x[c, i]
     acc = a2 * _weight(wpri, c, i, weighted) * xi
     # An edge enters only if both of its pixels exist (Neumann boundary).
@@ -109,9 +112,7 @@ def _apply(x: wp.array2d(dtype=wp.float32), wpri: wp.array2d(dtype=wp.float32),
 @wp.func
 def _diagonal(wpri: wp.array2d(dtype=wp.float32), wx: wp.array2d(dtype=wp.float32),
               wy: wp.array2d(dtype=wp.float32), weighted: int, a2: float,
-              c: int, i: int, h: int, w: int) -> float:
-    y = i / w
-    xx = i - y * w
+              c: int, i: int, y: int, xx: int, h: int, w: int) -> float:
     d = a2 * _weight(wpri, c, i, weighted)
     if xx + 1 < w:
         d += _weight(wx, c, i, weighted)
@@ -125,13 +126,29 @@ def _diagonal(wpri: wp.array2d(dtype=wp.float32), wx: wp.array2d(dtype=wp.float3
 
 
 @wp.func
+def _inv_diagonal(dinv: wp.array2d(dtype=wp.float32), weighted: int, a2: float,
+                  c: int, i: int, y: int, xx: int, h: int, w: int) -> float:
+    """The Jacobi preconditioner diag(A)⁻¹ at pixel i: stored for a weighted system, else α² + neighbours."""
+    if weighted != 0:
+        return dinv[c, i]
+    d = a2
+    if xx + 1 < w:
+        d += 1.0
+    if xx > 0:
+        d += 1.0
+    if y + 1 < h:
+        d += 1.0
+    if y > 0:
+        d += 1.0
+    return 1.0 / d
+
+
+@wp.func
 def _rhs(primal: wp.array2d(dtype=wp.float32), gx: wp.array2d(dtype=wp.float32),
          gy: wp.array2d(dtype=wp.float32), wpri: wp.array2d(dtype=wp.float32),
          wx: wp.array2d(dtype=wp.float32), wy: wp.array2d(dtype=wp.float32),
-         weighted: int, a2: float, c: int, i: int, h: int, w: int) -> float:
-    """α² W_p P + ∇ᵀ W_g G at pixel i; the ignored last column/row of G is never read."""
-    y = i / w
-    xx = i - y * w
+         weighted: int, a2: float, c: int, i: int, y: int, xx: int, h: int, w: int) -> float:
+    """α² W_p P + ∇ᵀ W_g G at pixel i = (y, xx); the ignored last column/row of G is never read."""
     acc = a2 * _weight(wpri, c, i, weighted) * primal[c, i]
     if xx + 1 < w:
         acc -= _weight(wx, c, i, weighted) * gx[c, i]
@@ -180,15 +197,19 @@ def planar_to_hwc(src: wp.array2d(dtype=wp.float32), dst: wp.array3d(dtype=wp.fl
 def build_system(primal: wp.array2d(dtype=wp.float32), gx: wp.array2d(dtype=wp.float32),
                  gy: wp.array2d(dtype=wp.float32), wpri: wp.array2d(dtype=wp.float32),
                  wx: wp.array2d(dtype=wp.float32), wy: wp.array2d(dtype=wp.float32),
-                 weighted: int, a2: float, h: int, w: int, n: int, block: int, per: int,
+                 weighted: int, a2: float, h: int, w: int, rows: int, strips: int, lanes: int,
                  b: wp.array2d(dtype=wp.float32), dinv: wp.array2d(dtype=wp.float32)):
     """Right-hand side b and the Jacobi preconditioner diag(A)⁻¹."""
-    c, blk, lane = wp.tid()
-    for j in range(per):
-        i = (blk * per + j) * block + lane
-        if i < n:
-            b[c, i] = _rhs(primal, gx, gy, wpri, wx, wy, weighted, a2, c, i, h, w)
-            dinv[c, i] = 1.0 / _diagonal(wpri, wx, wy, weighted, a2, c, i, h, w)
+    c, by, bx, lane = wp.tid()
+    for j in range(rows):
+        y = by * rows + j
+        for strip in range(strips):
+            xx = (bx * strips + strip) * lanes + lane
+            if y < h and xx < w:
+                i = y * w + xx
+                b[c, i] = _rhs(primal, gx, gy, wpri, wx, wy, weighted, a2, c, i, y, xx, h, w)
+                if weighted != 0:  # the unweighted diagonal is never stored
+                    dinv[c, i] = 1.0 / _diagonal(wpri, wx, wy, weighted, a2, c, i, y, xx, h, w)
 
 
 @wp.func
@@ -196,9 +217,7 @@ def _irls_weight(x: wp.array2d(dtype=wp.float32), primal: wp.array2d(dtype=wp.fl
                  gx: wp.array2d(dtype=wp.float32), gy: wp.array2d(dtype=wp.float32),
                  alpha: float, eps: float, h: int, w: int,
                  wpri: wp.array2d(dtype=wp.float32), wx: wp.array2d(dtype=wp.float32),
-                 wy: wp.array2d(dtype=wp.float32), c: int, i: int):
-    y = i / w
-    xx = i - y * w
+                 wy: wp.array2d(dtype=wp.float32), c: int, i: int, y: int, xx: int):
     xi = x[c, i]
     wpri[c, i] = 1.0 / wp.max(alpha * wp.abs(xi - primal[c, i]), eps)
     # Absent edges get weight 0 so a NaN in the ignored column can never leak in.
@@ -215,48 +234,55 @@ def _irls_weight(x: wp.array2d(dtype=wp.float32), primal: wp.array2d(dtype=wp.fl
 @wp.kernel
 def irls_weights(x: wp.array2d(dtype=wp.float32), primal: wp.array2d(dtype=wp.float32),
                  gx: wp.array2d(dtype=wp.float32), gy: wp.array2d(dtype=wp.float32),
-                 alpha: float, eps: float, h: int, w: int, n: int, block: int, per: int,
+                 alpha: float, eps: float, h: int, w: int, rows: int, strips: int, lanes: int,
                  wpri: wp.array2d(dtype=wp.float32), wx: wp.array2d(dtype=wp.float32),
                  wy: wp.array2d(dtype=wp.float32)):
     """IRLS weights 1/max(|ρ_j|, ε) for the residuals ρ = (α(x-P), ∇x-G)."""
-    c, blk, lane = wp.tid()
-    for j in range(per):
-        i = (blk * per + j) * block + lane
-        if i < n:
-            _irls_weight(x, primal, gx, gy, alpha, eps, h, w, wpri, wx, wy, c, i)
+    c, by, bx, lane = wp.tid()
+    for j in range(rows):
+        y = by * rows + j
+        for strip in range(strips):
+            xx = (bx * strips + strip) * lanes + lane
+            if y < h and xx < w:
+                i = y * w + xx
+                _irls_weight(x, primal, gx, gy, alpha, eps, h, w, wpri, wx, wy, c, i, y, xx)
 
 
 # ---- Jacobi-preconditioned CG ----
-# Tiled kernels on a grid (C, blocks): each lane handles `per` pixels
-# i = (blk*per + j)*block + lane (coalesced), so a block reduces block*per
-# pixels with one atomic add per scalar; on a GPU this cuts both the per-thread
-# index arithmetic and the contention on the scalar slots.
+# Tiled kernels on a grid (C, row tiles, column tiles) (module docstring): a block reduces its
+# tile with one atomic add per scalar, which keeps the contention on the scalar slots low.
 
 
 @wp.kernel
 def cg_init(x: wp.array2d(dtype=wp.float32), b: wp.array2d(dtype=wp.float32),
             dinv: wp.array2d(dtype=wp.float32), wpri: wp.array2d(dtype=wp.float32),
             wx: wp.array2d(dtype=wp.float32), wy: wp.array2d(dtype=wp.float32),
-            weighted: int, a2: float, h: int, w: int, n: int, block: int, per: int,
+            weighted: int, a2: float, h: int, w: int, rows: int, strips: int, lanes: int, jacobi: int,
             r: wp.array2d(dtype=wp.float32), p: wp.array2d(dtype=wp.float32),
             scal: wp.array2d(dtype=wp.float32)):
-    """r = b - Ax, p = z = M⁻¹r; accumulate r·z, r·r, b·b into slot 0 (scal zeroed before)."""
-    c, blk, lane = wp.tid()
+    """r = b - Ax; r·r, b·b into slot 0 (scal zeroed before); with ``jacobi``, also p = z = D⁻¹r and r·z
+    (another preconditioner makes z and r·z itself)."""
+    c, by, bx, lane = wp.tid()
     rz = float(0.0)
     rr = float(0.0)
     bb = float(0.0)
-    for j in range(per):
-        i = (blk * per + j) * block + lane
-        if i < n:
-            bi = b[c, i]
-            ri = bi - _apply(x, wpri, wx, wy, weighted, a2, c, i, h, w)
-            zi = dinv[c, i] * ri
-            r[c, i] = ri
-            p[c, i] = zi
-            rz += ri * zi
-            rr += ri * ri
-            bb += bi * bi
-    wp.tile_atomic_add(scal[SCAL_RZ], wp.tile_sum(wp.tile(rz)), offset=c)
+    for j in range(rows):
+        y = by * rows + j
+        for strip in range(strips):
+            xx = (bx * strips + strip) * lanes + lane
+            if y < h and xx < w:
+                i = y * w + xx
+                bi = b[c, i]
+                ri = bi - _apply(x, wpri, wx, wy, weighted, a2, c, i, y, xx, h, w)
+                r[c, i] = ri
+                if jacobi != 0:
+                    zi = _inv_diagonal(dinv, weighted, a2, c, i, y, xx, h, w) * ri
+                    p[c, i] = zi
+                    rz += ri * zi
+                rr += ri * ri
+                bb += bi * bi
+    if jacobi != 0:
+        wp.tile_atomic_add(scal[SCAL_RZ], wp.tile_sum(wp.tile(rz)), offset=c)
     wp.tile_atomic_add(scal[SCAL_RR], wp.tile_sum(wp.tile(rr)), offset=c)
     wp.tile_atomic_add(scal[SCAL_BB], wp.tile_sum(wp.tile(bb)), offset=c)
 
@@ -264,27 +290,31 @@ def cg_init(x: wp.array2d(dtype=wp.float32), b: wp.array2d(dtype=wp.float32),
 @wp.kernel
 def cg_matvec(p: wp.array2d(dtype=wp.float32), wpri: wp.array2d(dtype=wp.float32),
               wx: wp.array2d(dtype=wp.float32), wy: wp.array2d(dtype=wp.float32),
-              weighted: int, a2: float, h: int, w: int, n: int, block: int, per: int,
+              weighted: int, a2: float, h: int, w: int, rows: int, strips: int, lanes: int,
               ap: wp.array2d(dtype=wp.float32), scal: wp.array2d(dtype=wp.float32), k: int):
     """Ap = A p and p·Ap into slot k % 3."""
-    c, blk, lane = wp.tid()
+    c, by, bx, lane = wp.tid()
     pap = float(0.0)
-    for j in range(per):
-        i = (blk * per + j) * block + lane
-        if i < n:
-            api = _apply(p, wpri, wx, wy, weighted, a2, c, i, h, w)
-            ap[c, i] = api
-            pap += p[c, i] * api
+    for j in range(rows):
+        y = by * rows + j
+        for strip in range(strips):
+            xx = (bx * strips + strip) * lanes + lane
+            if y < h and xx < w:
+                i = y * w + xx
+                api = _apply(p, wpri, wx, wy, weighted, a2, c, i, y, xx, h, w)
+                ap[c, i] = api
+                pap += p[c, i] * api
     wp.tile_atomic_add(scal[SCAL_PAP + k % 3], wp.tile_sum(wp.tile(pap)), offset=c)
 
 
 @wp.kernel
 def cg_update(x: wp.array2d(dtype=wp.float32), r: wp.array2d(dtype=wp.float32),
               p: wp.array2d(dtype=wp.float32), ap: wp.array2d(dtype=wp.float32),
-              dinv: wp.array2d(dtype=wp.float32), n: int, block: int, per: int,
+              dinv: wp.array2d(dtype=wp.float32), weighted: int, a2: float,
+              h: int, w: int, rows: int, strips: int, lanes: int, jacobi: int,
               scal: wp.array2d(dtype=wp.float32), k: int):
-    """x += a p, r -= a Ap with a = (r·z)/(p·Ap); new r·z and r·r into slot (k+1) % 3."""
-    c, blk, lane = wp.tid()
+    """x += a p, r -= a Ap with a = (r·z)/(p·Ap); new r·r (and, with ``jacobi``, r·z) into slot (k+1) % 3."""
+    c, by, bx, lane = wp.tid()
     s = k % 3
     s1 = (k + 1) % 3
     pap = scal[SCAL_PAP + s, c]
@@ -294,24 +324,30 @@ def cg_update(x: wp.array2d(dtype=wp.float32), r: wp.array2d(dtype=wp.float32),
         a = scal[SCAL_RZ + s, c] / pap
     rz = float(0.0)
     rr = float(0.0)
-    for j in range(per):
-        i = (blk * per + j) * block + lane
-        if i < n:
-            x[c, i] = x[c, i] + a * p[c, i]
-            ri = r[c, i] - a * ap[c, i]
-            r[c, i] = ri
-            rz += ri * ri * dinv[c, i]
-            rr += ri * ri
-    wp.tile_atomic_add(scal[SCAL_RZ + s1], wp.tile_sum(wp.tile(rz)), offset=c)
+    for j in range(rows):
+        y = by * rows + j
+        for strip in range(strips):
+            xx = (bx * strips + strip) * lanes + lane
+            if y < h and xx < w:
+                i = y * w + xx
+                x[c, i] = x[c, i] + a * p[c, i]
+                ri = r[c, i] - a * ap[c, i]
+                r[c, i] = ri
+                if jacobi != 0:
+                    rz += ri * ri * _inv_diagonal(dinv, weighted, a2, c, i, y, xx, h, w)
+                rr += ri * ri
+    if jacobi != 0:
+        wp.tile_atomic_add(scal[SCAL_RZ + s1], wp.tile_sum(wp.tile(rz)), offset=c)
     wp.tile_atomic_add(scal[SCAL_RR + s1], wp.tile_sum(wp.tile(rr)), offset=c)
 
 
 @wp.kernel
-def cg_direction(r: wp.array2d(dtype=wp.float32), dinv: wp.array2d(dtype=wp.float32),
-                 n: int, block: int, per: int,
+def cg_direction(r: wp.array2d(dtype=wp.float32), z: wp.array2d(dtype=wp.float32), dinv: wp.array2d(dtype=wp.float32),
+                 weighted: int, a2: float, h: int, w: int, rows: int, strips: int, lanes: int, jacobi: int,
                  p: wp.array2d(dtype=wp.float32), scal: wp.array2d(dtype=wp.float32), k: int):
-    """p = M⁻¹r + β p; zero the accumulators iteration k+1 will add into."""
-    c, blk, lane = wp.tid()
+    """p = z + β p, z = M⁻¹r (D⁻¹r with ``jacobi``, else the preconditioner's ``z``); zero the accumulators
+    iteration k+1 will add into."""
+    c, by, bx, lane = wp.tid()
     s = k % 3
     s1 = (k + 1) % 3
     s2 = (k + 2) % 3
@@ -319,15 +355,48 @@ def cg_direction(r: wp.array2d(dtype=wp.float32), dinv: wp.array2d(dtype=wp.floa
     beta = float(0.0)
     if rz_old > 0.0:
         beta = scal[SCAL_RZ + s1, c] / rz_old
-    for j in range(per):
-        i = (blk * per + j) * block + lane
-        if i < n:
-            p[c, i] = dinv[c, i] * r[c, i] + beta * p[c, i]
+    for j in range(rows):
+        y = by * rows + j
+        for strip in range(strips):
+            xx = (bx * strips + strip) * lanes + lane
+            if y < h and xx < w:
+                i = y * w + xx
+                zi = float(0.0)
+                if jacobi != 0:
+                    zi = _inv_diagonal(dinv, weighted, a2, c, i, y, xx, h, w) * r[c, i]
+                else:
+                    zi = z[c, i]
+                p[c, i] = zi + beta * p[c, i]
     # Nobody reads these slots in this kernel, so one lane may clear them.
-    if blk == 0 and lane == 0:
+    if by == 0 and bx == 0 and lane == 0:
         scal[SCAL_PAP + s1, c] = 0.0
         scal[SCAL_RZ + s2, c] = 0.0
         scal[SCAL_RR + s2, c] = 0.0
+
+
+@wp.kernel
+def cg_continue(scal: wp.array2d(dtype=wp.float32), tol2: float, step: int, limit: int,
+                iterations: wp.array(dtype=wp.int32), keep_going: wp.array(dtype=wp.int32)):
+    """The stopping rule of a CG loop, on the device (one thread): count ``step`` more iterations
+    (0 right after ``cg_init``) and go on while fewer than ``limit`` ran and some channel still has
+    r·r > tol² b·b (r·r of iteration k is in slot k % 3)."""
+    k = iterations[0] + step
+    iterations[0] = k
+    go = int(0)
+    if k < limit:
+        for c in range(scal.shape[1]):
+            if scal[SCAL_RR + k % 3, c] > tol2 * scal[SCAL_BB, c]:
+                go = 1
+    keep_going[0] = go
+
+
+@wp.kernel
+def cold_start(x: wp.array2d(dtype=wp.float32), primal: wp.array2d(dtype=wp.float32),
+               cold: wp.array(dtype=wp.int32)):
+    """x = P where ``cold[0]`` is set (a first frame, or no warm start); else x is kept (warm start)."""
+    c, i = wp.tid()
+    if cold[0] != 0:
+        x[c, i] = primal[c, i]
 
 
 # ---- measurement ----
@@ -338,35 +407,38 @@ def measure(x: wp.array2d(dtype=wp.float32), b: wp.array2d(dtype=wp.float32),
             primal: wp.array2d(dtype=wp.float32), gx: wp.array2d(dtype=wp.float32),
             gy: wp.array2d(dtype=wp.float32), wpri: wp.array2d(dtype=wp.float32),
             wx: wp.array2d(dtype=wp.float32), wy: wp.array2d(dtype=wp.float32),
-            weighted: int, alpha: float, h: int, w: int, n: int, block: int, per: int,
+            weighted: int, alpha: float, h: int, w: int, rows: int, strips: int, lanes: int,
             out: wp.array2d(dtype=wp.float32)):
     """‖b - Ax‖², ‖b‖² of the last system and the L2/L1 energies of x, per channel."""
-    c, blk, lane = wp.tid()
+    c, by, bx, lane = wp.tid()
     rr = float(0.0)
     bb = float(0.0)
     e2 = float(0.0)
     e1 = float(0.0)
-    for j in range(per):
-        i = (blk * per + j) * block + lane
-        if i < n:
-            y = i / w
-            xx = i - y * w
-            bi = b[c, i]
-            ri = bi - _apply(x, wpri, wx, wy, weighted, alpha * alpha, c, i, h, w)
-            rr += ri * ri
-            bb += bi * bi
-            xi = x[c, i]
-            rp = alpha * (xi - primal[c, i])
-            e2 += rp * rp
-            e1 += wp.abs(rp)
-            if xx + 1 < w:
-                rx = x[c, i + 1] - xi - gx[c, i]
-                e2 += rx * rx
-                e1 += wp.abs(rx)
-            if y + 1 < h:
-                ry = x[c, i + w] - xi - gy[c, i]
-                e2 += ry * ry
-                e1 += wp.abs(ry)
+    for j in range(rows):
+        y = by * rows + j
+        for strip in range(strips):
+            xx = (bx * strips + strip) * lanes + lane
+            if y < h and xx < w:
+                i = y * w + xx
+                y = i / w
+                xx = i - y * w
+                bi = b[c, i]
+                ri = bi - _apply(x, wpri, wx, wy, weighted, alpha * alpha, c, i, y, xx, h, w)
+                rr += ri * ri
+                bb += bi * bi
+                xi = x[c, i]
+                rp = alpha * (xi - primal[c, i])
+                e2 += rp * rp
+                e1 += wp.abs(rp)
+                if xx + 1 < w:
+                    rx = x[c, i + 1] - xi - gx[c, i]
+                    e2 += rx * rx
+                    e1 += wp.abs(rx)
+                if y + 1 < h:
+                    ry = x[c, i + w] - xi - gy[c, i]
+                    e2 += ry * ry
+                    e1 += wp.abs(ry)
     wp.tile_atomic_add(out[0], wp.tile_sum(wp.tile(rr)), offset=c)
     wp.tile_atomic_add(out[1], wp.tile_sum(wp.tile(bb)), offset=c)
     wp.tile_atomic_add(out[2], wp.tile_sum(wp.tile(e2)), offset=c)

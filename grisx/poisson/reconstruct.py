@@ -38,7 +38,7 @@ import warp as wp
 from grisx.device import resolve_device, synchronize
 from grisx.errors import InvalidParameterError, InvalidValueError, UnknownNameError
 from grisx.poisson import operators as ops
-from grisx.poisson.cg import allocate_system, assemble, measure_system, solve_cg
+from grisx.poisson.cg import PRECONDITIONERS, allocate_system, assemble, measure_system, solve_cg
 from grisx.poisson.dct import solve_l2_dct
 from grisx.poisson.gradient import screened_energy, screened_operator, screened_rhs
 from grisx.poisson.l1 import DEFAULT_EPS, get_preset, irls
@@ -94,7 +94,7 @@ class _Input:
 
 def _as_input(name: str, a: Any) -> _Input:
     if isinstance(a, wp.array):
-        return _as_warp_input(name, a)
+        return as_warp_input(name, a)
     try:
         arr = np.asarray(a)
     except Exception as exc:  # e.g. ragged nested lists
@@ -111,7 +111,7 @@ def _as_input(name: str, a: Any) -> _Input:
     return _Input(name=name, kind="numpy", hwc=hwc, source=arr, grey=arr.ndim == 2)
 
 
-def _as_warp_input(name: str, a: wp.array) -> _Input:
+def as_warp_input(name: str, a: wp.array) -> _Input:
     dtype = a.dtype
     vector = wp.types.type_is_vector(dtype)
     scalar = dtype._wp_scalar_type_ if vector else dtype
@@ -197,7 +197,7 @@ def _from_planar(x: wp.array, primal: _Input, dev: wp.Device) -> Any:
         dtype = np.float64 if primal.hwc.dtype == np.float64 else np.float32
         return np.ascontiguousarray(img, dtype=dtype)
     out = wp.empty(primal.source.shape, dtype=primal.source.dtype, device=dev)
-    view = _as_warp_input("out", out).hwc
+    view = as_warp_input("out", out).hwc
     wp.launch(ops.planar_to_hwc, dim=(h, w, c), inputs=[x, view, w], device=dev)
     return out
 
@@ -241,7 +241,8 @@ def solve(primal: Any, dx: Any, dy: Any, alpha: float = 0.2, norm: str = "L2",
           device: str | None = None, *, solver: str = "auto", preset: str = "default",
           outer_iterations: int | None = None, inner_iterations: int | None = None,
           tol: float = DEFAULT_TOL, max_iter: int = DEFAULT_MAX_ITER, eps: float = DEFAULT_EPS,
-          initial: str = "primal", check_finite: bool = True, measure: bool = True) -> PoissonResult:
+          initial: str = "primal", check_finite: bool = True, measure: bool = True,
+          preconditioner: str | None = None) -> PoissonResult:
     """Reconstruct an image from ``primal``, ``dx``, ``dy``; return a :class:`PoissonResult`.
 
     Parameters
@@ -269,6 +270,9 @@ def solve(primal: Any, dx: Any, dy: Any, alpha: float = 0.2, norm: str = "L2",
         IRLS weight floor, in image units (L1 only).
     initial
         Initial iterate of the Warp solvers: ``"primal"`` or ``"zero"``.
+    preconditioner
+        CG's preconditioner, ``"multigrid"`` (one V-cycle, :mod:`grisx.poisson.multigrid`) or
+        ``"jacobi"``; default: multigrid for L2, the preset's for L1.
     check_finite
         Reject NaN/Inf (one small host read for Warp inputs).
     measure
@@ -281,10 +285,14 @@ def solve(primal: Any, dx: Any, dy: Any, alpha: float = 0.2, norm: str = "L2",
     norm_u, solver = _check_options(norm, alpha, solver, dev, tol, max_iter, eps)
     if initial not in ("primal", "zero"):
         raise UnknownNameError("initial guess", str(initial), ("primal", "zero"))
+    if preconditioner is not None and preconditioner not in PRECONDITIONERS:
+        raise UnknownNameError("CG preconditioner", str(preconditioner), PRECONDITIONERS)
     alpha = float(alpha)
     outer = inner = 0
+    chosen = preconditioner or "multigrid"
     if norm_u == "L1":
         p = get_preset(preset)
+        chosen = preconditioner or p.preconditioner
         outer = p.outer if outer_iterations is None else int(outer_iterations)
         inner = p.inner if inner_iterations is None else int(inner_iterations)
         if outer < 1 or inner < 0:
@@ -299,7 +307,7 @@ def solve(primal: Any, dx: Any, dy: Any, alpha: float = 0.2, norm: str = "L2",
     h, w, c = inputs[0].shape
     planar = [_to_planar(inp, dev) for inp in inputs]
     x = wp.clone(planar[0]) if initial == "primal" else wp.zeros_like(planar[0])
-    system = allocate_system(planar[0], planar[1], planar[2], x, h, w, alpha, weighted=norm_u == "L1")
+    system = allocate_system(planar[0], planar[1], planar[2], x, h, w, alpha, weighted=norm_u == "L1", preconditioner=chosen)
     if norm_u == "L2":
         assemble(system, weighted=False)
         report = solve_cg(system, weighted=False, tol=float(tol), max_iter=int(max_iter))

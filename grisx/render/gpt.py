@@ -47,7 +47,6 @@ import numpy as np
 import warp as wp
 
 from grisx.params import Param
-from grisx.poisson import reconstruct
 from grisx.render.area_restir import AREA_KEYS, AreaReSTIR, area_params
 from grisx.render.base.gradient import RECONSTRUCTIONS, GradientFrame, make_gradient_kernels
 from grisx.render.base.registry import RenderMethod, create_renderer, register, renderer_params
@@ -69,6 +68,10 @@ class GradientFromPrimal(AreaReSTIR):
 
     def kernels(self) -> list[Any]:
         return [*super().kernels(), *self.gk.values()]
+
+    def reset(self, seed: int | None = None) -> None:
+        super().reset(seed)
+        self.gradient.reset()
 
     def add_gradients(self, frame: int, reservoirs: wp.array, film: wp.array, scale: float, paths: bool = True) -> None:
         """Add ``scale`` × the primal and the pixels' parts of dx, dy from the kept samples (film sample ``film``);
@@ -98,7 +101,7 @@ class GradientFromPrimal(AreaReSTIR):
             self.image = g.primal
             return self.image
         with self._phase("reconstruction"):
-            self.image = reconstruct(g.primal, g.dx, g.dy, alpha=g.alpha, norm=g.norm)
+            self.image = g.reconstruct()
         return self.image
 
     def extra(self) -> dict[str, np.ndarray]:

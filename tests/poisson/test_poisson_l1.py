@@ -104,7 +104,8 @@ def test_irls_lowers_l1_energy_below_l2_solution(h, w, seed):
 
 def test_presets_and_overrides():
     primal, dx, dy = (np.random.default_rng(0).random((6, 7)).astype(np.float32) for _ in range(3))
-    assert [(p.outer, p.inner) for p in L1_PRESETS.values()] == [(5, 20), (20, 50), (50, 100)]
+    assert [(p.name, p.outer, p.inner, p.preconditioner) for p in L1_PRESETS.values()] == [
+        ("fast", 5, 4, "multigrid"), ("default", 20, 5, "multigrid"), ("high", 50, 8, "multigrid"), ("classic", 20, 50, "jacobi")]
     for name, p in L1_PRESETS.items():
         res = solve(primal, dx, dy, norm="L1", preset=name)
         assert (res.outer_iterations, res.iterations) == (p.outer, p.outer * p.inner)
