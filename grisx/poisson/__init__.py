@@ -21,13 +21,15 @@ against the low-variance gradients.
 * **L2** (``p = 2``) is a linear problem, ``(α² + L) I = α² P + ∇ᵀG`` with the
   Neumann grid Laplacian ``L = ∇ᵀ∇``; the result is unbiased if ``P`` and ``G``
   are [KMA*15]. On the CPU it is solved *exactly* by the DCT
-  (:mod:`grisx.poisson.dct`), on a GPU by Jacobi-preconditioned CG in Warp
-  to a relative residual ``tol`` (default ``1e-5``; :mod:`grisx.poisson.cg`).
+  (:mod:`grisx.poisson.dct`), on a GPU by CG in Warp, preconditioned by a
+  multigrid V-cycle (:mod:`grisx.poisson.multigrid`; about 10 iterations), to
+  a relative residual ``tol`` (default ``1e-5``; :mod:`grisx.poisson.cg`).
 * **L1** (``p = 1``) is robust to outlier gradients (shift-mapping failures):
   it is slightly biased but usually looks better [LKL*13]. It is solved by
   iteratively reweighted least squares with warm-started inner CG solves, on
-  any device (:mod:`grisx.poisson.l1`), with presets ``fast`` (5 × 20),
-  ``default`` (20 × 50, the classic schedule) and ``high`` (50 × 100).
+  any device (:mod:`grisx.poisson.l1`), with presets ``fast`` (5 × 4),
+  ``default`` (20 × 5) and ``high`` (50 × 8) of multigrid-preconditioned CG,
+  and ``classic`` (20 × 50 Jacobi-preconditioned CG, the classic schedule).
 
 Conventions (forward differences, the ignored last column of ``dx`` and last
 row of ``dy``, Neumann boundaries, the energy and its normal equations) are

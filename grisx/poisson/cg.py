@@ -1,4 +1,4 @@
-"""Jacobi-preconditioned conjugate gradients for the screened Poisson system, in Warp.
+"""Preconditioned conjugate gradients for the screened Poisson system, in Warp.
 
 The host side of the iterative solvers: :class:`PlanarSystem` holds the device
 buffers of one problem (planar ``(C, H*W)`` float32, one independent system per
@@ -10,7 +10,9 @@ algorithm are described in :mod:`grisx.poisson.operators`.
 Stopping rule. For each channel ``c`` with right-hand side ``b_c``, CG stops
 when the recurrence residual satisfies ``‖r_c‖₂ ≤ tol · ‖b_c‖₂`` for *every*
 channel, checked on the device after every iteration (:func:`cg_loop`: no
-host read inside the loop). The error this leaves is bounded by
+host read inside the loop). The preconditioner is Jacobi's diag(A) or one
+multigrid V-cycle (:mod:`grisx.poisson.multigrid`), chosen when the system is
+allocated. The error this leaves is bounded by
 ``‖I - I*‖₂ ≤ ‖r‖₂ / λ_min = ‖r‖₂ / α²`` for the unweighted (L2) system,
 whose smallest eigenvalue is ``α²``; the tests use exactly that bound.
 In float32 the achievable relative residual is about ``1e-6``, so ``tol``
@@ -41,10 +43,11 @@ __all__ = ["PlanarSystem", "CGReport", "Measurement", "allocate_system", "assemb
            "solve_cg", "start_cg", "run_cg", "cg_loop", "cg_report", "LoopState", "capture", "measure_system"]
 
 # Launch shape of the tiled kernels (operators: a block is a tile of ``rows`` image rows by
-# ``lanes × strips`` columns). On a GPU 256 lanes, one strip, 16 rows: a block of consecutive
-# pixels in each row, 1.6k blocks at 1080p RGB (few same-address atomics). On the CPU a "block"
-# is one lane, and long strips amortise the per-task overhead.
-_CUDA_LANES, _CUDA_STRIPS, _CUDA_ROWS = 256, 1, 16
+# ``lanes × strips`` columns). On a GPU 128 lanes, one strip, 16 rows: consecutive pixels in each
+# row, 3.3k blocks at 1080p RGB (few same-address atomics); on an H200 at 1080p 128 lanes were 4–8%
+# faster than 256, and 8 rows the same as 16 (benchmarks/reference/poisson_system_h200_2026-11-27).
+# On the CPU a "block" is one lane, and long strips amortise the per-task overhead.
+_CUDA_LANES, _CUDA_STRIPS, _CUDA_ROWS = 128, 1, 16
 _CPU_LANES, _CPU_STRIPS, _CPU_ROWS = 1, 64, 4
 
 

@@ -3,7 +3,7 @@
 ::
 
     grisx poisson --primal P.exr --dx DX.exr --dy DY.exr [--norm L1|L2] [--alpha 0.2]
-                  [--preset fast|default|high] [--solver auto|dct|cg|irls]
+                  [--preset fast|default|high|classic] [--solver auto|dct|cg|irls]
                   [--device cpu|cuda] --out I.exr [--json]
 
 The three inputs follow the conventions of :mod:`grisx.poisson.gradient`
@@ -46,7 +46,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     p.add_argument("--norm", default="L2", type=str.upper, choices=NORMS, help="reconstruction norm (default L2)")
     p.add_argument("--alpha", default=0.2, type=float, help="weight of the primal term, > 0 (default 0.2)")
     p.add_argument("--preset", default="default", choices=tuple(L1_PRESETS),
-                   help="L1 IRLS schedule: fast (5x20), default (20x50), high (50x100)")
+                   help="L1 IRLS schedule (reweightings x CG iterations): fast (5x4), default (20x5), high (50x8) with multigrid CG; classic (20x50) with Jacobi CG")
     p.add_argument("--solver", default="auto", choices=SOLVERS,
                    help="auto: DCT on CPU / CG on CUDA for L2, IRLS for L1")
     p.add_argument("--device", default="cpu", help="cpu, cuda or cuda:N (default cpu)")

@@ -40,7 +40,7 @@ from dataclasses import dataclass
 
 import warp as wp
 
-from grisx.poisson.operators import SCAL_RZ, _apply, _inv_diagonal, _weight
+from grisx.poisson.operators import SCAL_RZ, _apply, _inv_diagonal, _stencil, _weight
 
 wp.set_module_options({"enable_backward": False})
 
@@ -116,11 +116,56 @@ def smooth(x: wp.array2d(dtype=wp.float32), r: wp.array2d(dtype=wp.float32), wpr
     out[c, i] = x[c, i] + omega * _inv_diagonal(dinv, weighted, a2, c, i, y, xx, h, w) * res
 
 
+# A level's pre-smoothed guess ω D⁻¹ r and its corrected guess ω D⁻¹ r + P e are never stored: the
+# kernels that need them at a pixel and its four neighbours evaluate them there (one pass fewer each,
+# and a V-cycle is two kernels a level).
+
+
+@wp.func
+def _presmoothed(r: wp.array2d(dtype=wp.float32), dinv: wp.array2d(dtype=wp.float32), e: wp.array2d(dtype=wp.float32),
+                 corrected: int, weighted: int, a2: float, omega: float, c: int, i: int, y: int, xx: int,
+                 h: int, w: int, wc: int) -> float:
+    """ω D⁻¹ r at pixel i = (y, xx) (one Jacobi sweep from 0), plus the coarse correction P e if ``corrected``."""
+    v = omega * _inv_diagonal(dinv, weighted, a2, c, i, y, xx, h, w) * r[c, i]
+    if corrected != 0:
+        v += e[c, (y / 2) * wc + xx / 2]
+    return v
+
+
+@wp.func
+def _presmoothed_around(r: wp.array2d(dtype=wp.float32), dinv: wp.array2d(dtype=wp.float32), e: wp.array2d(dtype=wp.float32),
+                        corrected: int, weighted: int, a2: float, omega: float, c: int, i: int, y: int, xx: int,
+                        h: int, w: int, wc: int) -> wp.vec4:
+    """:func:`_presmoothed` at the neighbours (right, left, down, up) that exist."""
+    v = wp.vec4(0.0)
+    if xx + 1 < w:
+        v[0] = _presmoothed(r, dinv, e, corrected, weighted, a2, omega, c, i + 1, y, xx + 1, h, w, wc)
+    if xx > 0:
+        v[1] = _presmoothed(r, dinv, e, corrected, weighted, a2, omega, c, i - 1, y, xx - 1, h, w, wc)
+    if y + 1 < h:
+        v[2] = _presmoothed(r, dinv, e, corrected, weighted, a2, omega, c, i + w, y + 1, xx, h, w, wc)
+    if y > 0:
+        v[3] = _presmoothed(r, dinv, e, corrected, weighted, a2, omega, c, i - w, y - 1, xx, h, w, wc)
+    return v
+
+
+@wp.func
+def _post_smoothed(r: wp.array2d(dtype=wp.float32), wpri: wp.array2d(dtype=wp.float32), wx: wp.array2d(dtype=wp.float32),
+                   wy: wp.array2d(dtype=wp.float32), dinv: wp.array2d(dtype=wp.float32), e: wp.array2d(dtype=wp.float32),
+                   corrected: int, weighted: int, a2: float, omega: float, c: int, i: int, y: int, xx: int,
+                   h: int, w: int, wc: int) -> float:
+    """The last sweep of a level, x + ω D⁻¹ (r − A x), at x = the corrected guess."""
+    xi = _presmoothed(r, dinv, e, corrected, weighted, a2, omega, c, i, y, xx, h, w, wc)
+    around = _presmoothed_around(r, dinv, e, corrected, weighted, a2, omega, c, i, y, xx, h, w, wc)
+    res = r[c, i] - _stencil(xi, around, wpri, wx, wy, weighted, a2, c, i, y, xx, h, w)
+    return xi + omega * _inv_diagonal(dinv, weighted, a2, c, i, y, xx, h, w) * res
+
+
 @wp.kernel
-def restrict_residual(x: wp.array2d(dtype=wp.float32), r: wp.array2d(dtype=wp.float32), wpri: wp.array2d(dtype=wp.float32),
-                      wx: wp.array2d(dtype=wp.float32), wy: wp.array2d(dtype=wp.float32), weighted: int, a2: float,
-                      hf: int, wf: int, wc: int, rc: wp.array2d(dtype=wp.float32)):
-    """rc = Pᵀ (r − A x): the fine residual summed over each coarse pixel's fine pixels."""
+def restrict_residual(r: wp.array2d(dtype=wp.float32), wpri: wp.array2d(dtype=wp.float32), wx: wp.array2d(dtype=wp.float32),
+                      wy: wp.array2d(dtype=wp.float32), dinv: wp.array2d(dtype=wp.float32), weighted: int, a2: float,
+                      omega: float, hf: int, wf: int, wc: int, rc: wp.array2d(dtype=wp.float32)):
+    """rc = Pᵀ (r − A x) at x = ω D⁻¹ r (the pre-smoothed guess): the fine residual summed over each coarse pixel."""
     c, yc, xc = wp.tid()
     acc = float(0.0)
     for dy in range(2):
@@ -129,24 +174,30 @@ def restrict_residual(x: wp.array2d(dtype=wp.float32), r: wp.array2d(dtype=wp.fl
             xx = 2 * xc + dx
             if y < hf and xx < wf:
                 i = y * wf + xx
-                acc += r[c, i] - _apply(x, wpri, wx, wy, weighted, a2, c, i, y, xx, hf, wf)
+                xi = _presmoothed(r, dinv, rc, 0, weighted, a2, omega, c, i, y, xx, hf, wf, 1)
+                around = _presmoothed_around(r, dinv, rc, 0, weighted, a2, omega, c, i, y, xx, hf, wf, 1)
+                acc += r[c, i] - _stencil(xi, around, wpri, wx, wy, weighted, a2, c, i, y, xx, hf, wf)
     rc[c, yc * wc + xc] = acc
 
 
 @wp.kernel
-def prolong(ec: wp.array2d(dtype=wp.float32), wf: int, wc: int, x: wp.array2d(dtype=wp.float32)):
-    """x += P ec: each fine pixel takes its coarse pixel's correction."""
+def post_smooth(r: wp.array2d(dtype=wp.float32), wpri: wp.array2d(dtype=wp.float32), wx: wp.array2d(dtype=wp.float32),
+                wy: wp.array2d(dtype=wp.float32), dinv: wp.array2d(dtype=wp.float32), ec: wp.array2d(dtype=wp.float32),
+                weighted: int, a2: float, omega: float, h: int, w: int, wc: int, e: wp.array2d(dtype=wp.float32)):
+    """e = the level's correction: the pre-smoothed guess, corrected by the level below, swept once more."""
     c, y, xx = wp.tid()
-    x[c, y * wf + xx] = x[c, y * wf + xx] + ec[c, (y / 2) * wc + xx / 2]
+    i = y * w + xx
+    e[c, i] = _post_smoothed(r, wpri, wx, wy, dinv, ec, 1, weighted, a2, omega, c, i, y, xx, h, w, wc)
 
 
 @wp.kernel
-def smooth_dot(x: wp.array2d(dtype=wp.float32), r: wp.array2d(dtype=wp.float32), wpri: wp.array2d(dtype=wp.float32),
-               wx: wp.array2d(dtype=wp.float32), wy: wp.array2d(dtype=wp.float32), dinv: wp.array2d(dtype=wp.float32),
-               weighted: int, a2: float, h: int, w: int, rows: int, strips: int, lanes: int, omega: float,
-               z: wp.array2d(dtype=wp.float32), scal: wp.array2d(dtype=wp.float32), slot: int):
-    """The finest level's last sweep, z = x + ω D⁻¹ (r − A x), with r·z into CG's slot (a tiled kernel:
-    the launch shape of :mod:`grisx.poisson.operators`)."""
+def post_smooth_dot(r: wp.array2d(dtype=wp.float32), wpri: wp.array2d(dtype=wp.float32), wx: wp.array2d(dtype=wp.float32),
+                    wy: wp.array2d(dtype=wp.float32), dinv: wp.array2d(dtype=wp.float32), ec: wp.array2d(dtype=wp.float32),
+                    corrected: int, weighted: int, a2: float, omega: float, h: int, w: int, wc: int,
+                    rows: int, strips: int, lanes: int, z: wp.array2d(dtype=wp.float32), scal: wp.array2d(dtype=wp.float32),
+                    slot: int):
+    """:func:`post_smooth` on the finest level, z = M r, with r·z into CG's ``slot`` (a tiled kernel: the launch
+    shape of :mod:`grisx.poisson.operators`)."""
     c, by, bx, lane = wp.tid()
     rz = float(0.0)
     for j in range(rows):
@@ -155,10 +206,9 @@ def smooth_dot(x: wp.array2d(dtype=wp.float32), r: wp.array2d(dtype=wp.float32),
             xx = (bx * strips + strip) * lanes + lane
             if y < h and xx < w:
                 i = y * w + xx
-                ri = r[c, i]
-                zi = x[c, i] + omega * _inv_diagonal(dinv, weighted, a2, c, i, y, xx, h, w) * (ri - _apply(x, wpri, wx, wy, weighted, a2, c, i, y, xx, h, w))
+                zi = _post_smoothed(r, wpri, wx, wy, dinv, ec, corrected, weighted, a2, omega, c, i, y, xx, h, w, wc)
                 z[c, i] = zi
-                rz += ri * zi
+                rz += r[c, i] * zi
     wp.tile_atomic_add(scal[SCAL_RZ + slot], wp.tile_sum(wp.tile(rz)), offset=c)
 
 
@@ -176,8 +226,8 @@ class MultigridLevel:
     wy: wp.array
     dinv: wp.array
     r: wp.array  # the restricted residual (this level's right-hand side)
-    x: wp.array  # the correction being built
-    e: wp.array  # the correction made (after the last sweep)
+    e: wp.array  # the correction this level hands up
+    t: wp.array  # the other buffer of the coarsest level's sweeps
 
 
 class Multigrid:
@@ -185,7 +235,6 @@ class Multigrid:
 
     def __init__(self, system) -> None:
         self.system = system
-        self.x = wp.empty_like(system.r)  # the finest level's pre-smoothed and corrected guess
         self.levels: list[MultigridLevel] = []
         h, w = system.height, system.width
         while max(h, w) > COARSEST_SIDE:
@@ -195,6 +244,7 @@ class Multigrid:
                 return wp.empty((system.channels, h * w), dtype=wp.float32, device=system.device)
 
             self.levels.append(MultigridLevel(h, w, empty(), empty(), empty(), empty(), empty(), empty(), empty()))
+        self._none = wp.zeros((system.channels, 1), dtype=wp.float32, device=system.device)  # a 1×1 image has no level below
 
     def assemble(self, weighted: bool) -> None:
         """The coarse weights from the finest level's (ones for L2, IRLS's weights when ``weighted``)."""
@@ -211,18 +261,18 @@ class Multigrid:
         """z = M r for CG's residual r (one V-cycle), with r·z added into CG's scalar ``slot``."""
         s = self.system
         a2 = s.alpha * s.alpha
-        wtd = int(weighted)
-        dim0 = (s.channels, s.height, s.width)
-        wp.launch(smooth_from_zero, dim=dim0, inputs=[s.r, s.dinv, wtd, a2, s.height, s.width, OMEGA], outputs=[self.x], device=s.device)
+        fine = [s.r, s.wpri, s.wx, s.wy, s.dinv, int(weighted), a2]
+        ec, wc = self._none, 1
         if self.levels:
             first = self.levels[0]
             wp.launch(restrict_residual, dim=(s.channels, first.height, first.width),
-                      inputs=[self.x, s.r, s.wpri, s.wx, s.wy, wtd, a2, s.height, s.width, first.width], outputs=[first.r], device=s.device)
+                      inputs=[*fine, OMEGA, s.height, s.width, first.width], outputs=[first.r], device=s.device)
             self._cycle(0)
-            wp.launch(prolong, dim=dim0, inputs=[first.e, s.width, first.width], outputs=[self.x], device=s.device)
+            ec, wc = first.e, first.width
         columns = s.lanes * s.strips
-        wp.launch_tiled(smooth_dot, dim=(s.channels, (s.height + s.rows - 1) // s.rows, (s.width + columns - 1) // columns),
-                        inputs=[self.x, s.r, s.wpri, s.wx, s.wy, s.dinv, wtd, a2, s.height, s.width, s.rows, s.strips, s.lanes, OMEGA],
+        wp.launch_tiled(post_smooth_dot, dim=(s.channels, (s.height + s.rows - 1) // s.rows, (s.width + columns - 1) // columns),
+                        inputs=[s.r, s.wpri, s.wx, s.wy, s.dinv, ec, int(bool(self.levels)), int(weighted), a2, OMEGA,
+                                s.height, s.width, wc, s.rows, s.strips, s.lanes],
                         outputs=[z, s.scal, slot], block_dim=s.lanes, device=s.device)
 
     def _cycle(self, k: int) -> None:
@@ -230,18 +280,18 @@ class Multigrid:
         s, lv = self.system, self.levels[k]
         a2 = s.alpha * s.alpha
         dim = (s.channels, lv.height, lv.width)
-        weights = [lv.wpri, lv.wx, lv.wy, lv.dinv, 1, a2, lv.height, lv.width, OMEGA]
         if k + 1 < len(self.levels):
             below = self.levels[k + 1]
-            wp.launch(smooth_from_zero, dim=dim, inputs=[lv.r, lv.dinv, 1, a2, lv.height, lv.width, OMEGA], outputs=[lv.x], device=s.device)
+            level = [lv.r, lv.wpri, lv.wx, lv.wy, lv.dinv, 1, a2]
             wp.launch(restrict_residual, dim=(s.channels, below.height, below.width),
-                      inputs=[lv.x, lv.r, lv.wpri, lv.wx, lv.wy, 1, a2, lv.height, lv.width, below.width], outputs=[below.r], device=s.device)
+                      inputs=[*level, OMEGA, lv.height, lv.width, below.width], outputs=[below.r], device=s.device)
             self._cycle(k + 1)
-            wp.launch(prolong, dim=dim, inputs=[below.e, lv.width, below.width], outputs=[lv.x], device=s.device)
-            wp.launch(smooth, dim=dim, inputs=[lv.x, lv.r, *weights], outputs=[lv.e], device=s.device)
+            wp.launch(post_smooth, dim=dim, inputs=[*level[:5], below.e, 1, a2, OMEGA, lv.height, lv.width, below.width],
+                      outputs=[lv.e], device=s.device)
             return
         # the coarsest level: Jacobi sweeps alternating between two buffers, the last one into e
-        bufs = (lv.x, lv.e) if (COARSEST_SWEEPS - 1) % 2 == 1 else (lv.e, lv.x)
+        bufs = (lv.t, lv.e) if (COARSEST_SWEEPS - 1) % 2 == 1 else (lv.e, lv.t)
+        weights = [lv.wpri, lv.wx, lv.wy, lv.dinv, 1, a2, lv.height, lv.width, OMEGA]
         wp.launch(smooth_from_zero, dim=dim, inputs=[lv.r, lv.dinv, 1, a2, lv.height, lv.width, OMEGA], outputs=[bufs[0]], device=s.device)
         for j in range(COARSEST_SWEEPS - 1):
             wp.launch(smooth, dim=dim, inputs=[bufs[j % 2], lv.r, *weights], outputs=[bufs[(j + 1) % 2]], device=s.device)

@@ -1,4 +1,4 @@
-"""Warp kernels for the screened Poisson operator, Jacobi-preconditioned CG and IRLS.
+"""Warp kernels for the screened Poisson operator, preconditioned CG and IRLS.
 
 Every iterative solve in :mod:`grisx.poisson` (L2 on a GPU, the inner solves
 of L1) is a linear system of one form, the *weighted* screened Poisson
@@ -35,8 +35,9 @@ scalars rotate through three slots (iteration ``k`` uses slot ``k % 3``) so that
 each kernel zeroes the accumulators of the *next* iteration without racing
 with the reads of the current one.
 
-CG is the textbook preconditioned conjugate gradient with the Jacobi
-preconditioner ``M = diag(A)`` [Saa03, Alg. 9.1]::
+CG is the textbook preconditioned conjugate gradient [Saa03, Alg. 9.1], with
+the Jacobi preconditioner ``M = diag(A)`` computed in the kernels (``jacobi``)
+or ``z = M⁻¹ r`` made by the multigrid V-cycle of :mod:`grisx.poisson.multigrid`::
 
     r = b - A x;  z = M⁻¹ r;  p = z
     repeat:  a = (r·z)/(p·Ap);  x += a p;  r -= a Ap
@@ -91,22 +92,44 @@ def _weight(w: wp.array2d(dtype=wp.float32), c: int, i: int, weighted: int) -> f
 
 
 @wp.func
+def _stencil(xi: float, around: wp.vec4, wpri: wp.array2d(dtype=wp.float32), wx: wp.array2d(dtype=wp.float32),
+             wy: wp.array2d(dtype=wp.float32), weighted: int, a2: float, c: int, i: int, y: int, xx: int,
+             h: int, w: int) -> float:
+    """(α² W_p + ∇ᵀ W_g ∇) x at pixel i = (y, xx) from x there and at its neighbours ``around`` = (right, left,
+    down, up): a Neumann 5-point stencil (an edge enters only if both of its pixels exist)."""
+    acc = a2 * _weight(wpri, c, i, weighted) * xi
+    if xx + 1 < w:
+        acc += _weight(wx, c, i, weighted) * (xi - around[0])
+    if xx > 0:
+        acc += _weight(wx, c, i - 1, weighted) * (xi - around[1])
+    if y + 1 < h:
+        acc += _weight(wy, c, i, weighted) * (xi - around[2])
+    if y > 0:
+        acc += _weight(wy, c, i - w, weighted) * (xi - around[3])
+    return acc
+
+
+@wp.func
+def _around(x: wp.array2d(dtype=wp.float32), c: int, i: int, y: int, xx: int, h: int, w: int) -> wp.vec4:
+    """x at the neighbours (right, left, down, up) of pixel i that exist (0 elsewhere: never weighed)."""
+    v = wp.vec4(0.0)
+    if xx + 1 < w:
+        v[0] = x[c, i + 1]
+    if xx > 0:
+        v[1] = x[c, i - 1]
+    if y + 1 < h:
+        v[2] = x[c, i + w]
+    if y > 0:
+        v[3] = x[c, i - w]
+    return v
+
+
+@wp.func
 def _apply(x: wp.array2d(dtype=wp.float32), wpri: wp.array2d(dtype=wp.float32),
            wx: wp.array2d(dtype=wp.float32), wy: wp.array2d(dtype=wp.float32),
            weighted: int, a2: float, c: int, i: int, y: int, xx: int, h: int, w: int) -> float:
-    """(α² W_p + ∇ᵀ W_g ∇) x at pixel i = (y, xx): a Neumann 5-point stencil."""
-    xi = x[c, i]
-    acc = a2 * _weight(wpri, c, i, weighted) * xi
-    # An edge enters only if both of its pixels exist (Neumann boundary).
-    if xx + 1 < w:
-        acc += _weight(wx, c, i, weighted) * (xi - x[c, i + 1])
-    if xx > 0:
-        acc += _weight(wx, c, i - 1, weighted) * (xi - x[c, i - 1])
-    if y + 1 < h:
-        acc += _weight(wy, c, i, weighted) * (xi - x[c, i + w])
-    if y > 0:
-        acc += _weight(wy, c, i - w, weighted) * (xi - x[c, i - w])
-    return acc
+    """(α² W_p + ∇ᵀ W_g ∇) x at pixel i = (y, xx)."""
+    return _stencil(x[c, i], _around(x, c, i, y, xx, h, w), wpri, wx, wy, weighted, a2, c, i, y, xx, h, w)
 
 
 @wp.func
@@ -248,7 +271,7 @@ def irls_weights(x: wp.array2d(dtype=wp.float32), primal: wp.array2d(dtype=wp.fl
                 _irls_weight(x, primal, gx, gy, alpha, eps, h, w, wpri, wx, wy, c, i, y, xx)
 
 
-# ---- Jacobi-preconditioned CG ----
+# ---- preconditioned CG ----
 # Tiled kernels on a grid (C, row tiles, column tiles) (module docstring): a block reduces its
 # tile with one atomic add per scalar, which keeps the contention on the scalar slots low.
 
