@@ -1139,12 +1139,17 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
                 if domain_flags(c) & DOMAIN_HISTORY:  # visibility from last frame's x_v is only in question if it or the scene moved
                     test_support = unbiased * int(wp.length_sq(n.si.p - si.p) > 0.0 or scene.moved_count > 0)
                 if n.res.confidence > 0.0:
+                    # the kept sample's own domain supports it without a ray: its reservoir's target is p̂ of that
+                    # very sample at its visible point, visibility included (a kept sample has target > 0)
+                    own = c == code
+                    if own:
+                        test_support = 0
                     counts = bool(False)
                     if domain_flags(c) & DOMAIN_PREVIOUS:  # a domain of last frame, in last frame's scene
                         counts = domain_counts(scene_prev, n.si, n.wo, si, wo, sel, target_mode, test_support, unbiased, max_jacobian, 1)
                     else:
                         counts = domain_counts(scene, n.si, n.wo, si, wo, sel, target_mode, test_support, unbiased, max_jacobian, 0)
-                    z = support_count(z, n.res.confidence, counts)
+                    z = support_count(z, n.res.confidence, counts and (not own or n.res.target > 0.0))
         out = reservoir_finalize_mis(out, support_mis(1.0, out.target, z))
         res_out[y, x] = out
         s_out[y, x] = sel
