@@ -48,7 +48,7 @@ import warp as wp
 
 from grisx.params import Param
 from grisx.render.area_restir import AREA_KEYS, AreaReSTIR, area_params
-from grisx.render.base.gradient import RECONSTRUCTIONS, GradientFrame, make_gradient_kernels
+from grisx.render.base.gradient import DIFFERENCES_PATHS, RECONSTRUCTIONS, GradientFrame, make_gradient_kernels
 from grisx.render.base.registry import RenderMethod, create_renderer, register, renderer_params
 
 wp.set_module_options({"enable_backward": False})
@@ -73,15 +73,15 @@ class GradientFromPrimal(AreaReSTIR):
         super().reset(seed)
         self.gradient.reset()
 
-    def add_gradients(self, frame: int, reservoirs: wp.array, film: wp.array, scale: float, paths: bool = True) -> None:
-        """Add ``scale`` × the primal and the pixels' parts of dx, dy from the kept samples (film sample ``film``);
-        without ``paths``, the parts of the emission seen directly alone."""
+    def add_gradients(self, frame: int, reservoirs: wp.array, film: wp.array, scale: float, differences: int = DIFFERENCES_PATHS) -> None:
+        """Add ``scale`` × the primal and the pixels' parts of dx, dy from the kept samples (film sample ``film``):
+        ``differences`` says which parts (:data:`~grisx.render.base.gradient.DIFFERENCES_PATHS`: the emission's and the paths')."""
         cam, _ = self.cameras(frame)
         b = self.built
         with self._phase("gradients"):
             wp.launch(
                 self.gk["gradient"], dim=(self.height, self.width),
-                inputs=[b.data, cam, self.shift_params, float(scale), int(paths), int(self.symmetric), self.films[3], film, self.direct, reservoirs],
+                inputs=[b.data, cam, self.shift_params, float(scale), int(differences), int(self.symmetric), self.films[3], film, self.direct, reservoirs],
                 outputs=[self.gradient.primal, self.gradient.halves, self.nonfinite], device=b.device,
             )
 

@@ -75,7 +75,8 @@ from grisx.device import specialized_module
 from grisx.errors import InvalidParameterError
 from grisx.params import Param
 from grisx.render.base.area import FilmSample, film_translate_wrapped, make_area_domain, temporal_film_offset
-from grisx.render.base.path_shift import PathReservoir, PathSample, ShiftParams, make_path_shift, path_sample_empty, path_target
+from grisx.render.base.gradient import DIFFERENCES_NONE
+from grisx.render.base.path_shift import Domain, PathReservoir, PathSample, ShiftParams, make_path_shift, path_sample_empty, path_target
 from grisx.render.base.registry import RenderMethod, create_renderer, register, renderer_params
 from grisx.render.base.reuse import SIMILARITY_DEPTH, SIMILARITY_NORMAL_COS, pixels_similar, spatial_neighbor, temporal_neighbor
 from grisx.render.base.screen import kernel_cache, pixel_key_of
@@ -188,21 +189,29 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     module = specialized_module(__name__, kinds)
 
     @wp.func
-    def pair_value_at(scene: SceneData, cam: CameraData, x: int, y: int, orient: int, fs: FilmSample, k: int, path: PathSample, sp: ShiftParams, symmetric: int) -> wp.vec3:
-        """ω*_ij G_ij(y, k) (Eq. 14–16) of pair (i = (x, y), j = i + axis) for base path ``path`` at film sample ``fs``;
-        ``symmetric`` = 0: the one-sided Eq. 2 on pixel i's half alone (the biased ablation)."""
+    def pair_other_pixel(x: int, y: int, orient: int, k: int) -> wp.vec2i:
+        """The pixel a base path of side ``k`` of pair (i = (x, y), j = i + axis) is shifted into: j for k = 0, i for k = 1."""
         e = _axis(orient)
-        ox = x + e[0]
-        oy = y + e[1]
         if k != PAIR_BASE_I:
-            ox = x
-            oy = y
-        inner = shift(scene, area_domain(scene, cam, ox, oy, fs).dom, path, sp)  # the inner shift T_ij or T_ji
+            return wp.vec2i(x, y)
+        return wp.vec2i(x + e[0], y + e[1])
+
+    @wp.func
+    def pair_value_in(scene: SceneData, dom: Domain, k: int, path: PathSample, sp: ShiftParams, symmetric: int) -> wp.vec3:
+        """ω*_ij G_ij(y, k) (Eq. 14–16) for base path ``path`` of side ``k``, ``dom`` the other pixel's domain at its film
+        sample; ``symmetric`` = 0: the one-sided Eq. 2 on pixel i's half alone (the biased ablation)."""
+        inner = shift(scene, dom, path, sp)  # the inner shift T_ij or T_ji
         if symmetric == 0:
             if k != PAIR_BASE_I:
                 return wp.vec3(0.0)
             return shifted_difference(path.f, inner.path.f, inner.jacobian, inner.valid)  # Eq. 2 without Eq. 3's other half
         return pair_value(k, path.f, inner.path.f, path_target(path), path_target(inner.path), inner.jacobian, inner.valid)
+
+    @wp.func
+    def pair_value_at(scene: SceneData, cam: CameraData, x: int, y: int, orient: int, fs: FilmSample, k: int, path: PathSample, sp: ShiftParams, symmetric: int) -> wp.vec3:
+        """:func:`pair_value_in` with the other pixel's domain at film sample ``fs`` (a camera ray)."""
+        o = pair_other_pixel(x, y, orient, k)
+        return pair_value_in(scene, area_domain(scene, cam, o[0], o[1], fs).dom, k, path, sp, symmetric)
 
     @wp.func
     def outer(
@@ -268,8 +277,11 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     @wp.kernel(module=module)
     def pair_initial_pass(
         scene: SceneData, cam: CameraData, seed: int, frame: int, sp: ShiftParams, positivize: int, symmetric: int,
-        film: wp.array2d(dtype=FilmSample), canonical: wp.array2d(dtype=PathReservoir), out: wp.array4d(dtype=PairReservoir),
+        film: wp.array2d(dtype=FilmSample), canonical: wp.array2d(dtype=PathReservoir), direct: wp.array2d(dtype=wp.vec3),
+        out: wp.array4d(dtype=PairReservoir), halves: wp.array3d(dtype=wp.vec3), nonfinite: wp.array(dtype=wp.int32),
     ):
+        """The pair's initial candidates, and the emission's differences of its two pixels (``halves``: the camera ray
+        into the other pixel is the one the inner shift starts from, so the gradient pass does not trace it again)."""
         orient, y, x = wp.tid()
         h = film.shape[0]
         w = film.shape[1]
@@ -284,7 +296,7 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         e = _axis(orient)
         ukey = pixel_key_of(seed, frame, x, y, w, _STREAM_PAIR_INITIAL + orient)
         # (y_i, 0) and (y_j, 1): each pixel's canonical sample with its UCW, alone on its half of X (m = 1)
-        sides = int(2)  # a dynamic bound: Warp unrolls a constant range, and this body inlines a shift (pair_value_at)
+        sides = int(2)  # a dynamic bound: Warp unrolls a constant range, and this body inlines a shift (pair_value_in)
         for k in range(sides):
             px = x + k * e[0]
             py = y + k * e[1]
@@ -294,8 +306,13 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             c.path = pr.path
             c.film = film[py, px]
             c.value = wp.vec3(0.0)
+            o = pair_other_pixel(x, y, orient, k)
+            ad = area_domain(scene, cam, o[0], o[1], c.film)  # u kept in the other pixel: a film translation, |J| = 1
+            # ---- the emission at x₁ (a path of length 0) of pixel (px, py) toward the other: ω* = ½ (Eq. 4), its half
+            # of the pair's difference (the gradient pass's slot: right/down for side i, left/up for side j) ----
+            halves[2 * orient + k, py, px] = finite_or_dropped(pair_value(k, direct[py, px], ad.emission, 1.0, 1.0, 1.0, True), nonfinite)
             if pr.res.ucw > 0.0 and pr.path.length > 0:
-                c.value = pair_value_at(scene, cam, x, y, orient, c.film, k, pr.path, sp, symmetric)
+                c.value = pair_value_in(scene, ad.dom, k, pr.path, sp, symmetric)
             for slot in range(2):
                 if slot == 0 or positivize != 0:
                     cur = out[slot, orient, y, x]
@@ -463,13 +480,14 @@ class ReSTIRGPT(GradientFromPrimal):
         # ---- primal pass ----
         cur, film = self.resample(frame)
         self.gradient.begin()
-        self.add_gradients(frame, cur, film, 1.0, paths=False)  # the primal image and the emission's differences
+        self.add_gradients(frame, cur, film, 1.0, differences=DIFFERENCES_NONE)  # the primal image (the emission's differences: pair_initial)
         cam, cam_prev = self.cameras(frame)
         dim = (2, self.height, self.width)
         history, pairs, other = self.pairs
         # ---- initial paired-pixel candidates ----
         with self._phase("pair_initial"):
-            wp.launch(self.pk["initial"], dim=dim, inputs=[b.data, cam, self.seed, int(frame), self.shift_params, int(self.positivize), int(self.symmetric), self.films[3], self.canonical_kept], outputs=[pairs], device=dev)
+            wp.launch(self.pk["initial"], dim=dim, inputs=[b.data, cam, self.seed, int(frame), self.shift_params, int(self.positivize), int(self.symmetric), self.films[3], self.canonical_kept, self.direct],
+                      outputs=[pairs, self.gradient.halves, self.nonfinite], device=dev)
         common = [int(self.positivize), int(self.cross_sign), int(self.outer_jacobian), int(self.symmetric)]
         g, g_prev = self.gbuffer.current, self.gbuffer.previous
         # ---- temporal reuse ----

@@ -51,10 +51,15 @@ from grisx.theory.gradient import PAIR_BASE_I, PAIR_BASE_J, pair_estimate, pair_
 
 wp.set_module_options({"enable_backward": False})
 
-__all__ = ["GradientFrame", "make_gradient_kernels", "RECONSTRUCTIONS", "NEIGHBOR_OFFSETS"]
+__all__ = ["GradientFrame", "make_gradient_kernels", "RECONSTRUCTIONS", "NEIGHBOR_OFFSETS", "DIFFERENCES_NONE", "DIFFERENCES_EMISSION", "DIFFERENCES_PATHS"]
 
 #: the reconstruction norms (grisx.poisson's L2 and L1), as --param reconstruction=l2|l1
 RECONSTRUCTIONS = {"l2": "L2", "l1": "L1"}
+#: what the gradient pass adds to a pixel's halves besides its primal: nothing (the caller adds the differences itself),
+#: the emission's differences alone, or those and the kept path's (the ``differences`` argument)
+DIFFERENCES_NONE = wp.constant(0)
+DIFFERENCES_EMISSION = wp.constant(1)
+DIFFERENCES_PATHS = wp.constant(2)
 #: the four neighbours of a pixel, in the order of the half-gradient slots: right, left, down, up
 NEIGHBOR_OFFSETS = ((1, 0), (-1, 0), (0, 1), (0, -1))
 
@@ -92,7 +97,7 @@ def make_gradient_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         cam: CameraData,
         sp: ShiftParams,
         scale: float,
-        path_gradients: int,
+        differences: int,
         symmetric: int,
         film_direct: wp.array2d(dtype=FilmSample),
         film: wp.array2d(dtype=FilmSample),
@@ -105,8 +110,9 @@ def make_gradient_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         """Add ``scale`` × pixel a's primal estimate L_e + f(y) W_y and its four parts ⟨Δ⟩_a (Eq. 11).
 
         ``direct`` is L_e seen by the film sample ``film_direct`` (the canonical one); ``film`` holds the
-        film samples of the ``reservoirs``' kept paths (the same array when nothing was reused). With
-        ``path_gradients`` = 0 the parts hold the emission's differences alone (ReSTIR G-PT resamples the paths' own);
+        film samples of the ``reservoirs``' kept paths (the same array when nothing was reused). ``differences``:
+        :data:`DIFFERENCES_PATHS` the emission's and the kept path's, :data:`DIFFERENCES_EMISSION` the emission's alone,
+        :data:`DIFFERENCES_NONE` none (ReSTIR G-PT adds the emission's in its pair pass and resamples the paths' own);
         ``symmetric`` = 0 is the one-sided Eq. 2 (pixel i alone, ω = 1): biased where T_ij is partial.
         """
         y, x = wp.tid()
@@ -124,6 +130,8 @@ def make_gradient_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         t_a = path_target(pr.path)
         same_film = fs.offset == fs_direct.offset and fs.lens == fs_direct.lens
         slots = int(4)  # a dynamic bound: Warp unrolls a constant range, and this body inlines a shift and two camera rays
+        if differences == DIFFERENCES_NONE:
+            slots = 0
         for slot in range(slots):
             o = _neighbor(slot)
             bx = x + o[0]
@@ -134,7 +142,7 @@ def make_gradient_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             ad = area_domain(scene, cam, bx, by, fs_direct)  # u kept in pixel b: a film translation, |J| = 1
             # emission at x₁ (a path of length 0): equal film densities on both sides, ω* = ½ (Eq. 4)
             d = pair_value(k, le, ad.emission, 1.0, 1.0, 1.0, True)
-            if has_path and path_gradients != 0:
+            if has_path and differences == DIFFERENCES_PATHS:
                 if not same_film:
                     ad = area_domain(scene, cam, bx, by, fs)  # the kept sample came from another film sample
                 s = shift(scene, ad.dom, pr.path, sp)  # the inner shift T_ab (hybrid)
