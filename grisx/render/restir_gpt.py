@@ -23,7 +23,9 @@ pair's difference is ⟨Δ_ij⟩ = ω*G(y, k) · W (Eq. 17), dx[i] = −Δ_ij. P
     with their UCWs from the primal pass's initial candidates (before any reuse), resampling weight
     w = p̂(y, k) W (Eq. 20 with m = 1: each candidate alone covers its half of X). With
     ``positivize`` the reservoirs r₊ and r₋ of targets max(±ω*G, 0) (Eq. 25–26) are fed the *same*
-    candidates (Sec. 4.4); ⟨Δ⟩ is then the sum of their fixed-sign estimates (Eq. 24).
+    candidates (Sec. 4.4); ⟨Δ⟩ is then the sum of their fixed-sign estimates (Eq. 24). The camera
+    ray into the other pixel that the inner shift starts from also gives the emission's differences
+    (below), so no camera ray is traced twice.
 ``# ---- temporal reuse ----``
     with **pixel-pair motion vectors** (Sec. 4.3.1): the pair (i, j) is carried to (i + δ, j + δ)
     of the previous frame by pixel i's fractional motion vector δ; the previous pair's samples come
@@ -39,8 +41,9 @@ pair's difference is ⟨Δ_ij⟩ = ω*G(y, k) · W (Eq. 17), dx[i] = −Δ_ij. P
     within ``radius``, the first that is an edge pair whose two pixels match this pair's (edge-aligned
     reuse); ``off`` none.
 ``# ---- gradients and reconstruction ----``
-    dx, dy from the pairs' reservoirs plus the emission seen directly (as B.1 does, ω* = ½), then the
-    screened Poisson image (``reconstruction=l2|l1``), which is the frame.
+    dx, dy from the pairs' reservoirs plus the emission seen directly (as B.1 does, ω* = ½; written by
+    the initial pair pass), then the screened Poisson image (``reconstruction=l2|l1``: a
+    :class:`~grisx.poisson.ScreenedPoisson` kept across frames, CG preconditioned by multigrid), which is the frame.
 
 **MIS.** Every merge (temporal and spatial) is the generalized balance heuristic over its inputs
 (seed 001, Eq. 15–16) — the pair's own reservoir and the source pair's reservoir of the same sign,

@@ -4,9 +4,9 @@ Every gradient-domain renderer ends the same way: a primal image P, the forward 
 dx[y, x] ≈ I[y, x+1] − I[y, x] and dy[y, x] ≈ I[y+1, x] − I[y, x] (the convention of
 :mod:`grisx.poisson.gradient`), and the screened Poisson image of the three (L2 or L1, α = 0.2),
 which is what the renderer returns as its frame. :class:`GradientFrame` holds these buffers on
-the device and the reconstruction, a :class:`~grisx.poisson.ScreenedPoisson` bound to them (buffers and
-CUDA graph made once, warm-started from the previous frame; on the CPU, L2 is the exact DCT solve), timed
-as the phase ``reconstruction``: it counts in the frame time, as in seed 000, Sec. 5.
+the device and the reconstruction's settings; the renderers keep a :class:`~grisx.poisson.ScreenedPoisson`
+bound to them (buffers and CUDA graph made once; on the CPU, L2 is the exact DCT solve), timed as the phase
+``reconstruction``: it counts in the frame time, as in seed 000, Sec. 5.
 
 **Gradients from primal samples** (``# ---- gradients from primal samples ----``): the estimator
 of Gradient-domain path tracing (Kettunen et al. 2015; B.2) and of *Gradient after ReSTIR*
@@ -41,7 +41,6 @@ import warp as wp
 
 from grisx.device import specialized_module
 from grisx.errors import InvalidParameterError
-from grisx.poisson import ScreenedPoisson, reconstruct
 from grisx.render.base.area import FilmSample, make_area_domain
 from grisx.render.base.path_shift import PathReservoir, ShiftParams, make_path_shift, path_target
 from grisx.render.base.screen import kernel_cache
@@ -189,22 +188,6 @@ class GradientFrame:
         self.dx = wp.zeros(shape, dtype=wp.vec3, device=device)
         self.dy = wp.zeros(shape, dtype=wp.vec3, device=device)
         self.image = self.primal
-        # L2 on the CPU: the exact DCT solve; else the persistent system (its graph made on first use)
-        self.poisson: ScreenedPoisson | None = None
-        if not (self.norm == "L2" and wp.get_device(device).is_cpu):
-            self.poisson = ScreenedPoisson(self.primal, self.dx, self.dy, alpha=self.alpha, norm=self.norm)
-
-    def reconstruct(self) -> wp.array:
-        """The screened Poisson image of this frame's primal, dx and dy (buffers of a :class:`ScreenedPoisson`,
-        warm-started from the previous frame; on the CPU, L2 is solved exactly by the DCT)."""
-        if self.poisson is None:
-            return reconstruct(self.primal, self.dx, self.dy, alpha=self.alpha, norm=self.norm, check_finite=False, measure=False)
-        return self.poisson.solve()
-
-    def reset(self) -> None:
-        """A new sequence: the next reconstruction starts from its primal (a seed gives the same images)."""
-        if self.poisson is not None:
-            self.poisson.reset()
 
     def begin(self) -> None:
         """Zero the sums of a new frame."""
