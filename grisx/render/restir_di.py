@@ -639,6 +639,7 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
     def shade_pass(
         scene: SceneData,
         sf: ScreenFrame,
+        unbiased: int,
         base: wp.array2d(dtype=wp.vec3),
         res: wp.array2d(dtype=Reservoir),
         lps: wp.array2d(dtype=LightPoint),
@@ -654,7 +655,9 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
         if r.ucw > 0.0:
             si = sf.si[y, x]
             ev = light_eval(scene, si, sf.wo[y, x], lps[y, x])
-            if ev.target > 0.0 and light_visible(scene, si, ev, lps[y, x]):
+            # unbiased, the kept sample is visible from here by construction (visibility before reuse, and every
+            # merge's target at this pixel includes it): no shadow ray; else it is tested here
+            if ev.target > 0.0 and (unbiased != 0 or light_visible(scene, si, ev, lps[y, x])):
                 if wp.static(cv):
                     L += (ev.rgb - ev.aux) * r.ucw  # the second-level CV: ⟨D_i − Ḋ_i⟩ = (f − ḟ)(y) · W
                 else:
@@ -785,7 +788,7 @@ class ReSTIRDI(ScreenSpaceRenderer):
             wp.launch(
                 self.k.shade_pass,
                 dim=(self.height, self.width),
-                inputs=[self.built.data, screen_frame(self.gbuffer, self.seed, 0), self.base, *self.final.current],
+                inputs=[self.built.data, screen_frame(self.gbuffer, self.seed, 0), self.unbiased, self.base, *self.final.current],
                 outputs=[self.image, self.nonfinite],
                 device=self.device,
             )
