@@ -44,7 +44,7 @@ __all__ = ["PlanarSystem", "CGReport", "Measurement", "allocate_system", "assemb
 
 # Launch shape of the tiled kernels (operators: a block is a tile of ``rows`` image rows by
 # ``lanes × strips`` columns). On a GPU 128 lanes, one strip, 16 rows: consecutive pixels in each
-# row, 3.3k blocks at 1080p RGB (few same-address atomics); on an H200 at 1080p 128 lanes were 4–8%
+# row, 3.1k blocks at 1080p RGB (few same-address atomics); on an H200 at 1080p 128 lanes were 4–8%
 # faster than 256, and 8 rows the same as 16 (benchmarks/reference/poisson_system_h200_2026-11-27).
 # On the CPU a "block" is one lane, and long strips amortise the per-task overhead.
 _CUDA_LANES, _CUDA_STRIPS, _CUDA_ROWS = 128, 1, 16
