@@ -350,6 +350,13 @@ save(fig, "06_row_poisson.png")
 # At a few frames the gradients still have outliers (failed or badly
 # conditioned shifts): the L2 reconstruction, unbiased, spreads them; the L1
 # one (IRLS), slightly biased, suppresses them — Lehtinen et al.'s observation.
+#
+# `reconstruct` is a one-off. A renderer solves every frame from the same three
+# buffers, so it keeps a `grisx.poisson.ScreenedPoisson` bound to them: buffers
+# and (on a GPU) one CUDA graph made once, CG's stopping rule on the device. CG
+# is preconditioned by a multigrid V-cycle (`grisx.poisson.multigrid`): the
+# system's condition number is about 200 at α = 0.2, Jacobi-preconditioned CG
+# needs some 60 iterations for a relative residual of 1e-5, the V-cycle about 10.
 
 # %%
 from grisx.eval.metrics import relmse  # noqa: E402
