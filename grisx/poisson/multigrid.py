@@ -40,7 +40,7 @@ from dataclasses import dataclass
 
 import warp as wp
 
-from grisx.poisson.operators import SCAL_RZ, _apply, _inv_diagonal, _stencil, _weight
+from grisx.poisson.operators import SCAL_RZ, _around, _inv_diagonal, _stencil, _weight
 
 wp.set_module_options({"enable_backward": False})
 
@@ -96,13 +96,22 @@ def coarsen(wpri: wp.array2d(dtype=wp.float32), wx: wp.array2d(dtype=wp.float32)
     cdinv[c, i] = 1.0 / (a2 * p + ex + ey + left + up)
 
 
+@wp.func
+def _swept(xi: float, around: wp.vec4, r: wp.array2d(dtype=wp.float32), wpri: wp.array2d(dtype=wp.float32),
+           wx: wp.array2d(dtype=wp.float32), wy: wp.array2d(dtype=wp.float32), dinv: wp.array2d(dtype=wp.float32),
+           weighted: int, a2: float, omega: float, c: int, i: int, y: int, xx: int, h: int, w: int) -> float:
+    """One damped Jacobi sweep at pixel i, x + ω D⁻¹ (r − A x), from x there (``xi``) and at its neighbours."""
+    res = r[c, i] - _stencil(xi, around, wpri, wx, wy, weighted, a2, c, i, y, xx, h, w)
+    return xi + omega * _inv_diagonal(dinv, weighted, a2, c, i, y, xx, h, w) * res
+
+
 @wp.kernel
 def smooth_from_zero(r: wp.array2d(dtype=wp.float32), dinv: wp.array2d(dtype=wp.float32), weighted: int, a2: float,
                      h: int, w: int, omega: float, x: wp.array2d(dtype=wp.float32)):
     """x = ω D⁻¹ r: one Jacobi sweep from x = 0."""
     c, y, xx = wp.tid()
     i = y * w + xx
-    x[c, i] = omega * _inv_diagonal(dinv, weighted, a2, c, i, y, xx, h, w) * r[c, i]
+    x[c, i] = _presmoothed(r, dinv, r, 0, weighted, a2, omega, c, i, y, xx, h, w, 1)
 
 
 @wp.kernel
@@ -112,8 +121,7 @@ def smooth(x: wp.array2d(dtype=wp.float32), r: wp.array2d(dtype=wp.float32), wpr
     """out = x + ω D⁻¹ (r − A x): one Jacobi sweep (out is another buffer than x)."""
     c, y, xx = wp.tid()
     i = y * w + xx
-    res = r[c, i] - _apply(x, wpri, wx, wy, weighted, a2, c, i, y, xx, h, w)
-    out[c, i] = x[c, i] + omega * _inv_diagonal(dinv, weighted, a2, c, i, y, xx, h, w) * res
+    out[c, i] = _swept(x[c, i], _around(x, c, i, y, xx, h, w), r, wpri, wx, wy, dinv, weighted, a2, omega, c, i, y, xx, h, w)
 
 
 # A level's pre-smoothed guess ω D⁻¹ r and its corrected guess ω D⁻¹ r + P e are never stored: the
@@ -157,8 +165,7 @@ def _post_smoothed(r: wp.array2d(dtype=wp.float32), wpri: wp.array2d(dtype=wp.fl
     """The last sweep of a level, x + ω D⁻¹ (r − A x), at x = the corrected guess."""
     xi = _presmoothed(r, dinv, e, corrected, weighted, a2, omega, c, i, y, xx, h, w, wc)
     around = _presmoothed_around(r, dinv, e, corrected, weighted, a2, omega, c, i, y, xx, h, w, wc)
-    res = r[c, i] - _stencil(xi, around, wpri, wx, wy, weighted, a2, c, i, y, xx, h, w)
-    return xi + omega * _inv_diagonal(dinv, weighted, a2, c, i, y, xx, h, w) * res
+    return _swept(xi, around, r, wpri, wx, wy, dinv, weighted, a2, omega, c, i, y, xx, h, w)
 
 
 @wp.kernel

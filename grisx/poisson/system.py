@@ -36,7 +36,6 @@ True
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import warp as wp
@@ -45,7 +44,7 @@ from grisx.errors import InvalidParameterError
 from grisx.poisson import operators as ops
 from grisx.poisson.cg import CGReport, LoopState, Measurement, allocate_system, assemble, capture, cg_loop, cg_report, measure_system
 from grisx.poisson.l1 import DEFAULT_EPS, get_preset, irls
-from grisx.poisson.reconstruct import DEFAULT_MAX_ITER, DEFAULT_TOL, NORMS, as_warp_input
+from grisx.poisson.reconstruct import DEFAULT_MAX_ITER, DEFAULT_TOL, _check_options, _check_shapes, _pick_device, as_warp_input
 
 __all__ = ["ScreenedPoisson"]
 
@@ -64,21 +63,14 @@ class ScreenedPoisson:
                  tol: float = DEFAULT_TOL, max_iter: int = DEFAULT_MAX_ITER, preset: str = "default",
                  eps: float = DEFAULT_EPS, warm_start: bool = False, preconditioner: str | None = None) -> None:
         inputs = [as_warp_input(name, a) for name, a in (("primal", primal), ("dx", dx), ("dy", dy))]
-        if any(inp.shape != inputs[0].shape for inp in inputs) or len({str(a.device) for a in (primal, dx, dy)}) != 1:
-            raise InvalidParameterError("primal, dx and dy must have one shape and live on one device, got "
-                                        + ", ".join(f"{a.shape} on {a.device}" for a in (primal, dx, dy)))
-        self.norm = str(norm).upper()
-        if self.norm not in NORMS:
-            raise InvalidParameterError(f"norm must be one of {', '.join(NORMS)}, got {norm!r}")
-        if not (math.isfinite(alpha) and alpha > 0.0):
-            raise InvalidParameterError(f"alpha must be finite and > 0, got {alpha}")
-        if not (math.isfinite(tol) and tol > 0.0) or int(max_iter) < 0:
-            raise InvalidParameterError(f"need tol > 0 and max_iter >= 0, got tol={tol}, max_iter={max_iter}")
+        _check_shapes(inputs[0], inputs[1:])
+        self.device = _pick_device(None, inputs)
+        # the checks of grisx.poisson.solve, with the solver this system runs for the norm
+        self.norm, _ = _check_options(norm, alpha, "irls" if str(norm).upper() == "L1" else "cg", self.device, tol, max_iter, eps)
         self.alpha, self.tol, self.max_iter = float(alpha), float(tol), int(max_iter)
         self.schedule = get_preset(preset)
         self.eps = float(eps)
         self.warm_start = bool(warm_start)
-        self.device = primal.device
         self._inputs = inputs
         h, w, c = inputs[0].shape
         self.height, self.width, self.channels = h, w, c

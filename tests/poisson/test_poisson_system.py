@@ -14,7 +14,7 @@ import pytest
 import warp as wp
 from numpy.testing import assert_array_equal
 
-from grisx.errors import InvalidParameterError
+from grisx.errors import InvalidParameterError, UnknownNameError
 from grisx.poisson import ScreenedPoisson, forward_gradient, reconstruct, screened_operator, screened_rhs
 
 ALPHA = 0.2
@@ -125,7 +125,9 @@ def test_warm_l1_stays_at_the_l1_minimum():
 def test_inputs_of_different_shapes_are_refused():
     a = wp.zeros((4, 5), dtype=wp.vec3, device="cpu")
     b = wp.zeros((4, 6), dtype=wp.vec3, device="cpu")
-    with pytest.raises(InvalidParameterError, match="one shape"):
+    with pytest.raises(InvalidParameterError, match="dx has shape"):
         ScreenedPoisson(a, b, a)
-    with pytest.raises(InvalidParameterError, match="norm"):
+    with pytest.raises(UnknownNameError, match="norm"):
         ScreenedPoisson(a, a, a, norm="L3")
+    with pytest.raises(InvalidParameterError, match="alpha"):
+        ScreenedPoisson(a, a, a, alpha=0.0)
