@@ -618,31 +618,32 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         p: wp.vec3,
         radius: float,
         k: int,
-        support: wp.array2d(dtype=SupportReservoir),
+        points: wp.array(dtype=wp.vec3),
         idx: wp.array(dtype=int),
         dist: wp.array(dtype=float),
     ) -> int:
-        """The ≤ k supporting prefixes whose x_k are nearest to ``p`` within ``radius`` (FindSpatialKNN), sorted, in ``idx``."""
-        width = support.shape[1]
+        """The ≤ k supporting prefixes whose x_k are nearest to ``p`` within ``radius`` (FindSpatialKNN), sorted, in ``idx``.
+
+        Reads the grid's own point array (12 bytes a candidate; a pixel without a prefix sits at 1e20, out of every
+        radius), not the support records.
+        """
         count = int(0)
         query = wp.hash_grid_query(grid, p, radius)
         j = int(0)
         while wp.hash_grid_query_next(query, j):
-            z = support[j // width, j % width].prefix
-            if z.dom.valid != 0:
-                d = wp.length(z.dom.p - p)
-                if d <= radius and (count < k or d < dist[k - 1]):
-                    # insertion into the sorted list (ties keep the earlier index: deterministic)
-                    pos = wp.min(count, k - 1)
-                    while pos > 0 and dist[pos - 1] > d:
-                        if pos < k:
-                            dist[pos] = dist[pos - 1]
-                            idx[pos] = idx[pos - 1]
-                        pos -= 1
-                    dist[pos] = d
-                    idx[pos] = j
-                    if count < k:
-                        count += 1
+            d = wp.length(points[j] - p)
+            if d <= radius and (count < k or d < dist[k - 1]):
+                # insertion into the sorted list (ties keep the earlier index: deterministic)
+                pos = wp.min(count, k - 1)
+                while pos > 0 and dist[pos - 1] > d:
+                    if pos < k:
+                        dist[pos] = dist[pos - 1]
+                        idx[pos] = idx[pos - 1]
+                    pos -= 1
+                dist[pos] = d
+                idx[pos] = j
+                if count < k:
+                    count += 1
         return count
 
     # ---- final gather ----
@@ -688,6 +689,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         domains: wp.array2d(dtype=Domain),
         direct: wp.array2d(dtype=wp.vec3),
         support: wp.array2d(dtype=SupportReservoir),
+        points: wp.array(dtype=wp.vec3),
         own_z: wp.array2d(dtype=Prefix),
         own_x: wp.array2d(dtype=PathSample),
         own_res: wp.array2d(dtype=Reservoir),
@@ -734,7 +736,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         # entries 1 … k: the suffixes of the k nearest supporting prefixes (Alg. 1 lines 14–15)
         found = int(0)
         if gather_k > 0:
-            found = knn(grid, z.dom.p, grid_radius, gather_k, support, knn_idx[t], knn_dist[t])
+            found = knn(grid, z.dom.p, grid_radius, gather_k, points, knn_idx[t], knn_dist[t])
         for l in range(gather_k):
             row_set(rows, t, 1 + l, prefix_empty(), path_sample_empty(), reservoir_empty(), 0.0)
             if l < found:
@@ -1025,7 +1027,7 @@ class SuffixReSTIR(ScreenSpaceRenderer):
                     dim=dim,
                     inputs=[
                         self.spec, self.full_sp, self.seed, int(frame), j, self.prefixes, self.gather_k, self.suffixes, int(self.roulette), int(self.canonical),
-                        self.max_bounces, self.grid.id, self.grid_radius, dom, direct, cur,
+                        self.max_bounces, self.grid.id, self.grid_radius, dom, direct, cur, self.points,
                         self.own_z, self.own_x, self.own_res, self.knn_idx, self.knn_dist, self.rows["gather"],
                     ],
                     outputs=[self.accum],
