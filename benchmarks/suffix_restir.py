@@ -84,7 +84,8 @@ def equal_time_candidates(scene: str, target: float, t_one: float, args: argpars
     if c == 1:
         return 1
     probe = argparse.Namespace(frames=4, res=(args.width, args.height), device=args.device, seed=args.seed + 5)
-    _, t_c, _ = render_frames(scene, "restir-pt", {"max_depth": MAX_DEPTH, "candidates": c}, None, "moving", probe, [])
+    _, timing, _ = render_frames(scene, "restir-pt", {"max_depth": MAX_DEPTH, "candidates": c}, None, "moving", probe, [])
+    t_c = timing["median"]
     per_candidate = (t_c - t_one) / (c - 1)
     return max(1, int(round(1 + (target - t_one) / per_candidate))) if per_candidate > 0 else c
 
@@ -156,7 +157,8 @@ def run_scene(scene: str, args: argparse.Namespace, on_row: Any = None) -> list[
         frames = min(args.frames, args.heavy_frames) if heavy_row(label) else args.frames
         ev = last_frames(frames)
         run = argparse.Namespace(frames=frames, res=(args.width, args.height), device=args.device, seed=args.seed)
-        kept, seconds, r = render_frames(scene, method, params, spp, "moving", run, ev)
+        kept, timing, r = render_frames(scene, method, params, spp, "moving", run, ev)
+        seconds = timing["median"]  # device time per frame, protocol v2 (the first frame not counted)
         seconds_of[label] = seconds
         last = ev[-1]
         rec = {"scene": scene, "method": label, "renderer": method, "params": params, "width": args.width, "height": args.height,

@@ -199,7 +199,7 @@ def make_conditional_ris(
     destination's own domain (its prefix is the destination prefix z).
 
     Returns an object with the ``wp.func`` attributes ``canonical_suffix``,
-    ``carried_target``, ``conditional_mis``, ``conditional_ris``,
+    ``carried_target``, ``source_carried_target``, ``conditional_mis``, ``conditional_ris``,
     ``spatial_conditional_ris``, ``gather_sample``, ``gather_weight_pairwise`` and ``gather_term`` and the structs
     ``ConditionalReservoir`` and ``GatherSample``.
     """
@@ -287,20 +287,35 @@ def make_conditional_ris(
         prefixes: wp.array(dtype=prefix_type),
         confidences: wp.array(dtype=float),
         targets: wp.array(dtype=float),
+        source_proxy: float,
     ) -> float:
         """m_source(y|Z): generalized balance heuristic over the row's domains (seed 001, Eq. 15–16).
 
         ``y`` is a sample of the destination domain (prefix ``z``); fills
         ``targets`` with p̂_{←l}(y|Z) for every domain l (the canonical one
         reads p̂(y|z) directly) and weighs them with ``confidences``.
+        ``source_proxy`` ≥ 0 is p̂_{←source}(y) as the caller knows it when y is
+        the shift of the source's own suffix, y = T(x_source): the inverse shift
+        gives back x_source, so p̂_{←source}(y) = p̂_source(x_source) / |T'|
+        (:func:`source_carried_target`) and costs no shift. Negative: that domain
+        is shifted too, like every other.
         """
         n = prefixes.shape[0]
         for l in range(n):
             if l == canonical:
                 targets[l] = proxy(spec, mode, z, y)
+            elif l == source and source_proxy >= 0.0:
+                targets[l] = source_proxy
             else:
                 targets[l] = carried_target(spec, mode, prefixes[l], z, y)
         return mis_weight(MIS_BALANCE, source, canonical, confidences, targets)
+
+    @wp.func
+    def source_carried_target(spec: spec_type, mode: int, z_source: prefix_type, x_source: suffix_type, jacobian: float) -> float:
+        """p̂_{←source}(T(x_source)) = p̂_source(x_source) / |T'| (Eq. 16 at the forward shift's own image, T bijective)."""
+        if jacobian <= 0.0:
+            return 0.0
+        return target_from(proxy(spec, mode, z_source, x_source), 1.0 / jacobian)
 
     @wp.func
     def conditional_ris(
@@ -334,8 +349,13 @@ def make_conditional_ris(
             w = float(0.0)
             p_hat = float(0.0)
             if s.valid and reservoirs[l].ucw > 0.0:
-                m = conditional_mis(spec, PROXY_TARGET, z, s.x, l, canonical, prefixes, confidences, targets)
-                shifts += n - 1  # the inverse shifts of Eq. 16
+                own = float(-1.0)  # the canonical input's own domain is read directly
+                if l != canonical:
+                    own = source_carried_target(spec, PROXY_TARGET, prefixes[l], suffixes[l], s.jacobian)
+                m = conditional_mis(spec, PROXY_TARGET, z, s.x, l, canonical, prefixes, confidences, targets, own)
+                shifts += n - 1  # the inverse shifts of Eq. 16 (one of them, the source's own, read from x_l)
+                if l != canonical:
+                    shifts -= 1
                 p_hat = target(spec, z, s.x)
                 w = resampling_weight(m, p_hat, reservoirs[l].ucw, s.jacobian)  # GRIS weight read given Z
             # a failed shift still adds its domain's confidence α_l (sample-independent)
@@ -431,7 +451,7 @@ def make_conditional_ris(
                     t_l = carried_target(spec, PROXY_TARGET, prefixes[l], z, s.x)  # p̂_{←l}(y), Eq. 16
                     m += pairwise_mis_canonical_term(confidences[l], t_l, c_c, t_c, k, total)
         else:
-            t_l = target_from(target(spec, prefixes[source], suffixes[source]), 1.0 / s.jacobian)  # p̂_l(x)/|T'|, Eq. 16
+            t_l = source_carried_target(spec, PROXY_TARGET, prefixes[source], suffixes[source], s.jacobian)  # p̂_l(x)/|T'|, Eq. 16
             m = pairwise_mis_neighbor(confidences[source], t_l, c_c, t_c, k, total)
         out.weight = m * joint_ucw(prefix_ucw, shifted_conditional_ucw(src.ucw, s.jacobian))
         return out
@@ -466,7 +486,10 @@ def make_conditional_ris(
         out.y = s.x
         if not s.valid or src.ucw <= 0.0:
             return out
-        m = conditional_mis(spec, mode, z, s.x, source, canonical, prefixes, confidences, targets)
+        own = float(-1.0)
+        if source != canonical:
+            own = source_carried_target(spec, mode, prefixes[source], suffixes[source], s.jacobian)
+        m = conditional_mis(spec, mode, z, s.x, source, canonical, prefixes, confidences, targets, own)
         out.weight = m * joint_ucw(prefix_ucw, shifted_conditional_ucw(src.ucw, s.jacobian))
         return out
 
@@ -504,6 +527,7 @@ def make_conditional_ris(
     ns.canonical_suffix = canonical_suffix
     ns.carried_target = carried_target
     ns.conditional_mis = conditional_mis
+    ns.source_carried_target = source_carried_target
     ns.conditional_ris = conditional_ris
     ns.spatial_conditional_ris = spatial_conditional_ris
     ns.gather_term = gather_term

@@ -118,7 +118,7 @@ def _mis_row_kernel(
     carried: wp.array(dtype=float),
 ):
     for j in range(prefixes.shape[0]):
-        weights[j] = CRIS.conditional_mis(spec, mode, z, y, j, canonical, prefixes, confidences, targets)
+        weights[j] = CRIS.conditional_mis(spec, mode, z, y, j, canonical, prefixes, confidences, targets, -1.0)
     for j in range(prefixes.shape[0]):
         carried[j] = targets[j]
 
@@ -163,6 +163,56 @@ def test_conditional_mis_weights_of_the_domains_containing_y_sum_to_one(z, y, ot
     pre = (s - 0.6 * prefixes.astype(np.float64)) / (0.5 + 0.5 * prefixes.astype(np.float64))
     inside = (pre >= 1e-5) & (pre <= 1 - 1e-5)
     assert np.all(t[1:][inside[1:]] > 0) and np.all(t[1:][(pre[1:] < -1e-5) | (pre[1:] > 1 + 1e-5)] == 0)
+
+
+@wp.kernel
+def _source_shortcut_kernel(
+    spec: PathsSpec,
+    mode: int,
+    z: float,
+    theta: float,
+    prefixes: wp.array(dtype=float),
+    confidences: wp.array(dtype=float),
+    targets: wp.array(dtype=float),
+    out: wp.array2d(dtype=float),
+):
+    # source j's own suffix θ shifted to z: its weight with every domain shifted, with its own domain read from θ, and
+    # with the Jacobian not inverted (the sibling that must differ)
+    for j in range(1, prefixes.shape[0]):
+        s = suffix_shift(spec, prefixes[j], z, theta)
+        out[j, 0] = float(s.valid)
+        if s.valid:
+            out[j, 1] = CRIS.conditional_mis(spec, mode, z, s.x, j, 0, prefixes, confidences, targets, -1.0)
+            out[j, 2] = CRIS.conditional_mis(spec, mode, z, s.x, j, 0, prefixes, confidences, targets, CRIS.source_carried_target(spec, mode, prefixes[j], theta, s.jacobian))
+            out[j, 3] = CRIS.conditional_mis(spec, mode, z, s.x, j, 0, prefixes, confidences, targets, CRIS.source_carried_target(spec, mode, prefixes[j], theta, 1.0 / s.jacobian))
+            out[j, 4] = s.jacobian
+
+
+@settings(deadline=None, max_examples=40)
+@given(
+    z=st.floats(0.0, 1.0),
+    theta=st.floats(0.05, 0.9),
+    others=st.lists(st.floats(0.0, 1.0), min_size=1, max_size=6),
+    alphas=st.lists(st.floats(0.05, 20.0), min_size=7, max_size=7),
+    mode=st.sampled_from([0, 1]),
+)
+def test_the_sources_own_domain_read_from_its_suffix_equals_its_inverse_shift(z, theta, others, alphas, mode):
+    """conditional_mis with p̂_{←j}(T(x_j)) = p̂_j(x_j)/|T'| (no shift) gives the weight of the inverse shift; with |T'| in
+    place of its inverse it does not (where |T'| ≠ 1)."""
+    prefixes = np.array([z, *others], dtype=np.float32)
+    conf = np.array(alphas[: len(prefixes)], dtype=np.float32)
+    n = len(prefixes)
+    out = wp.zeros((n, 5), dtype=float)
+    wp.launch(
+        _source_shortcut_kernel,
+        dim=1,
+        inputs=[_spec(), PROXY_SOURCE_PDF if mode else PROXY_TARGET, float(z), float(theta), wp.array(prefixes, dtype=float), wp.array(conf, dtype=float), wp.zeros(n, dtype=float), out],
+    )
+    for valid, full, short, wrong, jac in out.numpy()[1:]:
+        if valid:
+            assert short == pytest.approx(full, rel=1e-4, abs=1e-6)
+            if abs(jac - 1.0) > 0.05 and 0.02 < full < 0.98:
+                assert wrong != pytest.approx(full, rel=1e-3)
 
 
 @wp.kernel
