@@ -138,7 +138,7 @@ from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.gbuffer import GBuffer, GBufferData
 from grisx.scene.lights import luminance
 from grisx.scene.scene import SceneData, finite_or_dropped, make_surface, spawn_origin
-from grisx.theory.conditional import PAIRWISE_TARGET, PROXY_TARGET, canonical_roulette_weight, make_conditional_ris, roulette_pick
+from grisx.theory.conditional import PAIRWISE_TARGET, PROXY_TARGET, make_conditional_ris, roulette_pick, roulette_window_holds, roulette_window_weight
 from grisx.theory.gris import resampling_weight, ucw_from_source_pdf
 from grisx.theory.mis import target_from, two_domain_balance
 from grisx.theory.random import random_subkey, random_uniform
@@ -656,8 +656,8 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     # cuda-gdb; see benchmarks/README "The metal-rack fault".
     @wp.func
     def gather_chosen(seed: int, frame: int, prefixes: int, own_suffixes: int) -> int:
-        """The prefix that traces its canonical suffix (Eq. 23), one index for every pixel of the frame; with own
-        suffixes (MMIS) the first ones always do.
+        """The first prefix that traces its canonical suffix (Eq. 23; the window of ``kept`` prefixes starts there), one
+        index for every pixel of the frame; with own suffixes (MMIS) the first ones always do.
 
         A pixel's N prefixes are i.i.d., so which index traces does not change the estimator's law, nor the joint
         law of the pixels: a per-pixel index is as unbiased and no better. One index per frame makes the suffix
@@ -667,9 +667,14 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         return own_suffixes + roulette_pick(random_uniform(frame_key_of(seed, frame, _FRAME_STREAM_ROULETTE), 0), wp.max(prefixes - own_suffixes, 1))
 
     @wp.func
-    def gather_traced(j: int, chosen: int, own_suffixes: int, roulette: int, canonical: int) -> wp.bool:
-        """Whether prefix j has its canonical suffix domain (α = 0 without it: canonical=false, biased)."""
-        return canonical != 0 and (j < own_suffixes or roulette == 0 or j == chosen)
+    def gather_traced(j: int, chosen: int, prefixes: int, own_suffixes: int, kept: int, canonical: int) -> wp.bool:
+        """Whether prefix j has its canonical suffix domain (α = 0 without it: canonical=false, biased): one of the ``kept``
+        after ``chosen`` (cyclic over the prefixes after the own suffixes)."""
+        if canonical == 0:
+            return False
+        if j < own_suffixes:
+            return True
+        return roulette_window_holds(j - own_suffixes, chosen - own_suffixes, kept, wp.max(prefixes - own_suffixes, 1))
 
     @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
     def gather_prefix_pass(
@@ -681,7 +686,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         prefixes: int,
         gather_k: int,
         own_suffixes: int,
-        roulette: int,
+        kept: int,
         canonical: int,
         max_bounces: int,
         grid: wp.uint64,
@@ -726,7 +731,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             return
         # entry 0: the prefix's own (canonical) suffix domain, α = 0 without it (canonical=false, biased)
         row_set(rows, t, 0, z, path_sample_empty(), reservoir_empty(), float(canonical))
-        if gather_traced(j, gather_chosen(seed, frame, prefixes, own_suffixes), own_suffixes, roulette, canonical):
+        if gather_traced(j, gather_chosen(seed, frame, prefixes, own_suffixes), prefixes, own_suffixes, kept, canonical):
             if j < own_suffixes:
                 row_set(rows, t, 0, z, own_x[t, j], own_res[t, j], 1.0)
             else:
@@ -758,7 +763,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         j: int,
         prefixes: int,
         own_suffixes: int,
-        roulette: int,
+        kept: int,
         canonical: int,
         mis_mode: int,
         rows: Rows,
@@ -771,7 +776,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         if z.dom.valid == 0 or z.bounces == 0:
             return
         chosen = gather_chosen(seed, frame, prefixes, own_suffixes)
-        traced = gather_traced(j, chosen, own_suffixes, roulette, canonical)
+        traced = gather_traced(j, chosen, prefixes, own_suffixes, kept, canonical)
         inv_n = 1.0 / float(prefixes)
         w_prefix = ucw_from_source_pdf(z.pdf)
         L = accum[y, x]
@@ -786,7 +791,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             if gw.weight > 0.0:
                 rw = float(1.0)
                 if j >= own_suffixes:
-                    rw = canonical_roulette_weight(roulette, j == chosen, prefixes - own_suffixes)
+                    rw = roulette_window_weight(True, kept, prefixes - own_suffixes)  # N/R (Eq. 23: N)
                 L += wp.cw_mul(z.f, gw.y.f) * (gw.weight * rw * inv_n)
         accum[y, x] = L
 
@@ -871,6 +876,7 @@ class SuffixReSTIR(ScreenSpaceRenderer):
         gather_k: int = 4,
         gather_radius: float = 0.0,
         roulette: bool = True,
+        canonical_suffixes: int = 1,
         canonical: bool = True,
         gather_mis: str = "balance",
         prefix: str = "hybrid",
@@ -907,6 +913,12 @@ class SuffixReSTIR(ScreenSpaceRenderer):
         self.width, self.height = int(width), int(height)
         self.prefixes, self.gather_k, self.suffixes = int(prefixes), int(gather_k), int(suffixes)
         self.roulette, self.canonical = bool(roulette), bool(canonical)
+        if canonical_suffixes < 1:
+            raise InvalidParameterError(f"canonical_suffixes must be >= 1, not {canonical_suffixes}")
+        # R of the N − (own suffixes) prefixes trace their canonical suffix, each weighted N/R; no roulette: all of them
+        self.kept = max(self.prefixes - self.suffixes, 1)
+        if self.roulette:
+            self.kept = min(int(canonical_suffixes), self.kept)
         self.mis_mode = GATHER_MIS[gather_mis]
         self.temporal, self.spatial = bool(temporal), bool(spatial)
         self.suffix_in_prefix_target = bool(suffix_in_prefix_target)
@@ -1026,7 +1038,7 @@ class SuffixReSTIR(ScreenSpaceRenderer):
                     k["gather_prefix"],
                     dim=dim,
                     inputs=[
-                        self.spec, self.full_sp, self.seed, int(frame), j, self.prefixes, self.gather_k, self.suffixes, int(self.roulette), int(self.canonical),
+                        self.spec, self.full_sp, self.seed, int(frame), j, self.prefixes, self.gather_k, self.suffixes, self.kept, int(self.canonical),
                         self.max_bounces, self.grid.id, self.grid_radius, dom, direct, cur, self.points,
                         self.own_z, self.own_x, self.own_res, self.knn_idx, self.knn_dist, self.rows["gather"],
                     ],
@@ -1036,7 +1048,7 @@ class SuffixReSTIR(ScreenSpaceRenderer):
                 wp.launch(
                     k["gather_mis"],
                     dim=dim,
-                    inputs=[self.spec, self.seed, int(frame), j, self.prefixes, self.suffixes, int(self.roulette), int(self.canonical), self.mis_mode, self.rows["gather"]],
+                    inputs=[self.spec, self.seed, int(frame), j, self.prefixes, self.suffixes, self.kept, int(self.canonical), self.mis_mode, self.rows["gather"]],
                     outputs=[self.accum],
                     device=dev,
                 )
@@ -1070,7 +1082,8 @@ def _restir_pt_params(*names: str) -> tuple[Param, ...]:
 
 
 _SHARED = (
-    Param("roulette", ..., "Russian-roulette canonical suffix (seed 001, Eq. 23): one prefix traces it, weighted N; false: every prefix traces one", kind="bool"),
+    Param("roulette", ..., "Russian-roulette canonical suffix (seed 001, Eq. 23): canonical_suffixes of the N prefixes trace theirs, weighted N/R; false: every prefix traces one", kind="bool"),
+    Param("canonical_suffixes", ..., "R: prefixes per pixel and frame that trace their canonical suffix under roulette, each weighted N/R (1: Eq. 23)", kind="int", minimum=1, maximum=1024),
     Param("canonical", ..., "include the canonical suffix domain (false: the borrowed suffixes alone, biased: Eq. 17's coverage lost)", kind="bool"),
     Param("shift", ..., "suffix shift: hybrid (reconnect x_k' -> x_k+1 where both are rough, replay before), reconnection or replay", kind="choice", choices=("hybrid", "reconnection", "replay")),
     *_restir_pt_params("max_depth", "rr_depth", "rough_threshold", "near_field", "jacobian", "max_jacobian", "jitter"),

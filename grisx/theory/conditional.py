@@ -62,7 +62,10 @@ suffixes; all N canonical suffixes stay in every MIS weight, but only one
 random prefix traces its canonical suffix, whose contribution is multiplied by
 N (selection probability 1/N): :func:`roulette_pick`,
 :func:`canonical_roulette_weight`. The mean is that of N canonical suffixes;
-the work drops from N canonical suffixes to one.
+the work drops from N canonical suffixes to one. Keeping R of the N (a cyclic
+window after a uniform first index, :func:`roulette_window_holds`, each kept
+one weighted N/R, :func:`roulette_window_weight`) is as unbiased and trades
+the canonical term's variance, which grows as N/R, against R suffix traces.
 
 Problem-specific hooks (the conditional target, the conditioned shift, the
 source pdf, the full-path integrand) enter through
@@ -98,6 +101,8 @@ __all__ = [
     "shifted_conditional_ucw",
     "roulette_pick",
     "canonical_roulette_weight",
+    "roulette_window_holds",
+    "roulette_window_weight",
     "PROXY_TARGET",
     "PROXY_SOURCE_PDF",
     "PAIRWISE_TARGET",
@@ -144,6 +149,24 @@ def roulette_pick(u: float, count: int) -> int:
 
 
 @wp.func
+def roulette_window_holds(j: int, first: int, kept: int, count: int) -> wp.bool:
+    """Whether prefix ``j`` of ``count`` is among the ``kept`` that trace their canonical suffix: the cyclic window
+    first, first + 1, … (mod count) of ``kept`` prefixes after a uniform ``first`` (:func:`roulette_pick`), so each
+    prefix is in it with probability kept / count."""
+    return (j - first + count) % count < kept
+
+
+@wp.func
+def roulette_window_weight(traced: wp.bool, kept: int, count: int) -> float:
+    """Weight of one prefix's canonical-suffix term when ``kept`` of ``count`` prefixes trace theirs (seed 001, Eq. 23
+    with ``kept`` = 1): count / kept if it was traced, else 0. E[weight] = 1, so the gather's mean does not change;
+    the canonical term's variance grows as count / kept."""
+    if traced:
+        return float(count) / float(kept)
+    return 0.0
+
+
+@wp.func
 def canonical_roulette_weight(roulette: int, chosen: wp.bool, count: int) -> float:
     """Weight of one prefix's canonical-suffix term in the final gather (seed 001, Eq. 23).
 
@@ -153,10 +176,8 @@ def canonical_roulette_weight(roulette: int, chosen: wp.bool, count: int) -> flo
     Either way E[weight] = 1, so the gather's mean does not change.
     """
     if roulette == 0:
-        return 1.0
-    if chosen:
-        return float(count)
-    return 0.0
+        return roulette_window_weight(True, count, count)
+    return roulette_window_weight(chosen, 1, count)
 
 
 def make_conditional_ris(

@@ -25,6 +25,8 @@ from grisx.theory.conditional import (
     canonical_roulette_weight,
     joint_ucw,
     roulette_pick,
+    roulette_window_holds,
+    roulette_window_weight,
     shifted_conditional_ucw,
 )
 from grisx.theory.toys import PROBLEMS, get_problem, run_toy
@@ -73,6 +75,24 @@ def _core_values_kernel(inputs: wp.array(dtype=wp.vec2), out: wp.array(dtype=flo
     out[4 * i + 1] = shifted_conditional_ucw(a, b)
     out[4 * i + 2] = float(roulette_pick(a, 5))
     out[4 * i + 3] = canonical_roulette_weight(1, b > 0.0, 5) + 10.0 * canonical_roulette_weight(0, b > 0.0, 5)
+
+
+@wp.kernel
+def _window_kernel(kept: int, count: int, out: wp.array2d(dtype=float)):
+    first, j = wp.tid()
+    out[first, j] = roulette_window_weight(roulette_window_holds(j, first, kept, count), kept, count)
+
+
+@pytest.mark.parametrize("kept,count", [(1, 8), (3, 8), (2, 5), (5, 5), (4, 7)])
+def test_a_roulette_window_weights_each_prefix_one_on_average(kept, count):
+    """Over the uniform first index, each prefix is traced kept/count of the time and weighted count/kept: E[w] = 1
+    exactly, and every first index traces exactly ``kept`` prefixes."""
+    out = wp.zeros((count, count), dtype=float)
+    wp.launch(_window_kernel, dim=(count, count), inputs=[kept, count, out])
+    w = out.numpy()
+    np.testing.assert_allclose(w.mean(axis=0), 1.0, rtol=1e-6)  # each prefix j
+    assert np.all((w > 0).sum(axis=1) == kept)  # each frame
+    np.testing.assert_allclose(w[w > 0], count / kept, rtol=1e-6)
 
 
 def test_core_functions_on_hand_computed_cases():
