@@ -59,11 +59,18 @@ than the other prefix leaves (``max_depth`` counts the whole path). Per frame:
     α = 1 in the gather's MIS (Eq. 15): a borrowed suffix's reservoir confidence (up to
     ``history_cap``) describes its quality *at its own prefix*, not at the integration prefix,
     and weighting by it was measured worse (closed room, 24×18, frame 6: relMSE 0.175 against
-    0.068 with α = 1). The MIS weights include the prefix's own canonical suffix domain; with
-    ``roulette=true`` only one random prefix traces its canonical suffix, weighted N
-    (:func:`roulette_pick`, :func:`canonical_roulette_weight`, Eq. 23) — one index per frame for every
-    pixel (the prefixes are i.i.d.; on a GPU the suffixes are then one pass's coherent work);
-    ``roulette=false`` traces one per prefix. ``canonical=false`` drops the canonical domain: the borrowed
+    0.068 with α = 1). ``gather_k`` = 1 by default: one borrowed ReSTIR suffix per prefix, the paper's
+    setting (Fig. 3–4 and 7). The MIS weights include the prefix's own canonical suffix domain. By
+    default every prefix traces its canonical suffix (``roulette=false``, the right column of the
+    paper's Fig. 4); ``roulette=true`` is Eq. 23 generalized: R = ``canonical_suffixes`` of the N
+    prefixes (the paper's R = 1) trace theirs, a cyclic window after one random index per frame for
+    every pixel (:func:`roulette_pick`, :func:`roulette_window_holds`; the prefixes are i.i.d., and on
+    a GPU the suffixes are then whole passes' coherent work), each weighted N/R
+    (:func:`roulette_window_weight`). The default departs from the paper's because the rouletted term's
+    variance grows as N/R and dominated our images: relMSE × ms per static frame (H100, 1920×1080,
+    k = 1, N = 8) for R = 1, 2, 4, 8 was 196, 108, 65, 44 on door-ajar and 31, 19, 13, 11 on
+    closed-room, and 16 prefixes at R = 1 were no better than 8 (one suffix weighted N stays one
+    suffix; benchmarks/README, "Suffix ReSTIR's canonical suffixes"). ``canonical=false`` drops the canonical domain: the borrowed
     suffixes no longer cover the suffix space (Eq. 17) — biased, and the tests show it.
     Each prefix j is one launch pair, a prefix pass (sample it, its walk, fill the pixel's row of
     domains) and a MIS pass (its Eq. 22 terms), summed into a running image: no kernel loops
@@ -873,9 +880,9 @@ class SuffixReSTIR(ScreenSpaceRenderer):
         height: int,
         *,
         prefixes: int = 8,
-        gather_k: int = 4,
+        gather_k: int = 1,
         gather_radius: float = 0.0,
-        roulette: bool = True,
+        roulette: bool = False,
         canonical_suffixes: int = 1,
         canonical: bool = True,
         gather_mis: str = "balance",
@@ -1093,7 +1100,7 @@ _SHARED = (
 register(
     RenderMethod(
         "suffix-restir",
-        "Suffix ReSTIR (seed 001): suffixes reused by conditional RIS, final gather over N prefixes with k-NN borrowed suffixes and a rouletted canonical one",
+        "Suffix ReSTIR (seed 001): suffixes reused by conditional RIS, final gather over N prefixes with k-NN borrowed suffixes and their canonical ones (all, or R of N rouletted)",
         create_suffix_restir,
         params=renderer_params(
             SuffixReSTIR,

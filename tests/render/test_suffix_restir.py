@@ -43,10 +43,10 @@ DEEP = {"max_depth": 32}  # with Russian roulette from the scene's rr_depth
 @pytest.mark.parametrize(
     "scene,params",
     [
-        ("closed-room", {**DEEP, "prefixes": 8}),
+        ("closed-room", {**DEEP, "prefixes": 8, "roulette": True}),  # Eq. 23: one canonical suffix, weighted N
         ("closed-room", {**DEEP, "prefixes": 8, "roulette": False}),
         ("closed-room", {**DEEP, "prefixes": 1}),
-        ("door-ajar", {"prefixes": 8}),
+        ("door-ajar", {"prefixes": 8, "roulette": True, "gather_k": 4}),
         ("door-ajar", {"prefixes": 8, "roulette": False}),
         ("door-ajar", {"prefixes": 1, "roulette": False}),
         ("closed-room", {**DEEP, "prefixes": 8, "direct": "restir-di"}),  # the paper's split: ReSTIR DI for x₁ → light
@@ -55,8 +55,8 @@ DEEP = {"max_depth": 32}  # with Russian roulette from the scene's rr_depth
         ("closed-room", {**DEEP, "prefixes": 8, "gather_mis": "pairwise"}),  # O(k) MIS: each borrowed domain against the canonical
         ("door-ajar", {"prefixes": 8, "gather_mis": "pairwise"}),
         ("closed-room", {"max_depth": 8, "gather_k": 1, "neighbors": 5}),  # rows of other widths per pass
-        ("closed-room", {**DEEP, "prefixes": 8, "canonical_suffixes": 3}),  # R = 3 of 8 canonical suffixes, each weighted 8/3
-        ("door-ajar", {"prefixes": 5, "canonical_suffixes": 2, "gather_k": 1}),  # a window that wraps around N = 5
+        ("closed-room", {**DEEP, "prefixes": 8, "roulette": True, "canonical_suffixes": 3}),  # R = 3 of 8 canonical suffixes, each weighted 8/3
+        ("door-ajar", {"prefixes": 5, "roulette": True, "canonical_suffixes": 2}),  # a window that wraps around N = 5
     ],
     ids=["closed-room-N8", "closed-room-N8-no-roulette", "closed-room-N1", "door-ajar-N8", "door-ajar-N8-no-roulette", "door-ajar-N1", "closed-room-N8-restir-di", "glossy-room-N8", "glossy-room-N8-one-bounce-prefix", "closed-room-pairwise", "door-ajar-pairwise", "closed-room-k1-5-neighbors", "closed-room-R3", "door-ajar-N5-R2"],
 )
@@ -110,8 +110,9 @@ def test_biased_siblings_are_caught(scene, params, frames, runs):
 
 #: runs of the paired checks: at 12×10 a pair of closed-room renders costs 0.14 s on this CPU (2 × 768 pairs ≈ 4 min: the slow tier)
 PAIRED_RUNS = 768
-#: the closed room at depth 32 with Russian roulette, eight prefixes (the first unbiasedness case above)
-PAIRED = {**DEEP, "prefixes": 8}
+#: the closed room at depth 32 with Russian roulette, eight prefixes, Eq. 23's rouletted canonical suffix and four
+#: borrowed suffixes (the first unbiasedness case above; the configuration these runs' power was measured at)
+PAIRED = {**DEEP, "prefixes": 8, "roulette": True, "gather_k": 4}
 
 
 def _paired_z(a: dict, b: dict) -> tuple[float, float]:
