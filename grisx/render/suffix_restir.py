@@ -69,7 +69,7 @@ than the other prefix leaves (``max_depth`` counts the whole path). Per frame:
     (:func:`roulette_window_weight`). The default departs from the paper's because the rouletted term's
     variance grows as N/R and dominated our images: relMSE × ms per static frame (H100, 1920×1080,
     k = 1, N = 8) for R = 1, 2, 4, 8 was 196, 108, 65, 44 on door-ajar and 31, 19, 13, 11 on
-    closed-room, and 16 prefixes at R = 1 were no better than 8 (one suffix weighted N stays one
+    closed-room, and 16 prefixes at R = 1 did little better than 8 (one suffix weighted N stays one
     suffix; benchmarks/README, "Suffix ReSTIR's canonical suffixes"). ``canonical=false`` drops the canonical domain: the borrowed
     suffixes no longer cover the suffix space (Eq. 17) — biased, and the tests show it.
     Each prefix j is one launch pair, a prefix pass (sample it, its walk, fill the pixel's row of
