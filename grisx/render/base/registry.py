@@ -65,6 +65,7 @@ VOCABULARY = {
     "prefixes": ("int", "integration prefixes per pixel and frame, each connected to suffixes (seed 001, Eq. 23)"),
     "gather_k": ("int", "supporting prefixes (nearest in world space) whose suffixes each integration prefix borrows"),
     "roulette": ("bool", "Russian-roulette canonical suffix of the final gather (seed 001, Eq. 23); false: one per prefix"),
+    "canonical_suffixes": ("int", "R: prefixes of the final gather that trace their canonical suffix under roulette, each weighted N/R"),
     "canonical": ("bool", "false: leave the canonical sample out of the MIS (biased: coverage lost, seed 001 Eq. 17)"),
 }
 #: names that mean one of the above and must not be used for it
