@@ -1129,7 +1129,10 @@ register(
             Param("prefixes", 64, "prefixes per pixel and frame", kind="int", minimum=1, maximum=1024),
             Param("suffixes", 3, "suffixes per pixel and frame (traced after the first prefixes), each connected to every prefix", kind="int", minimum=1, maximum=32),
             Param("gather_k", 0, "no borrowed supporting suffixes: the baseline reuses nothing across pixels", kind="int", minimum=0, maximum=0),
-            *renderer_params(SuffixReSTIR, *_SHARED),
+            # its own canonical domain is rouletted among the prefixes without a suffix of their own: the baseline's
+            # few suffixes per pixel are its point (seed 001, Fig. 3)
+            Param("roulette", True, "Russian-roulette canonical suffix among the prefixes that traced none (seed 001, Eq. 23); false: each traces one", kind="bool"),
+            *renderer_params(SuffixReSTIR, *(p for p in _SHARED if p.name != "roulette")),
         ),
     )
 )
