@@ -307,6 +307,16 @@ def suffix_integrand(spec: SuffixSpec, z: Prefix, x: PathSample) -> float:
 
 
 @wp.func
+def same_domain(a: Domain, b: Domain) -> wp.bool:
+    """Whether two suffix domains are one: the same vertex x_k, seen from the same ω_o (valid)."""
+    return (
+        a.valid != 0 and b.valid != 0
+        and a.p[0] == b.p[0] and a.p[1] == b.p[1] and a.p[2] == b.p[2]
+        and a.wo[0] == b.wo[0] and a.wo[1] == b.wo[1] and a.wo[2] == b.wo[2]
+    )
+
+
+@wp.func
 def suffix_none() -> PathSample:
     return path_sample_empty()
 
@@ -328,13 +338,20 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     def suffix_shift(spec: SuffixSpec, z_src: Prefix, z_dst: Prefix, x: PathSample) -> SuffixShift:
         """The conditioned shift T(x^s | z_src → z_dst): path_shift's hybrid shift into z_dst's x_k (the source data is in x).
 
-        Undefined where the suffix is longer than z_dst leaves it (max_depth counts the whole path).
+        Undefined where the suffix is longer than z_dst leaves it (max_depth counts the whole path). Into its own domain
+        (the same x_k and ω_o: a row's canonical entry, the gather's own canonical suffix) T is the identity, |T'| = 1,
+        and no ray is traced.
         """
-        s = path_shift(spec.scene, z_dst.dom, x, spec.sp)
         out = SuffixShift()
-        out.x = s.path
-        out.jacobian = s.jacobian
-        out.valid = s.valid and (z_dst.bounces < 0 or x.length <= z_dst.bounces)
+        out.x = x
+        out.jacobian = 1.0
+        defined = True
+        if not same_domain(z_src.dom, z_dst.dom):
+            s = path_shift(spec.scene, z_dst.dom, x, spec.sp)
+            out.x = s.path
+            out.jacobian = s.jacobian
+            defined = s.valid
+        out.valid = defined and (z_dst.bounces < 0 or x.length <= z_dst.bounces)
         return out
 
     CRIS = make_conditional_ris(
