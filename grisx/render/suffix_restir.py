@@ -492,8 +492,12 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         direct[y, x] = g.emission[y, x]
 
     # ---- supporting prefixes, then temporal suffix reuse ----
+    # Three stages, each its own kernel so that none holds another's state across a walk (where it spilled): the
+    # supporting prefix and its temporal GRIS; the canonical suffix's walk; the temporal conditional RIS of suffixes.
+    # ``temporal_src`` carries the one fact the last stage needs from the first: the history pixel whose suffix it
+    # reuses (−1: none).
     @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
-    def support_pass(
+    def support_prefix_pass(
         spec: SuffixSpec,
         seed: int,
         frame: int,
@@ -506,12 +510,11 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         domains: wp.array2d(dtype=Domain),
         domains_prev: wp.array2d(dtype=Domain),
         history: wp.array2d(dtype=SupportReservoir),
-        rows: Rows,
         out: wp.array2d(dtype=SupportReservoir),
+        temporal_src: wp.array2d(dtype=int),
     ):
         y, x = wp.tid()
         width = domains.shape[1]
-        t = y * width + x
         dom_i = domains[y, x]
         ukey = pixel_key_of(seed, frame, x, y, width, _STREAM_TEMPORAL)
         # the canonical prefix x₁ → … → x_k (Alg. 1 line 4), W = 1/p
@@ -562,24 +565,49 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             r.ucw = ucw_from_source_pdf(z_can.pdf)
             r.confidence = 1.0
             r.target = t_c
-        # the supporting prefix is final: written now, and read back after the suffix's walk with the old reservoir (the
-        # store keeps the compiler from holding either in registers across the walk, where they spilled)
         out[y, x].prefix = z
         out[y, x].prefix_res = r
-        reuse_suffix = have_prev != 0 and temporal_suffix != 0 and z.dom.valid != 0
-        # ---- temporal suffix reuse: conditional RIS between the canonical and the old suffix (Alg. 1 lines 8–9) ----
-        skey = pixel_key_of(seed, frame, x, y, width, _STREAM_SUPPORT_SUFFIX)
-        suffix = trace_suffix(spec, z, skey, random_subkey(skey, 1))
-        if reuse_suffix:
-            z_k = out[y, x].prefix
-            old = history[nb.y, nb.x]
-            row_set(rows, t, 0, z_k, suffix.path, suffix.res, 1.0)
-            # old suffixes weigh more: their confidence (capped) is their domain weight
-            row_set(rows, t, 1, old.prefix, old.suffix.path, old.suffix.res, confidence_capped(old.suffix.res.confidence, history_cap))
-            cr = CRIS.conditional_ris(spec, z_k, 0, rows.z[t], rows.x[t], rows.res[t], rows.conf[t], rows.targets[t], ukey, 2)
-            suffix.res = cr.reservoir
-            suffix.res.confidence = confidence_capped(cr.reservoir.confidence, history_cap)
-            suffix.path = cr.y
+        src = int(-1)
+        if have_prev != 0 and temporal_suffix != 0 and z.dom.valid != 0:
+            src = nb.y * width + nb.x
+        temporal_src[y, x] = src
+
+    @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
+    def support_suffix_pass(spec: SuffixSpec, seed: int, frame: int, out: wp.array2d(dtype=SupportReservoir)):
+        """The canonical suffix after the supporting prefix (Alg. 1 line 8)."""
+        y, x = wp.tid()
+        skey = pixel_key_of(seed, frame, x, y, out.shape[1], _STREAM_SUPPORT_SUFFIX)
+        out[y, x].suffix = trace_suffix(spec, out[y, x].prefix, skey, random_subkey(skey, 1))
+
+    @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
+    def support_temporal_pass(
+        spec: SuffixSpec,
+        seed: int,
+        frame: int,
+        history_cap: float,
+        history: wp.array2d(dtype=SupportReservoir),
+        temporal_src: wp.array2d(dtype=int),
+        rows: Rows,
+        out: wp.array2d(dtype=SupportReservoir),
+    ):
+        """Temporal suffix reuse: conditional RIS between the canonical and the old suffix (Alg. 1 lines 8–9)."""
+        y, x = wp.tid()
+        src = temporal_src[y, x]
+        if src < 0:
+            return
+        width = out.shape[1]
+        t = y * width + x
+        ukey = pixel_key_of(seed, frame, x, y, width, _STREAM_TEMPORAL)
+        cur = out[y, x]
+        old = history[src // width, src % width]
+        row_set(rows, t, 0, cur.prefix, cur.suffix.path, cur.suffix.res, 1.0)
+        # old suffixes weigh more: their confidence (capped) is their domain weight
+        row_set(rows, t, 1, old.prefix, old.suffix.path, old.suffix.res, confidence_capped(old.suffix.res.confidence, history_cap))
+        cr = CRIS.conditional_ris(spec, cur.prefix, 0, rows.z[t], rows.x[t], rows.res[t], rows.conf[t], rows.targets[t], ukey, 2)
+        suffix = cur.suffix
+        suffix.res = cr.reservoir
+        suffix.res.confidence = confidence_capped(cr.reservoir.confidence, history_cap)
+        suffix.path = cr.y
         out[y, x].suffix = suffix
 
     # ---- spatial suffix reuse ----
@@ -850,7 +878,9 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
 
     return {
         "primary": primary_pass,
-        "support": support_pass,
+        "support_prefix": support_prefix_pass,
+        "support_suffix": support_suffix_pass,
+        "support_temporal": support_temporal_pass,
         "spatial": spatial_pass,
         "points": points_pass,
         "gather_prefix": gather_prefix_pass,
@@ -988,6 +1018,7 @@ class SuffixReSTIR(ScreenSpaceRenderer):
         self.knn_idx = wp.zeros((n, max(self.gather_k, 1)), dtype=int, device=dev)
         self.knn_dist = wp.zeros((n, max(self.gather_k, 1)), dtype=float, device=dev)
         self.points = wp.zeros(n, dtype=wp.vec3, device=dev)
+        self.temporal_src = wp.zeros(shape, dtype=int, device=dev)  # the history pixel whose suffix a pixel reuses (−1: none)
         self.grid = wp.HashGrid(*(hash_grid_dims(n),) * 3, device=dev)
         self.direct = wp.zeros(shape, dtype=wp.vec3, device=dev)
         self.accum = wp.zeros(shape, dtype=wp.vec3, device=dev)  # the gather's running sum over its prefixes
@@ -1027,16 +1058,26 @@ class SuffixReSTIR(ScreenSpaceRenderer):
         history, cur, other = self.buffers
         if self.reuses:
             with self._phase("support"):
+                history_valid = self.temporal and self.frames_rendered > 0
                 wp.launch(
-                    k["support"],
+                    k["support_prefix"],
                     dim=dim,
                     inputs=[
-                        self.spec, self.seed, int(frame), int(self.temporal and self.frames_rendered > 0), self.history_cap,
-                        int(self.temporal), int(self.suffix_in_prefix_target), self.gbuffer.current, self.gbuffer.previous, dom, dom_prev, history, self.rows["temporal"],
+                        self.spec, self.seed, int(frame), int(history_valid), self.history_cap,
+                        int(self.temporal), int(self.suffix_in_prefix_target), self.gbuffer.current, self.gbuffer.previous, dom, dom_prev, history,
                     ],
-                    outputs=[cur],
+                    outputs=[cur, self.temporal_src],
                     device=dev,
                 )
+                wp.launch(k["support_suffix"], dim=dim, inputs=[self.spec, self.seed, int(frame)], outputs=[cur], device=dev)
+                if history_valid:
+                    wp.launch(
+                        k["support_temporal"],
+                        dim=dim,
+                        inputs=[self.spec, self.seed, int(frame), self.history_cap, history, self.temporal_src, self.rows["temporal"]],
+                        outputs=[cur],
+                        device=dev,
+                    )
             if self.spatial and self.neighbors > 0:
                 with self._phase("spatial"):
                     wp.launch(
