@@ -783,13 +783,9 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             return
         # entry 0: the prefix's own (canonical) suffix domain, α = 0 without it (canonical=false, biased)
         row_set(rows, t, 0, z, path_sample_empty(), reservoir_empty(), float(canonical))
-        if gather_traced(j, gather_chosen(seed, frame, prefixes, own_suffixes), prefixes, own_suffixes, kept, canonical):
-            if j < own_suffixes:
-                row_set(rows, t, 0, z, own_x[t, j], own_res[t, j], 1.0)
-            else:
-                skey = random_subkey(gkey, _STREAM_GATHER_SUFFIX + j)
-                c = trace_suffix(spec, z, skey, random_subkey(skey, 1))
-                row_set(rows, t, 0, z, c.path, c.res, 1.0)
+        # (a traced canonical suffix is gather_suffix_pass's walk, after this pass; MMIS's own ones are here already)
+        if j < own_suffixes and canonical != 0:
+            row_set(rows, t, 0, z, own_x[t, j], own_res[t, j], 1.0)
         # entries 1 … k: the suffixes of the k nearest supporting prefixes (Alg. 1 lines 14–15)
         found = int(0)
         if gather_k > 0:
@@ -806,6 +802,25 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             row_set(rows, t, e, prefix_empty(), path_sample_empty(), reservoir_empty(), 0.0)
             if l != j:
                 row_set(rows, t, e, own_z[t, l], own_x[t, l], own_res[t, l], 1.0)
+
+    @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
+    def gather_suffix_pass(
+        spec: SuffixSpec, seed: int, frame: int, j: int, prefixes: int, own_suffixes: int, kept: int, canonical: int, width: int, rows: Rows
+    ):
+        """Prefix j's canonical suffix (Eq. 22's canonical input), traced where the window of Eq. 23 holds j: a kernel
+        of its own, so that the walk does not hold the prefix pass's state (the row, the k-NN lists) where it spilled."""
+        y, x = wp.tid()
+        if j < own_suffixes or not gather_traced(j, gather_chosen(seed, frame, prefixes, own_suffixes), prefixes, own_suffixes, kept, canonical):
+            return
+        t = y * width + x
+        z = rows.z[t, 0]
+        if z.dom.valid == 0 or z.bounces == 0:
+            return
+        skey = random_subkey(pixel_key_of(seed, frame, x, y, width, _STREAM_GATHER), _STREAM_GATHER_SUFFIX + j)
+        c = trace_suffix(spec, z, skey, random_subkey(skey, 1))
+        rows.x[t, 0] = c.path
+        rows.res[t, 0] = c.res
+        rows.conf[t, 0] = 1.0
 
     @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
     def gather_mis_pass(
@@ -884,6 +899,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         "spatial": spatial_pass,
         "points": points_pass,
         "gather_prefix": gather_prefix_pass,
+        "gather_suffix": gather_suffix_pass,
         "gather_mis": gather_mis_pass,
         "gather_finish": gather_finish_pass,
         "own": own_suffix_pass,
@@ -1108,6 +1124,12 @@ class SuffixReSTIR(ScreenSpaceRenderer):
                         self.own_z, self.own_x, self.own_res, self.knn_idx, self.knn_dist, self.rows["gather"],
                     ],
                     outputs=[self.accum],
+                    device=dev,
+                )
+                wp.launch(
+                    k["gather_suffix"],
+                    dim=dim,
+                    inputs=[self.spec, self.seed, int(frame), j, self.prefixes, self.suffixes, self.kept, int(self.canonical), self.width, self.rows["gather"]],
                     device=dev,
                 )
                 wp.launch(
