@@ -72,9 +72,12 @@ than the other prefix leaves (``max_depth`` counts the whole path). Per frame:
     closed-room, and 16 prefixes at R = 1 did little better than 8 (one suffix weighted N stays one
     suffix; benchmarks/README, "Suffix ReSTIR's canonical suffixes"). ``canonical=false`` drops the canonical domain: the borrowed
     suffixes no longer cover the suffix space (Eq. 17) — biased, and the tests show it.
-    Each prefix j is one launch pair, a prefix pass (sample it, its walk, fill the pixel's row of
-    domains) and a MIS pass (its Eq. 22 terms), summed into a running image: no kernel loops
-    over the N prefixes (the one-kernel gather faulted on CUDA: benchmarks/README, "The metal-rack fault").
+    Each prefix j is three launches, a prefix pass (sample it, its walk, fill the pixel's row of
+    domains), a suffix pass (its canonical suffix's walk, where traced) and a MIS pass (its Eq. 22
+    terms), summed into a running image: no kernel loops over the N prefixes (the one-kernel gather
+    faulted on CUDA: benchmarks/README, "The metal-rack fault"), and no walk runs in a kernel that
+    holds another stage's state (the support pass is three stages for the same reason; on the GPU
+    each split cut the frame by 5–8%, benchmarks/README).
 
 **MMIS baseline** (``mmis-gather``, West et al. 2022 as in seed 001 Fig. 7): no reuse across
 pixels or frames; each pixel traces ``prefixes`` prefixes and ``suffixes`` suffixes (after its
@@ -699,9 +702,9 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         return count
 
     # ---- final gather ----
-    # One launch pair per integration prefix j (the passes of Eq. 22 over j = 0 … N−1): the
-    # prefix pass samples prefix j, adds its walk's light and fills the pixel's row; the MIS
-    # pass adds its Eq. 22 terms. Splitting the loop over j out of the kernel keeps each kernel
+    # Three launches per integration prefix j (the passes of Eq. 22 over j = 0 … N−1): the
+    # prefix pass samples prefix j, adds its walk's light and fills the pixel's row; the suffix
+    # pass traces its canonical suffix; the MIS pass adds its Eq. 22 terms. Splitting the loop over j out of the kernel keeps each kernel
     # small. The single-kernel gather (255 registers, 3.3 kB of stack) faulted on H100 and H200
     # (metal-rack, mmis-gather): a row store's address was built from uniform registers that
     # held kernel int params written by diverged lanes — a code-generation fault, measured with
