@@ -287,12 +287,6 @@ def prefix_of_cut(c: PrefixCut, key: wp.uint32, max_bounces: int) -> Prefix:
 
 
 @wp.func
-def suffix_follows(z: Prefix) -> wp.bool:
-    """Whether a suffix can follow prefix z: it ends at a vertex, and the path budget leaves it a segment."""
-    return z.dom.valid != 0 and z.bounces != 0
-
-
-@wp.func
 def prefix_target(z: Prefix) -> float:
     """p̂(x^p) = f_p(x^p) (seed 001, Eq. 19; luminance), 0 for no prefix."""
     if z.dom.valid == 0:
@@ -745,13 +739,22 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         frame: int,
         j: int,
         prefixes: int,
+        gather_k: int,
         own_suffixes: int,
+        kept: int,
         canonical: int,
         max_bounces: int,
+        grid: wp.uint64,
+        grid_radius: float,
         domains: wp.array2d(dtype=Domain),
         direct: wp.array2d(dtype=wp.vec3),
+        support: wp.array2d(dtype=SupportReservoir),
+        points: wp.array(dtype=wp.vec3),
+        own_z: wp.array2d(dtype=Prefix),
         own_x: wp.array2d(dtype=PathSample),
         own_res: wp.array2d(dtype=Reservoir),
+        knn_idx: wp.array2d(dtype=int),
+        knn_dist: wp.array2d(dtype=float),
         rows: Rows,
         accum: wp.array2d(dtype=wp.vec3),
     ):
@@ -779,38 +782,13 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         z = prefix_of_cut(walk.cut, pkey, spec.max_bounces)
         L += walk.pr.estimate * (1.0 / float(prefixes))  # Σ f/p over its candidates
         accum[y, x] = L
-        if not suffix_follows(z):
+        if z.dom.valid == 0 or z.bounces == 0:
             return
         # entry 0: the prefix's own (canonical) suffix domain, α = 0 without it (canonical=false, biased)
         row_set(rows, t, 0, z, path_sample_empty(), reservoir_empty(), float(canonical))
         # (a traced canonical suffix is gather_suffix_pass's walk, after this pass; MMIS's own ones are here already)
         if j < own_suffixes and canonical != 0:
             row_set(rows, t, 0, z, own_x[t, j], own_res[t, j], 1.0)
-
-    @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
-    def gather_borrow_pass(
-        j: int,
-        gather_k: int,
-        own_suffixes: int,
-        grid: wp.uint64,
-        grid_radius: float,
-        support: wp.array2d(dtype=SupportReservoir),
-        points: wp.array(dtype=wp.vec3),
-        own_z: wp.array2d(dtype=Prefix),
-        own_x: wp.array2d(dtype=PathSample),
-        own_res: wp.array2d(dtype=Reservoir),
-        knn_idx: wp.array2d(dtype=int),
-        knn_dist: wp.array2d(dtype=float),
-        rows: Rows,
-    ):
-        """Prefix j's borrowed domains (row entries 1 … k, then MMIS's own suffixes), after its walk: a kernel of its own,
-        as gather_suffix_pass is."""
-        y, x = wp.tid()
-        width = support.shape[1]
-        t = y * width + x
-        z = rows.z[t, 0]
-        if not suffix_follows(z):
-            return
         # entries 1 … k: the suffixes of the k nearest supporting prefixes (Alg. 1 lines 14–15)
         found = int(0)
         if gather_k > 0:
@@ -839,7 +817,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             return
         t = y * width + x
         z = rows.z[t, 0]
-        if not suffix_follows(z):
+        if z.dom.valid == 0 or z.bounces == 0:
             return
         skey = random_subkey(pixel_key_of(seed, frame, x, y, width, _STREAM_GATHER), _STREAM_GATHER_SUFFIX + j)
         c = trace_suffix(spec, z, skey, random_subkey(skey, 1))
@@ -865,7 +843,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         width = accum.shape[1]
         t = y * width + x
         z = rows.z[t, 0]
-        if not suffix_follows(z):
+        if z.dom.valid == 0 or z.bounces == 0:
             return
         chosen = gather_chosen(seed, frame, prefixes, own_suffixes)
         traced = gather_traced(j, chosen, prefixes, own_suffixes, kept, canonical)
@@ -924,7 +902,6 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         "spatial": spatial_pass,
         "points": points_pass,
         "gather_prefix": gather_prefix_pass,
-        "gather_borrow": gather_borrow_pass,
         "gather_suffix": gather_suffix_pass,
         "gather_mis": gather_mis_pass,
         "gather_finish": gather_finish_pass,
@@ -1145,17 +1122,11 @@ class SuffixReSTIR(ScreenSpaceRenderer):
                     k["gather_prefix"],
                     dim=dim,
                     inputs=[
-                        self.spec, self.full_sp, self.seed, int(frame), j, self.prefixes, self.suffixes, int(self.canonical),
-                        self.max_bounces, dom, direct, self.own_x, self.own_res, self.rows["gather"],
+                        self.spec, self.full_sp, self.seed, int(frame), j, self.prefixes, self.gather_k, self.suffixes, self.kept, int(self.canonical),
+                        self.max_bounces, self.grid.id, self.grid_radius, dom, direct, cur, self.points,
+                        self.own_z, self.own_x, self.own_res, self.knn_idx, self.knn_dist, self.rows["gather"],
                     ],
                     outputs=[self.accum],
-                    device=dev,
-                )
-                wp.launch(
-                    k["gather_borrow"],
-                    dim=dim,
-                    inputs=[j, self.gather_k, self.suffixes, self.grid.id, self.grid_radius, cur, self.points, self.own_z, self.own_x, self.own_res, self.knn_idx, self.knn_dist],
-                    outputs=[self.rows["gather"]],
                     device=dev,
                 )
                 wp.launch(
