@@ -85,7 +85,22 @@ from grisx.scene.lights import make_lights
 from grisx.scene.material import MATERIAL_CONDUCTOR, MATERIAL_DIELECTRIC, material_kind
 from grisx.scene.scene import SceneData, SurfaceInteraction, make_surface, spawn_origin
 from grisx.theory.gris import resampling_weight
-from grisx.theory.manifold import NEWTON_MAX_ITERATIONS, PRIOR_ALPHA, pair_pmf, prior_add_tile, prior_contains, reuse_neighbor, seed_space, tile_of
+from grisx.theory.manifold import (
+    NEWTON_MAX_ITERATIONS,
+    PRIOR_ALPHA,
+    UNBOUNDED_TRIALS,
+    SeedSpace,
+    SMSSample,
+    bernoulli_ucw,
+    conditional_space,
+    pair_pmf,
+    prior_add_tile,
+    prior_contains,
+    reuse_neighbor,
+    seed_space,
+    tile_of,
+    trial_cap,
+)
 from grisx.theory.reservoir import Reservoir, reservoir_empty, reservoir_finalize, reservoir_update
 from grisx.theory.random import random_key, random_subkey, random_uniform
 
@@ -141,6 +156,42 @@ class ShadingPoint:
 
 
 @wp.struct
+class PendingTrials:
+    """A solution whose Bernoulli trials outlasted its sample pass's budget, waiting for the trial stage:
+    its problem (``view``: the pixel's row of the spec, intact until the next sample pass), u* with ∂C/∂u
+    there, where its seeds come from, the trials' key, cap and Newton steps so far, and what W then
+    multiplies: β ⊙ f(u*) and p(x_n | light) P(light, O), the rest of the pixel's sample, p̂ (``sms-restir``)."""
+
+    view: int
+    x: int
+    y: int
+    u: wp.vec2
+    jacobian: wp.mat22
+    space: SeedSpace
+    row: int
+    key: wp.uint32
+    cap: int
+    newton: int
+    beta_f: wp.vec3
+    pdf: float
+    radiance: wp.vec3
+    p_hat: float
+
+
+@wp.struct
+class CausticCandidate:
+    """What :func:`sms_candidate` found at x₁: the SMS sample (``s.found``: a solution u*), the light–object
+    density p(x_n | light) P(light, O), the seed space and prior row it drew from, and ``pending``: its
+    Bernoulli trials outlasted the pass's budget (``s.ucw`` is not W yet)."""
+
+    s: SMSSample
+    pdf: float
+    space: SeedSpace
+    row: int
+    pending: int
+
+
+@wp.struct
 class SMSPass:
     """What every sample pass reads: camera, casters, seed and frame, depth, trial cap, seed space and the prior."""
 
@@ -152,6 +203,9 @@ class SMSPass:
     rr_depth: int
     jitter: int
     max_trials: int
+    inline_trials: int  # trials a solution runs in the pass; the rest go to ``pending`` (0: all of them here)
+    pending: wp.array(dtype=PendingTrials)
+    pending_count: wp.array(dtype=int)
     tiles: int
     alpha: float
     block: int
@@ -163,6 +217,9 @@ class SMSPass:
     stats: wp.array2d(dtype=wp.float64)
 
 
+#: Bernoulli trials a solution runs in its sample pass on a GPU before the rest go to the trial stage
+INLINE_TRIALS = 8
+
 #: rows of the tally array: a thread adds into row (its index mod this), so atomics on a GPU rarely collide
 STAT_ROWS = 256
 
@@ -170,6 +227,53 @@ STAT_ROWS = 256
 @wp.func
 def _tally(stats: wp.array2d(dtype=wp.float64), thread: int, i: int, value: float):
     wp.atomic_add(stats, thread % stats.shape[0], i, wp.float64(value))
+
+
+@wp.func
+def _tally_trials(stats: wp.array2d(dtype=wp.float64), thread: int, trials: int, newton: int, capped: wp.bool):
+    _tally(stats, thread, 3, float(trials))
+    _tally(stats, thread, 4, float(newton))
+    if capped:
+        _tally(stats, thread, 5, 1.0)
+
+
+@wp.func
+def candidate_ucw(c: CausticCandidate) -> float:
+    """W of a candidate whose trials are done: K/P(C) / (p(x_n | light) P(light, O)) (seed 003, Eq. 1, 5)."""
+    return c.s.ucw / c.pdf
+
+
+@wp.func
+def initial_reservoir(p_hat: float, ucw: float) -> Reservoir:
+    """``sms-restir``'s initial reservoir: one SMS sample with target p̂ and UCW W (Eq. 10 with m = 1, T = id)."""
+    rc = reservoir_empty()
+    rc = reservoir_update(rc, resampling_weight(1.0, p_hat, ucw, 1.0), p_hat, 1.0, 0.0)
+    return reservoir_finalize(rc)
+
+
+@wp.func
+def defer_trials(p: SMSPass, c: CausticCandidate, view: int, x: int, y: int, beta_f: wp.vec3, radiance: wp.vec3, p_hat: float) -> wp.bool:
+    """Queue a pending candidate's remaining trials for the trial stage; False when the queue is full."""
+    slot = wp.atomic_add(p.pending_count, 0, 1)
+    if slot >= p.pending.shape[0]:
+        return False
+    d = PendingTrials()
+    d.view = view
+    d.x = x
+    d.y = y
+    d.u = c.s.u
+    d.jacobian = c.s.jacobian
+    d.space = c.space
+    d.row = c.row
+    d.key = c.s.trial_key
+    d.cap = trial_cap(p.max_trials)
+    d.newton = c.s.newton_bernoulli
+    d.beta_f = beta_f
+    d.pdf = c.pdf
+    d.radiance = radiance
+    d.p_hat = p_hat
+    p.pending[slot] = d
+    return True
 
 
 _KERNELS: dict[Any, Any] = {}
@@ -194,6 +298,7 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
     prior_module = specialized_module(f"{__name__}.chain{chain}.prior", kinds)
     module = specialized_module(f"{__name__}.chain{chain}", kinds)
     reuse_module = specialized_module(f"{__name__}.chain{chain}.reuse", kinds)
+    trials_module = specialized_module(f"{__name__}.chain{chain}.trials", kinds)
 
     @wp.func
     def first_non_delta(scene: SceneData, o: wp.vec3, d: wp.vec3, key: wp.uint32) -> SurfaceInteraction:
@@ -216,11 +321,14 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
         return si
 
     @wp.func
-    def sms_candidate(spec: CausticSpec, p: SMSPass, view: int, x1: ShadingPoint, x: int, y: int, skey: wp.uint32) -> wp.vec4:
-        """One SMS sample at x₁ into ``view``: (u*₀, u*₁, W = K/P(C) / (p(x_n | light) P(light, O)), found); caster and x_n in the view."""
+    def sms_candidate(spec: CausticSpec, p: SMSPass, view: int, x1: ShadingPoint, x: int, y: int, skey: wp.uint32) -> CausticCandidate:
+        """One SMS sample at x₁ into ``view`` (caster and x_n in the view), its Bernoulli trials run up to the
+        pass's budget (``pending`` when they need more)."""
         casters = p.casters
         stats = p.stats
-        out = wp.vec4(0.0, 0.0, 0.0, 0.0)
+        out = CausticCandidate()
+        out.s.found = False
+        out.pending = 0
         n_casters = casters.shape[0]
         blk = (y // p.block) * p.blocks_x + x // p.block
         # ---- a light–object pair: from the block's prior pairs w.p. α, else caster uniform, light ∝ power (Sec. 4.2) ----
@@ -241,16 +349,34 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
         set_view(spec, view, x1.si, x1.wo, x1.depth, casters[ci], ls.p, ls.n, ls.tri)
         row = blk * n_casters + ci
         space = seed_space(p.tiles, p.alpha, p.prior_count[row])  # Eq. 7 (p_U when no prior)
-        s = SMS.sample(spec, view, space, p.prior_tiles[row], random_subkey(skey, 4), p.max_trials)
+        cap = trial_cap(p.max_trials)
+        budget = cap
+        if p.inline_trials > 0:
+            budget = wp.min(cap, p.inline_trials)
+        s = SMS.sample(spec, view, space, p.prior_tiles[row], random_subkey(skey, 4), budget)
         _tally(stats, view, 0, 1.0)
         _tally(stats, view, 2, float(s.newton_sample))
+        out.s = s
+        out.pdf = ls.pdf_area * p_pair
+        out.space = space
+        out.row = row
         if s.found:
             _tally(stats, view, 1, 1.0)
-            _tally(stats, view, 3, float(s.trials))
-            _tally(stats, view, 4, float(s.newton_bernoulli))
-            if s.capped:
-                _tally(stats, view, 5, 1.0)
-            out = wp.vec4(s.u[0], s.u[1], s.ucw / (ls.pdf_area * p_pair), 1.0)  # Eq. 1, 5: f W / (p(x_n | light) P(light, O))
+            if s.capped and budget < cap:
+                out.pending = 1  # the trial stage (or finish_trials) takes it from trial ``budget`` on
+            else:
+                _tally_trials(stats, view, s.trials, s.newton_bernoulli, s.capped)
+        return out
+
+    @wp.func
+    def finish_trials(spec: CausticSpec, p: SMSPass, view: int, c: CausticCandidate) -> CausticCandidate:
+        """A pending candidate's trials, all in this thread (the trial stage's queue was full): from trial 0
+        again, so K and W are what the stage would have found."""
+        b = SMS.bernoulli(spec, view, c.s.u, c.s.jacobian, c.space, p.prior_tiles[c.row], c.s.trial_key, p.max_trials)
+        _tally_trials(p.stats, view, b.trials, b.newton, b.capped)
+        out = c
+        out.s.ucw = b.ucw
+        out.pending = 0
         return out
 
     @wp.func
@@ -369,8 +495,13 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
         if sp.valid != 0:
             # ---- caustic next-event estimation at x₁ (seed 003, Eq. 1) ----
             c = sms_candidate(spec, p, pixel, sp, x, y, random_subkey(sample_key(p.seed, p.frame, pixel, sample), 2))
-            if c[3] > 0.0:
-                L += wp.cw_mul(sp.beta, caustics.value(spec, pixel, wp.vec2(c[0], c[1]))) * c[2]
+            if c.s.found:
+                beta_f = wp.cw_mul(sp.beta, caustics.value(spec, pixel, c.s.u))
+                if c.pending != 0:
+                    if defer_trials(p, c, pixel, x, y, beta_f, L, 0.0):
+                        return  # the trial stage adds this sample (trials_shade)
+                    c = finish_trials(spec, p, pixel, c)
+                L += beta_f * candidate_ucw(c)
         add_sample(total, total_sq, nonfinite, y, x, L)
 
     @wp.kernel(module=reuse_module)
@@ -392,15 +523,18 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
         rc = reservoir_empty()
         smp = CausticSample()
         if sp.valid != 0:
-            rc = reservoir_update(rc, 0.0, 0.0, 1.0, 0.0)  # the domain exists: confidence 1, found or not
+            rc = reservoir_finalize(reservoir_update(rc, 0.0, 0.0, 1.0, 0.0))  # the domain exists: confidence 1, found or not
             c = sms_candidate(spec, p, q, sp, x, y, random_subkey(sample_key(p.seed, p.frame, q, 0), 2))
-            if c[3] > 0.0:
-                u = wp.vec2(c[0], c[1])
-                p_hat = caustics.target(spec, q, u)
-                rc = reservoir_empty()
-                rc = reservoir_update(rc, resampling_weight(1.0, p_hat, c[2], 1.0), p_hat, 1.0, 0.0)
-                smp = view_sample(spec, q, u)
-        res[q] = reservoir_finalize(rc)
+            if c.s.found:
+                p_hat = caustics.target(spec, q, c.s.u)
+                smp = view_sample(spec, q, c.s.u)
+                if c.pending != 0:
+                    samples[q] = smp
+                    if defer_trials(p, c, q, x, y, wp.vec3(0.0), wp.vec3(0.0), p_hat):
+                        return  # the trial stage writes this reservoir (trials_reservoir)
+                    c = finish_trials(spec, p, q, c)
+                rc = initial_reservoir(p_hat, candidate_ucw(c))
+        res[q] = rc
         samples[q] = smp
 
     @wp.kernel(module=reuse_module)
@@ -492,9 +626,169 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
             L += wp.cw_mul(pc.beta, caustics.value(spec, q, smp.u)) * r.ucw
         add_sample(total, total_sq, nonfinite, y, x, L)
 
-    out = {"prior_walks": prior_walks, "prior_sets": prior_sets, "sample_pass": sample_pass, "restir_initial": restir_initial, "restir_reuse": restir_reuse, "restir_shade": restir_shade, "first_non_delta": first_non_delta, "caustics": caustics}
+    # ---- the trial stage: pending solutions' Bernoulli trials, many at once -----------------------------
+
+    @wp.kernel(module=trials_module)
+    def trials_round(
+        spec: CausticSpec,
+        pending: wp.array(dtype=PendingTrials),
+        prior_tiles: wp.array2d(dtype=int),
+        active: wp.array(dtype=int),
+        lanes: int,
+        done: int,
+        hit: wp.array(dtype=int),
+        newton: wp.array(dtype=int),
+    ):
+        # trial t = done + lane of pending solution active[i / lanes]. Trials are i.i.d. given their index
+        # (trial t draws its seed from counters 4t … of the solution's key), so K = 1 + the first t that hits:
+        # the very K of the serial loop, found by ``lanes`` threads at once
+        i = wp.tid()
+        e = active[i // lanes]
+        t = done + i % lanes
+        d = pending[e]
+        if t >= d.cap or hit[e] < t:
+            return  # past the cap, or an earlier trial already hit
+        prior = prior_tiles[d.row]
+        b = SMS.trial(spec, d.view, d.u, d.jacobian, d.space, prior, conditional_space(d.space, prior, d.u), d.key, t)
+        newton[i] = b.newton
+        if b.hit:
+            wp.atomic_min(hit, e, t)
+
+    @wp.kernel(module=trials_module)
+    def trials_settle(
+        pending: wp.array(dtype=PendingTrials),
+        active: wp.array(dtype=int),
+        lanes: int,
+        done: int,
+        hit: wp.array(dtype=int),
+        newton: wp.array(dtype=int),
+        newton_total: wp.array(dtype=int),
+        next_active: wp.array(dtype=int),
+        next_count: wp.array(dtype=int),
+    ):
+        # a round's Newton steps up to the first hit (what the serial loop walked), and the solutions still
+        # unresolved compacted into the next round's list
+        i = wp.tid()
+        e = active[i]
+        h = hit[e]
+        cap = pending[e].cap
+        n = int(0)
+        for lane in range(lanes):
+            t = done + lane
+            if t > h or t >= cap:
+                break
+            n += newton[i * lanes + lane]
+        newton_total[e] = newton_total[e] + n
+        if h >= cap and done + lanes < cap:
+            next_active[wp.atomic_add(next_count, 0, 1)] = e
+
+    @wp.func
+    def trials_result(p: PendingTrials, prior: wp.array(dtype=int), h: int, newton: int, stats: wp.array2d(dtype=wp.float64)) -> float:
+        # K = 1 + the first hit (the cap when none hit); W = K/P(C) / (p(x_n | light) P(light, O)) (Eq. 1, 5)
+        trials = wp.min(h + 1, p.cap)
+        _tally_trials(stats, p.view, trials, p.newton + newton, h >= p.cap)
+        return bernoulli_ucw(trials, conditional_space(p.space, prior, p.u).p_c) / p.pdf
+
+    @wp.kernel(module=trials_module)
+    def trials_shade(
+        pending: wp.array(dtype=PendingTrials),
+        prior_tiles: wp.array2d(dtype=int),
+        hit: wp.array(dtype=int),
+        newton_total: wp.array(dtype=int),
+        stats: wp.array2d(dtype=wp.float64),
+        total: wp.array2d(dtype=wp.vec3d),
+        total_sq: wp.array2d(dtype=wp.vec3d),
+        nonfinite: wp.array(dtype=wp.int32),
+    ):
+        # the sample pass's pixels whose trials ran here: their sample, β ⊙ f W added to the path tracer's part
+        e = wp.tid()
+        d = pending[e]
+        ucw = trials_result(d, prior_tiles[d.row], hit[e], newton_total[e], stats)
+        add_sample(total, total_sq, nonfinite, d.y, d.x, d.radiance + d.beta_f * ucw)
+
+    @wp.kernel(module=trials_module)
+    def trials_reservoir(
+        pending: wp.array(dtype=PendingTrials),
+        prior_tiles: wp.array2d(dtype=int),
+        hit: wp.array(dtype=int),
+        newton_total: wp.array(dtype=int),
+        stats: wp.array2d(dtype=wp.float64),
+        res: wp.array(dtype=Reservoir),
+    ):
+        # ``sms-restir``: the initial reservoir of a pixel whose trials ran here
+        e = wp.tid()
+        d = pending[e]
+        res[d.view] = initial_reservoir(d.p_hat, trials_result(d, prior_tiles[d.row], hit[e], newton_total[e], stats))
+
+    out = {"trials_round": trials_round, "trials_settle": trials_settle, "trials_shade": trials_shade, "trials_reservoir": trials_reservoir,
+           "prior_walks": prior_walks, "prior_sets": prior_sets, "sample_pass": sample_pass, "restir_initial": restir_initial, "restir_reuse": restir_reuse, "restir_shade": restir_shade, "first_non_delta": first_non_delta, "caustics": caustics}
     _KERNELS[key] = out
     return out
+
+
+class BernoulliStage:
+    """The trial stage: Bernoulli trials that outlast a sample pass's budget, many at once (issue 37).
+
+    A solution of small P'(u*) needs K ≈ 1/P' trials in series, and in a sample pass one such pixel holds
+    its warp, and so the whole pass, for all of them: on caustic-slab-plane at 1080p single solutions take
+    4000–5700 trials (9000 Newton steps), while the mean is 1.5. The sample pass therefore runs at most
+    ``inline_trials`` trials a solution and queues the rest (:class:`PendingTrials`). Trials are i.i.d.
+    given their index (trial t draws from counters 4t … of the solution's key), so K = 1 + the first t
+    that hits, whatever order they run in: each round runs the next ``lanes`` trials of every queued
+    solution at once, keeps the first hit (``atomic_min``), counts the Newton steps the serial loop would
+    have walked, and compacts the unresolved solutions into the next round's list. K, W and the image are
+    those of the serial loop, bit for bit. Lanes at most double the trials done so far, so the trials run
+    past K are at most as many as those up to it. One host read of the queue's length a round; a queue
+    that overflows leaves the solution's trials to its own thread (:func:`finish_trials`).
+    """
+
+    #: threads a round may launch
+    THREADS = {"cuda": 1 << 20, "cpu": 1 << 12}
+
+    def __init__(self, kernels: dict[str, Any], pixels: int, device: Any, max_trials: int, capacity: int | None = None) -> None:
+        self.kernels = kernels
+        self.device = device
+        self.capacity = max(4096, pixels // 8) if capacity is None else int(capacity)
+        self.threads = self.THREADS["cuda" if wp.get_device(device).is_cuda else "cpu"]
+        self.cap = int(max_trials) if max_trials > 0 else int(UNBOUNDED_TRIALS)
+        self.pending = wp.zeros(self.capacity, dtype=PendingTrials, device=device)
+        self.count = wp.zeros(1, dtype=int, device=device)
+        self.next_count = wp.zeros(1, dtype=int, device=device)
+        self.hit = wp.zeros(self.capacity, dtype=int, device=device)
+        self.newton_total = wp.zeros(self.capacity, dtype=int, device=device)
+        self.order = wp.array(np.arange(self.capacity, dtype=np.int32), dtype=int, device=device)
+        self.active = [wp.zeros(self.capacity, dtype=int, device=device) for _ in range(2)]
+        self.newton = wp.zeros(max(self.threads, self.capacity), dtype=int, device=device)
+        self.queued = 0  # solutions the last run took (for tests and benchmarks)
+        self.rounds = 0
+
+    def begin(self) -> None:
+        """Empty the queue before a sample pass."""
+        self.count.zero_()
+
+    def run(self, spec: Any, prior_tiles: wp.array, stats: wp.array, first_trial: int, finish: str, outputs: list[Any]) -> None:
+        """Run the queued solutions' trials from ``first_trial`` on, then ``finish`` (``trials_shade`` or
+        ``trials_reservoir``) writes their samples into ``outputs``."""
+        n = min(int(self.count.numpy()[0]), self.capacity)
+        self.queued, self.rounds = n, 0
+        if n == 0:
+            return
+        dev, k = self.device, self.kernels
+        self.hit.fill_(int(UNBOUNDED_TRIALS))  # no hit yet (≥ any cap)
+        self.newton_total.zero_()
+        active, m, done, side = self.order, n, int(first_trial), 0
+        while m > 0 and done < self.cap:
+            lanes = max(1, min(self.threads // m, max(done, 32), self.cap - done))
+            wp.launch(k["trials_round"], dim=m * lanes, inputs=[spec, self.pending, prior_tiles, active, lanes, done],
+                      outputs=[self.hit, self.newton], device=dev)
+            self.next_count.zero_()
+            wp.launch(k["trials_settle"], dim=m, inputs=[self.pending, active, lanes, done, self.hit, self.newton],
+                      outputs=[self.newton_total, self.active[side], self.next_count], device=dev)
+            active, side = self.active[side], 1 - side
+            done += lanes
+            self.rounds += 1
+            m = int(self.next_count.numpy()[0])
+        wp.launch(k[finish], dim=n, inputs=[self.pending, prior_tiles, self.hit, self.newton_total], outputs=[stats, *outputs], device=dev)
 
 
 class SMSRenderer(PathTracer):
@@ -515,6 +809,7 @@ class SMSRenderer(PathTracer):
         presamples: int = 128,
         block: int = 16,
         chain: int = CHAIN_MAX,
+        inline_trials: int = -1,
         jitter: bool = True,
         seed: int = 0,
         timer: Any = None,
@@ -549,10 +844,21 @@ class SMSRenderer(PathTracer):
         self.prior_view_base = self.width * self.height
         self.stats = wp.zeros((STAT_ROWS, _N_STATS), dtype=wp.float64, device=dev)
         self.frames = 0
+        # trials past a solution's first few run in a stage of their own on a GPU, where one long series
+        # holds a whole warp (BernoulliStage); a CPU thread has no warp to hold
+        if int(inline_trials) < 0:
+            inline_trials = INLINE_TRIALS if wp.get_device(dev).is_cuda else 0
+        self.inline_trials = int(inline_trials)
+        self.trial_stage = BernoulliStage(self.kernels_, self.width * self.height, dev, self.max_trials) if self.inline_trials > 0 else None
+        self.no_pending = wp.zeros(1, dtype=PendingTrials, device=dev)
+        self.no_count = wp.zeros(1, dtype=int, device=dev)
 
     def kernels(self) -> list[Any]:
         prior = [self.kernels_["prior_walks"], self.kernels_["prior_sets"]] if self.prior and self.casters_host else []
-        return [*prior, self.kernels_["sample_pass"], image_from_sum]
+        return [*prior, self.kernels_["sample_pass"], *self._trial_kernels("trials_shade"), image_from_sum]
+
+    def _trial_kernels(self, finish: str) -> list[Any]:
+        return [self.kernels_[k] for k in ("trials_round", "trials_settle", finish)] if self.trial_stage is not None else []
 
     def _timed(self, name: str) -> Any:
         return self.timer(name) if self.timer is not None else contextlib.nullcontext()
@@ -585,6 +891,10 @@ class SMSRenderer(PathTracer):
         p.casters = self.casters
         p.seed, p.frame = self.seed, int(frame)
         p.max_depth, p.rr_depth, p.jitter, p.max_trials = self.max_depth, self.rr_depth, self.jitter, self.max_trials
+        p.inline_trials = self.inline_trials
+        stage = self.trial_stage
+        p.pending = stage.pending if stage is not None else self.no_pending
+        p.pending_count = stage.count if stage is not None else self.no_count
         p.tiles, p.alpha, p.block, p.blocks_x = self.tiles, PRIOR_ALPHA if self.prior else 0.0, self.block, self.blocks_x
         p.prior_tiles, p.prior_count, p.stats = self.prior_tiles, self.prior_count, self.stats
         p.prior_pairs, p.prior_pair_count = self.prior_pairs, self.prior_pair_count
@@ -597,8 +907,12 @@ class SMSRenderer(PathTracer):
         p = self.pass_record(frame, cam)
         with self._timed("manifold_sampling"):
             for _ in range(count):
+                if self.trial_stage is not None:
+                    self.trial_stage.begin()
                 wp.launch(self.kernels_["sample_pass"], dim=(self.height, self.width), inputs=[self.spec, p, self.samples],
                           outputs=[self.total, self.total_sq, self.nonfinite], device=self.built.device)
+                if self.trial_stage is not None:  # before the next pass overwrites the views
+                    self.trial_stage.run(self.spec, self.prior_tiles, self.stats, self.inline_trials, "trials_shade", [self.total, self.total_sq, self.nonfinite])
                 self.samples += 1
                 if self.on_sample is not None:
                     self.on_sample()
@@ -645,7 +959,7 @@ class SMSReSTIR(SMSRenderer):
     def kernels(self) -> list[Any]:
         k = self.kernels_
         prior = [k["prior_walks"], k["prior_sets"]] if self.prior and self.casters_host else []
-        return [*prior, k["restir_initial"], k["restir_reuse"], k["restir_shade"], image_from_sum]
+        return [*prior, k["restir_initial"], *self._trial_kernels("trials_reservoir"), k["restir_reuse"], k["restir_shade"], image_from_sum]
 
     def _reuse(self, frame: int, spatial: int, points_n: wp.array, src: int, nb: int, dst: int) -> None:
         cam_prev = self.built.camera_data(float(frame - 1), self.width, self.height)
@@ -665,8 +979,12 @@ class SMSReSTIR(SMSRenderer):
         with self._timed("prior"):
             self.build_prior(frame, cam)
         with self._timed("manifold_sampling"):
+            if self.trial_stage is not None:
+                self.trial_stage.begin()
             wp.launch(self.kernels_["restir_initial"], dim=(self.height, self.width), inputs=[self.spec, self.pass_record(frame, cam)],
                       outputs=[self.radiance, self.points, self.res[0], self.smp[0]], device=dev)
+            if self.trial_stage is not None:
+                self.trial_stage.run(self.spec, self.prior_tiles, self.stats, self.inline_trials, "trials_reservoir", [self.res[0]])
         cur = 0
         # ---- temporal reuse (static geometry: the last frame's x₁ still lies on it) ----
         if self.temporal and self.history and not self.built.features.animated_objects:
@@ -735,6 +1053,7 @@ _COMMON = (
     Param("rr_depth", ..., "depth from which Russian roulette may end paths", kind="int", minimum=1),
     Param("max_trials", ..., "cap on Bernoulli trials per solution (0 = unbounded, unbiased; seed 003 runs 128, which loses ~0.1% of solutions; a small cap is the biased ablation)", kind="int", minimum=0, maximum=1 << 22),
     Param("chain", ..., "most specular vertices of a caustic chain (2: a slab's two refractions)", kind="int", minimum=1, maximum=4),
+    Param("inline_trials", ..., "Bernoulli trials a solution runs in its sample pass; the rest run in a stage of their own, many at once, with the same result (-1: 8 on a GPU, 0 on a CPU; 0: all in the sample pass)", kind="int", minimum=-1, maximum=1 << 22),
     Param("jitter", ..., "a new camera sample per pixel and frame (the box filter pt estimates); false: pixel centres", kind="bool"),
 )
 _PARTITION = (

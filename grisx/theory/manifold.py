@@ -99,6 +99,9 @@ __all__ = [
     "PRIOR_ALPHA",
     "ManifoldWalk",
     "BernoulliTrials",
+    "BernoulliTrial",
+    "ConditionalSpace",
+    "conditional_space",
     "SMSSample",
     "ManifoldShift",
     "ManifoldReuse",
@@ -178,8 +181,27 @@ class BernoulliTrials:
 
 
 @wp.struct
+class BernoulliTrial:
+    """Bernoulli trial t of one solution: did its fresh seed walk to u*, and that walk's Newton steps."""
+
+    hit: wp.bool
+    newton: int
+
+
+@wp.struct
+class ConditionalSpace:
+    """Where a solution's Bernoulli seeds come from: the centre tile of C(u*), P(C) (Eq. 8) and α' (Eq. 9)."""
+
+    center: int
+    p_c: float
+    alpha_prime: float
+
+
+@wp.struct
 class SMSSample:
-    """One SMS sample: solution u*, its UCW W (0 when no solution was found) and its cost."""
+    """One SMS sample: solution u*, its UCW W (0 when no solution was found) and its cost; ``trial_key`` is
+    the key its Bernoulli trials draw seeds from (trial t from counters 4t … 4t + 3), so trials past a cap
+    can go on elsewhere (:meth:`ManifoldSampler.trial`)."""
 
     u: wp.vec2
     found: wp.bool
@@ -188,6 +210,8 @@ class SMSSample:
     trials: int
     newton_bernoulli: int
     capped: wp.bool
+    jacobian: wp.mat22
+    trial_key: wp.uint32
 
 
 @wp.struct
@@ -433,6 +457,18 @@ def conditional_alpha(space: SeedSpace, prior: wp.array(dtype=int), center: int,
 
 
 @wp.func
+def conditional_space(space: SeedSpace, prior: wp.array(dtype=int), u_star: wp.vec2) -> ConditionalSpace:
+    """C(u*) for solution u*: its centre tile, P(C) (Eq. 8) and α' (Eq. 9)."""
+    c = ConditionalSpace()
+    c.center = int(0)
+    if space.tiles > 0:
+        c.center = tile_of(u_star, space.tiles)
+    c.p_c = conditional_probability(space, prior, c.center)
+    c.alpha_prime = conditional_alpha(space, prior, c.center, c.p_c)
+    return c
+
+
+@wp.func
 def sample_conditional_seed(
     space: SeedSpace, prior: wp.array(dtype=int), center: int, alpha_prime: float, key: wp.uint32, counter: int
 ) -> wp.vec2:
@@ -495,6 +531,9 @@ class ManifoldSampler:
     ``bernoulli(spec, view, u_star, jacobian_star, space, prior, key, max_trials) -> BernoulliTrials``
         fresh seeds from p/P(C(u*)) until one walks to u* (∂C/∂u there: :func:`same_solution`):
         W = K / P(C) (Eq. 5).
+    ``trial(spec, view, u_star, jacobian_star, space, prior, cond, key, t) -> BernoulliTrial``
+        Bernoulli trial number t alone (what ``bernoulli`` runs in turn): trials are independent, so
+        K = 1 + the first t that hits can be found by running many t at once.
     ``sample(spec, view, space, prior, key, max_trials) -> SMSSample``
         seed u ~ p (Eq. 7), walk with trust region, Bernoulli UCW if it converged.
     ``shift(spec, src_view, dst_view, x) -> ManifoldShift``
@@ -509,6 +548,7 @@ class ManifoldSampler:
     bernoulli: Any
     sample: Any
     shift: Any
+    trial: Any
     reuse: Any = None
 
 
@@ -560,6 +600,26 @@ def make_manifold_sampler(
         return out
 
     @wp.func
+    def trial(
+        spec: spec_type,
+        view: int,
+        u_star: wp.vec2,
+        jacobian_star: wp.mat22,
+        space: SeedSpace,
+        prior: wp.array(dtype=int),
+        cond: ConditionalSpace,
+        key: wp.uint32,
+        t: int,
+    ) -> BernoulliTrial:
+        # trial t: a fresh seed from p/P(C) (uniforms 4t … 4t + 3 of key), walked inside C (Eq. 5, 9)
+        out = BernoulliTrial()
+        u = sample_conditional_seed(space, prior, cond.center, cond.alpha_prime, key, 4 * t)
+        w = walk(spec, view, u, space.tiles, NEWTON_MAX_ITERATIONS)
+        out.newton = w.iterations
+        out.hit = w.converged and same_solution(u_star, w.u, jacobian_star)
+        return out
+
+    @wp.func
     def bernoulli(
         spec: spec_type,
         view: int,
@@ -574,21 +634,16 @@ def make_manifold_sampler(
         out.trials = 0
         out.newton = 0
         out.capped = True
-        center = int(0)
-        if space.tiles > 0:
-            center = tile_of(u_star, space.tiles)
-        p_c = conditional_probability(space, prior, center)  # Eq. 8
-        alpha_prime = conditional_alpha(space, prior, center, p_c)  # Eq. 9
+        cond = conditional_space(space, prior, u_star)  # Eq. 8, 9
         cap = trial_cap(max_trials)
         while out.trials < cap:
-            u = sample_conditional_seed(space, prior, center, alpha_prime, key, 4 * out.trials)
+            b = trial(spec, view, u_star, jacobian_star, space, prior, cond, key, out.trials)
             out.trials = out.trials + 1
-            w = walk(spec, view, u, space.tiles, NEWTON_MAX_ITERATIONS)
-            out.newton = out.newton + w.iterations
-            if w.converged and same_solution(u_star, w.u, jacobian_star):
+            out.newton = out.newton + b.newton
+            if b.hit:
                 out.capped = False
                 break
-        out.ucw = bernoulli_ucw(out.trials, p_c)  # Eq. 5: E[W] = 1/P'(u*)
+        out.ucw = bernoulli_ucw(out.trials, cond.p_c)  # Eq. 5: E[W] = 1/P'(u*)
         return out
 
     @wp.func
@@ -605,9 +660,11 @@ def make_manifold_sampler(
         w = walk(spec, view, sample_seed(space, prior, key, 0), space.tiles, NEWTON_MAX_ITERATIONS)
         out.u = w.u
         out.newton_sample = w.iterations
+        out.jacobian = w.jacobian
+        out.trial_key = random_subkey(key, 1)
         if w.converged:
             # ---- inverse probability by Bernoulli trials (Eq. 2, 5) ----
-            b = bernoulli(spec, view, w.u, w.jacobian, space, prior, random_subkey(key, 1), max_trials)
+            b = bernoulli(spec, view, w.u, w.jacobian, space, prior, out.trial_key, max_trials)
             out.found = True
             out.ucw = b.ucw
             out.trials = b.trials
@@ -645,7 +702,7 @@ def make_manifold_sampler(
         return out
 
     if target is None:
-        return ManifoldSampler(walk=walk, bernoulli=bernoulli, sample=sample, shift=shift)
+        return ManifoldSampler(walk=walk, bernoulli=bernoulli, sample=sample, shift=shift, trial=trial)
 
     @wp.func
     def _pick_neighbor(n: int, n0: ReuseNeighbor, n1: ReuseNeighbor) -> ReuseNeighbor:
@@ -718,4 +775,4 @@ def make_manifold_sampler(
         out.y = y
         return out
 
-    return ManifoldSampler(walk=walk, bernoulli=bernoulli, sample=sample, shift=shift, reuse=reuse)
+    return ManifoldSampler(walk=walk, bernoulli=bernoulli, sample=sample, shift=shift, trial=trial, reuse=reuse)

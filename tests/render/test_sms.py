@@ -424,6 +424,58 @@ def test_sms_restir_with_capped_trials_is_caught():
     assert not result.passed, result
 
 
+# ---- the trial stage: Bernoulli trials past a pass's budget, many at once ----------------------------
+
+
+def _trial_stage_render(method: str, params: dict, *, capacity: int | None = None, first_trial: int | None = None, frames: int = 2):
+    """``method`` on caustic-slab-plane (whose solutions need up to thousands of trials) at 48×36: the image,
+    Table 1's statistics and how many solutions went to the trial stage and in how many rounds."""
+    from grisx.render import sms
+
+    built = load_scene("caustic-slab-plane").build("cpu")
+    resolved = {**method_params(method, params), "spp": 2}
+    r = METHODS[method].create(RenderContext(built, 48, 36, resolved, 7, None, method))
+    if r.trial_stage is not None and capacity is not None:  # a queue that overflows: the rest finish in their own thread
+        r.trial_stage = sms.BernoulliStage(r.kernels_, 48 * 36, built.device, r.max_trials, capacity=capacity)
+    stage = r.trial_stage
+    if stage is not None and first_trial is not None:
+        run = stage.run
+        stage.run = lambda spec, prior, stats, first, finish, outputs: run(spec, prior, stats, first_trial, finish, outputs)
+    queued = rounds = 0
+    for f in range(frames):
+        r.render_frame(f)
+        queued, rounds = (queued + stage.queued, max(rounds, stage.rounds)) if stage is not None else (0, 0)
+    return r.image.numpy(), r.statistics(), queued, rounds
+
+
+@pytest.mark.parametrize(
+    "method,params",
+    [("sms", {}), ("sms-partitioned", {}), ("sms-partitioned", {"max_trials": 12}), ("sms-restir", {})],
+    ids=["sms", "sms-partitioned", "capped-at-12", "sms-restir"],
+)
+def test_the_trial_stage_finds_the_serial_loops_trials_bit_for_bit(method, params):
+    # trials are i.i.d. given their index, so running them many at once and keeping the first hit is the serial
+    # loop: the same K, W, image and Table 1 statistics, whether the pass keeps 1 trial, the queue overflows or none
+    serial = _trial_stage_render(method, {**params, "inline_trials": 0})
+    staged = _trial_stage_render(method, {**params, "inline_trials": 1})
+    overflow = _trial_stage_render(method, {**params, "inline_trials": 2}, capacity=4)
+    assert staged[2] > 0, "the stage ran"
+    assert staged[3] > 1 or "max_trials" in params, "in several rounds (12 trials fit one)"
+    for other in (staged, overflow):
+        np.testing.assert_array_equal(serial[0], other[0])
+        assert serial[1] == other[1]
+
+
+def test_a_trial_stage_that_skips_a_trial_at_the_hand_over_is_caught():
+    # the sibling: an off-by-one at the hand-over, the stage starting at trial 2 after the pass ran trial 0 (a
+    # solution whose trial 1 hits gets a later K: W too large). (Starting again at trial 0 is no error: trial 0
+    # misses again, deterministically.)
+    serial = _trial_stage_render("sms-partitioned", {"inline_trials": 0})
+    wrong = _trial_stage_render("sms-partitioned", {"inline_trials": 1}, first_trial=2)
+    assert not np.array_equal(serial[0], wrong[0])
+    assert wrong[1]["bernoulli_per_solution"] > serial[1]["bernoulli_per_solution"]
+
+
 # ---- every built-in scene ---------------------------------------------------------------------------
 
 

@@ -57,6 +57,7 @@ VOCABULARY = {
     "poisson_alpha": ("float", "gradient-domain methods: weight alpha of the primal term of the screened Poisson reconstruction"),
     "max_trials": ("int", "SMS: cap on Bernoulli trials per caustic solution (0 = unbounded; any cap loses energy)"),
     "chain": ("int", "SMS: most specular vertices of a caustic chain"),
+    "inline_trials": ("int", "SMS: Bernoulli trials a solution runs in its sample pass before the rest run in a stage of their own (same result)"),
     "tiles": ("int", "SMS: N, the sample space cut into N x N tiles with 3 x 3 trust regions"),
     "prior": ("bool", "SMS: per-frame prior over tiles from presampled walks per pixel block"),
     "presamples": ("int", "SMS: unrestricted walks per pixel block, caster and frame that build the prior"),
