@@ -218,7 +218,7 @@ class SMSPass:
 
 
 #: Bernoulli trials a solution runs in its sample pass on a GPU before the rest go to the trial stage
-INLINE_TRIALS = 8
+INLINE_TRIALS = 1
 
 #: rows of the tally array: a thread adds into row (its index mod this), so atomics on a GPU rarely collide
 STAT_ROWS = 256
@@ -744,6 +744,8 @@ class BernoulliStage:
 
     #: threads a round may launch
     THREADS = {"cuda": 1 << 20, "cpu": 1 << 12}
+    #: trials of one solution a round runs at least (H200, 1080p: 4–64 within 5% of each other; 8 the best)
+    MIN_LANES = 8
 
     def __init__(self, kernels: dict[str, Any], pixels: int, device: Any, max_trials: int, capacity: int | None = None) -> None:
         self.kernels = kernels
@@ -778,7 +780,7 @@ class BernoulliStage:
         self.newton_total.zero_()
         active, m, done, side = self.order, n, int(first_trial), 0
         while m > 0 and done < self.cap:
-            lanes = max(1, min(self.threads // m, max(done, 32), self.cap - done))
+            lanes = max(1, min(self.threads // m, max(done, self.MIN_LANES), self.cap - done))
             wp.launch(k["trials_round"], dim=m * lanes, inputs=[spec, self.pending, prior_tiles, active, lanes, done],
                       outputs=[self.hit, self.newton], device=dev)
             self.next_count.zero_()
@@ -1053,7 +1055,7 @@ _COMMON = (
     Param("rr_depth", ..., "depth from which Russian roulette may end paths", kind="int", minimum=1),
     Param("max_trials", ..., "cap on Bernoulli trials per solution (0 = unbounded, unbiased; seed 003 runs 128, which loses ~0.1% of solutions; a small cap is the biased ablation)", kind="int", minimum=0, maximum=1 << 22),
     Param("chain", ..., "most specular vertices of a caustic chain (2: a slab's two refractions)", kind="int", minimum=1, maximum=4),
-    Param("inline_trials", ..., "Bernoulli trials a solution runs in its sample pass; the rest run in a stage of their own, many at once, with the same result (-1: 8 on a GPU, 0 on a CPU; 0: all in the sample pass)", kind="int", minimum=-1, maximum=1 << 22),
+    Param("inline_trials", ..., "Bernoulli trials a solution runs in its sample pass; the rest run in a stage of their own, many at once, with the same result (-1: 1 on a GPU, 0 on a CPU; 0: all in the sample pass)", kind="int", minimum=-1, maximum=1 << 22),
     Param("jitter", ..., "a new camera sample per pixel and frame (the box filter pt estimates); false: pixel centres", kind="bool"),
 )
 _PARTITION = (
