@@ -12,8 +12,9 @@ pool under an area-light sun, on request), ``--frames`` frames at ``--width`` ×
 
 with the renderer's tallies per frame (``render --json``'s ``statistics``): sample success
 rate, Newton iterations per sample, Bernoulli trials per solution, Newton iterations per
-solution; and the stage times per frame (``prior``, ``manifold_sampling`` — which here
-includes the path tracer's own sample of the pixel —, ``temporal``, ``spatial``, ``shade``),
+solution; and the stage times per frame (``prior``, ``path_tracing`` — the path tracer's own
+sample of the pixel —, ``manifold_sampling`` — SMS at x₁ and its Bernoulli trials, the paper's
+column —, ``temporal``, ``spatial``, ``shade``),
 the first frame (compilation) excluded. The paper's RTX 4090 figures stand beside them
 (:data:`PAPER`); the scenes are look-alikes, not the paper's assets, so compare ratios.
 

@@ -12,7 +12,8 @@ that, per scene and method, against k = 0).
 For each scene and method row, a 1-frame warm-up (compilation), then ``--frames`` frames at
 ``--width`` × ``--height`` under the static camera, per k in ``--inline``: the frame's device time
 (median and spread over frames, protocol v2: the renderers' pass timers), the stage times per frame
-(``manifold_sampling`` includes the path tracer's own sample and the trial stage), Table 1's tallies,
+(``manifold_sampling``: SMS at x₁ with its trial stage; the path tracer's own sample is ``path_tracing``),
+Table 1's tallies,
 and max |Δ| of the image against k = 0. The paper's manifold-sampling milliseconds (RTX 4090, with
 its cap of 128 trials) stand beside them.
 

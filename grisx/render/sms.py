@@ -50,8 +50,8 @@ shared with the ``sms-toy`` toy problem.
 Statistics (seed 003, Table 1) come back in ``render --json`` under ``statistics``, over all frames
 rendered: success rate, Newton iterations per sample, Bernoulli trials per solution, Newton
 iterations per solution, capped solutions, the prior's walks and (``sms-restir``) the shifts'
-success rate and cost; the stage times are ``seconds``' ``prior``, ``manifold_sampling`` (which
-includes the path tracer's sample of the pixel and the trial stage), ``temporal``, ``spatial`` and ``shade``.
+success rate and cost; the stage times are ``seconds``' ``prior``, ``path_tracing`` (the path tracer's sample of the pixel, x₁ recorded),
+``manifold_sampling`` (SMS at x₁, the trial stage included), ``temporal``, ``spatial`` and ``shade``.
 
 On a GPU a solution runs ``inline_trials`` (1) Bernoulli trials in its sample pass and the rest in a stage
 of their own (:class:`BernoulliStage`), many trials of one solution at once: a long series of trials no
@@ -304,6 +304,7 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
     module = specialized_module(f"{__name__}.chain{chain}", kinds)
     reuse_module = specialized_module(f"{__name__}.chain{chain}.reuse", kinds)
     trials_module = specialized_module(f"{__name__}.chain{chain}.trials", kinds)
+    camera_module = specialized_module(f"{__name__}.chain{chain}.camera", kinds)
 
     @wp.func
     def first_non_delta(scene: SceneData, o: wp.vec3, d: wp.vec3, key: wp.uint32) -> SurfaceInteraction:
@@ -483,20 +484,30 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
         for ci in range(n_casters):
             _tally(stats, blk, 9, float(prior_count[blk * n_casters + ci]))
 
+    @wp.kernel(module=camera_module)
+    def camera_pass(spec: CausticSpec, p: SMSPass, sample: int, radiance: wp.array(dtype=wp.vec3), points: wp.array(dtype=ShadingPoint)):
+        # ---- the path tracer's sample of the pixel, without the paths SMS owns; its x₁ for the SMS pass ----
+        y, x = wp.tid()
+        q = y * p.cam.width + x
+        r = camera_path(spec, p, x, y, sample)
+        radiance[q] = r.total
+        points[q] = shading_point(r, p.casters)
+
     @wp.kernel(module=module)
     def sample_pass(
         spec: CausticSpec,
         p: SMSPass,
         sample: int,
+        radiance: wp.array(dtype=wp.vec3),
+        points: wp.array(dtype=ShadingPoint),
         total: wp.array2d(dtype=wp.vec3d),
         total_sq: wp.array2d(dtype=wp.vec3d),
         nonfinite: wp.array(dtype=wp.int32),
     ):
         y, x = wp.tid()
         pixel = y * p.cam.width + x
-        r = camera_path(spec, p, x, y, sample)
-        L = r.total
-        sp = shading_point(r, p.casters)
+        L = radiance[pixel]
+        sp = points[pixel]
         if sp.valid != 0:
             # ---- caustic next-event estimation at x₁ (seed 003, Eq. 1) ----
             c = sms_candidate(spec, p, pixel, sp, x, y, random_subkey(sample_key(p.seed, p.frame, pixel, sample), 2))
@@ -513,17 +524,13 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
     def restir_initial(
         spec: CausticSpec,
         p: SMSPass,
-        radiance: wp.array(dtype=wp.vec3),
         points: wp.array(dtype=ShadingPoint),
         res: wp.array(dtype=Reservoir),
         samples: wp.array(dtype=CausticSample),
     ):
         y, x = wp.tid()
         q = y * p.cam.width + x
-        r = camera_path(spec, p, x, y, 0)
-        radiance[q] = r.total
-        sp = shading_point(r, p.casters)
-        points[q] = sp
+        sp = points[q]
         # ---- initial candidate: one SMS sample, a reservoir of one (Eq. 10 with m = 1, T = id) ----
         rc = reservoir_empty()
         smp = CausticSample()
@@ -725,7 +732,7 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
         d = pending[e]
         res[d.view] = initial_reservoir(d.p_hat, trials_result(d, prior_tiles[d.row], hit[e], newton_total[e], stats))
 
-    out = {"trials_round": trials_round, "trials_settle": trials_settle, "trials_shade": trials_shade, "trials_reservoir": trials_reservoir,
+    out = {"camera_pass": camera_pass, "trials_round": trials_round, "trials_settle": trials_settle, "trials_shade": trials_shade, "trials_reservoir": trials_reservoir,
            "prior_walks": prior_walks, "prior_sets": prior_sets, "sample_pass": sample_pass, "restir_initial": restir_initial, "restir_reuse": restir_reuse, "restir_shade": restir_shade, "first_non_delta": first_non_delta, "caustics": caustics}
     _KERNELS[key] = out
     return out
@@ -859,10 +866,13 @@ class SMSRenderer(PathTracer):
         self.trial_stage = BernoulliStage(self.kernels_, self.width * self.height, dev, self.max_trials) if self.inline_trials > 0 else None
         self.no_pending = wp.zeros(1, dtype=PendingTrials, device=dev)
         self.no_count = wp.zeros(1, dtype=int, device=dev)
+        n = self.width * self.height
+        self.radiance = wp.zeros(n, dtype=wp.vec3, device=dev)  # the path tracer's part of the pixel's sample
+        self.points = wp.zeros(n, dtype=ShadingPoint, device=dev)  # and its x₁
 
     def kernels(self) -> list[Any]:
         prior = [self.kernels_["prior_walks"], self.kernels_["prior_sets"]] if self.prior and self.casters_host else []
-        return [*prior, self.kernels_["sample_pass"], *self._trial_kernels("trials_shade"), image_from_sum]
+        return [*prior, self.kernels_["camera_pass"], self.kernels_["sample_pass"], *self._trial_kernels("trials_shade"), image_from_sum]
 
     def _trial_kernels(self, finish: str) -> list[Any]:
         return [self.kernels_[k] for k in ("trials_round", "trials_settle", finish)] if self.trial_stage is not None else []
@@ -912,17 +922,25 @@ class SMSRenderer(PathTracer):
         with self._timed("prior"):
             self.build_prior(frame, cam)
         p = self.pass_record(frame, cam)
-        with self._timed("manifold_sampling"):
-            for _ in range(count):
+        dev = self.built.device
+        for _ in range(count):
+            self.camera_pass(p, self.samples)
+            with self._timed("manifold_sampling"):
                 if self.trial_stage is not None:
                     self.trial_stage.begin()
-                wp.launch(self.kernels_["sample_pass"], dim=(self.height, self.width), inputs=[self.spec, p, self.samples],
-                          outputs=[self.total, self.total_sq, self.nonfinite], device=self.built.device)
+                wp.launch(self.kernels_["sample_pass"], dim=(self.height, self.width), inputs=[self.spec, p, self.samples, self.radiance, self.points],
+                          outputs=[self.total, self.total_sq, self.nonfinite], device=dev)
                 if self.trial_stage is not None:  # before the next pass overwrites the views
                     self.trial_stage.run(self.spec, self.prior_tiles, self.stats, self.inline_trials, "trials_shade", [self.total, self.total_sq, self.nonfinite])
-                self.samples += 1
-                if self.on_sample is not None:
-                    self.on_sample()
+            self.samples += 1
+            if self.on_sample is not None:
+                self.on_sample()
+
+    def camera_pass(self, p: SMSPass, sample: int) -> None:
+        """The path tracer's sample ``sample`` of every pixel, without SMS's paths; x₁ into ``points``."""
+        with self._timed("path_tracing"):
+            wp.launch(self.kernels_["camera_pass"], dim=(self.height, self.width), inputs=[self.spec, p, int(sample)],
+                      outputs=[self.radiance, self.points], device=self.built.device)
 
     def render_frame(self, frame: int) -> wp.array:
         self.reset()
@@ -956,8 +974,6 @@ class SMSReSTIR(SMSRenderer):
         # views: 4 per pixel (canonical, a neighbour's sample here, ours there, the neighbour's own) + prior rows
         self.spec = make_caustic_spec(built, 4 * n + self.prior_rows, self.chain, self.max_depth)
         self.prior_view_base = 4 * n
-        self.radiance = wp.zeros(n, dtype=wp.vec3, device=dev)
-        self.points = wp.zeros(n, dtype=ShadingPoint, device=dev)
         self.points_prev = wp.zeros(n, dtype=ShadingPoint, device=dev)
         self.res = [wp.zeros(n, dtype=Reservoir, device=dev) for _ in range(4)]  # initial, temporal, final, last frame's
         self.smp = [wp.zeros(n, dtype=CausticSample, device=dev) for _ in range(4)]
@@ -966,7 +982,7 @@ class SMSReSTIR(SMSRenderer):
     def kernels(self) -> list[Any]:
         k = self.kernels_
         prior = [k["prior_walks"], k["prior_sets"]] if self.prior and self.casters_host else []
-        return [*prior, k["restir_initial"], *self._trial_kernels("trials_reservoir"), k["restir_reuse"], k["restir_shade"], image_from_sum]
+        return [*prior, k["camera_pass"], k["restir_initial"], *self._trial_kernels("trials_reservoir"), k["restir_reuse"], k["restir_shade"], image_from_sum]
 
     def _reuse(self, frame: int, spatial: int, points_n: wp.array, src: int, nb: int, dst: int) -> None:
         cam_prev = self.built.camera_data(float(frame - 1), self.width, self.height)
@@ -985,11 +1001,13 @@ class SMSReSTIR(SMSRenderer):
         cam = self.built.camera_data(float(frame), self.width, self.height)
         with self._timed("prior"):
             self.build_prior(frame, cam)
+        p = self.pass_record(frame, cam)
+        self.camera_pass(p, 0)
         with self._timed("manifold_sampling"):
             if self.trial_stage is not None:
                 self.trial_stage.begin()
-            wp.launch(self.kernels_["restir_initial"], dim=(self.height, self.width), inputs=[self.spec, self.pass_record(frame, cam)],
-                      outputs=[self.radiance, self.points, self.res[0], self.smp[0]], device=dev)
+            wp.launch(self.kernels_["restir_initial"], dim=(self.height, self.width), inputs=[self.spec, p, self.points],
+                      outputs=[self.res[0], self.smp[0]], device=dev)
             if self.trial_stage is not None:
                 self.trial_stage.run(self.spec, self.prior_tiles, self.stats, self.inline_trials, "trials_reservoir", [self.res[0]])
         cur = 0
