@@ -310,7 +310,7 @@ def main(argv: list[str] | None = None) -> int:
             procs[-1][1].wait()
             out.flush()
             args.out.mkdir(parents=True, exist_ok=True)  # what is measured so far survives an interrupted run
-            (args.out / f"partial_{scene}.json").write_text((Path(tmp) / f"{i}.json").read_text())
+            (args.out / f"partial_{Path(scene).stem}.json").write_text((Path(tmp) / f"{i}.json").read_text())
         failed = []
         for i, (scene, p, out) in enumerate(procs):
             p.wait()
