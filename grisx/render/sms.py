@@ -38,7 +38,9 @@ Methods:
                      neighbour uniform in a ``radius`` 30 px disc, both through the **manifold shift**
                      (a ≤ 5-step walk from the neighbour's u* in this pixel's problem with the same O and
                      x_n, checked by the walk back; Jacobian 1) and pairwise MIS (Eq. 10–11) —
-                     :meth:`grisx.theory.manifold.ManifoldSampler.reuse`, the toy's very function. The
+                     :meth:`grisx.theory.manifold.ManifoldSampler.reuse`, the toy's very function, run as
+                     its parts: the two shifts of a pixel in threads of their own (``reuse_carry``,
+                     ``reuse_shift``: ``restir_shifts``), then ``reuse_merge`` (``restir_merge``). The
                      path tracer's part of the pixel is its own fresh sample each frame.
 
 ``max_trials`` caps the Bernoulli trials (0, the default: unbounded; the paper runs 128): any cap
@@ -94,6 +96,7 @@ from grisx.theory.manifold import (
     NEWTON_MAX_ITERATIONS,
     PRIOR_ALPHA,
     UNBOUNDED_TRIALS,
+    ReuseShifts,
     SeedSpace,
     SMSSample,
     bernoulli_ucw,
@@ -549,9 +552,76 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
         res[q] = rc
         samples[q] = smp
 
+    @wp.func
+    def reuse_domain(
+        cam_prev: CameraData, seed: int, frame: int, width: int, height: int, spatial: int, radius: float,
+        points: wp.array(dtype=ShadingPoint), points_n: wp.array(dtype=ShadingPoint), q: int,
+    ) -> int:
+        """The neighbour pixel whose reservoir pixel q reuses: where x₁ was seen last frame (temporal) or one
+        uniform in a disc (spatial); −1 when there is none or it saw no x₁."""
+        x = q % width
+        y = q // width
+        key = random_subkey(sample_key(seed, frame, q, 0), 10 + spatial)
+        nb = int(-1)
+        if spatial != 0:
+            n = spatial_neighbor(x, y, width, height, radius, wp.vec2(random_uniform(key, 8), random_uniform(key, 9)))
+            if n.valid != 0:
+                nb = n.y * width + n.x
+        else:
+            proj = camera_project(cam_prev, points[q].si.p)  # x₁ reprojected into the last frame's camera
+            if proj.valid != 0 and proj.inside != 0:
+                nb = wp.min(int(proj.pixel[1]), height - 1) * width + wp.min(int(proj.pixel[0]), width - 1)
+        if nb >= 0 and points_n[nb].valid == 0:
+            nb = -1
+        return nb
+
     @wp.kernel(module=reuse_module)
-    def restir_reuse(
+    def restir_shifts(
         spec: CausticSpec,
+        cam_prev: CameraData,
+        seed: int,
+        frame: int,
+        width: int,
+        height: int,
+        spatial: int,
+        radius: float,
+        points: wp.array(dtype=ShadingPoint),
+        points_n: wp.array(dtype=ShadingPoint),
+        res: wp.array(dtype=Reservoir),
+        samples: wp.array(dtype=CausticSample),
+        res_n: wp.array(dtype=Reservoir),
+        samples_n: wp.array(dtype=CausticSample),
+        carried: wp.array(dtype=ReuseShifts),
+        shifted: wp.array(dtype=ReuseShifts),
+    ):
+        # ---- temporal or spatial reuse (Sec. 5.2), stage 1: its two manifold shifts in threads of their own,
+        # side 0 the canonical sample carried into the neighbour's domain (for m_c), side 1 the neighbour's
+        # sample shifted here. Views: q canonical (x₁ here, y_c's caster and x_n), +pixels T(y_n) here,
+        # +2 pixels y_c there, +3 pixels y_n in its own domain ----
+        side, y, x = wp.tid()
+        q = y * width + x
+        pixels = width * height
+        if points[q].valid == 0:
+            return
+        nb = reuse_domain(cam_prev, seed, frame, width, height, spatial, radius, points, points_n, q)
+        if nb < 0:
+            return
+        pc = points[q]
+        pn = points_n[nb]
+        y_c = samples[q]
+        y_n = samples_n[nb]
+        n0 = reuse_neighbor(res_n[nb], y_n.u, 3 * pixels + q, pixels + q, 2 * pixels + q, 1)
+        if side == 0:
+            set_sample_view(spec, q, pc, y_c)
+            set_sample_view(spec, 2 * pixels + q, pn, y_c)
+            carried[q] = SMS.reuse_carry(spec, res[q], y_c.u, q, n0, 0, ReuseShifts())
+        else:
+            set_sample_view(spec, pixels + q, pc, y_n)
+            set_sample_view(spec, 3 * pixels + q, pn, y_n)
+            shifted[q] = SMS.reuse_shift(spec, n0, 0, ReuseShifts())
+
+    @wp.kernel(module=reuse_module)
+    def restir_merge(
         cam_prev: CameraData,
         seed: int,
         frame: int,
@@ -566,44 +636,35 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
         samples: wp.array(dtype=CausticSample),
         res_n: wp.array(dtype=Reservoir),
         samples_n: wp.array(dtype=CausticSample),
+        carried: wp.array(dtype=ReuseShifts),
+        shifted: wp.array(dtype=ReuseShifts),
         res_out: wp.array(dtype=Reservoir),
         samples_out: wp.array(dtype=CausticSample),
         stats: wp.array2d(dtype=wp.float64),
     ):
-        # ---- temporal (where x₁ was seen last frame) or spatial (one neighbour in a disc) reuse, Sec. 5.2 ----
+        # ---- stage 2: pairwise MIS and the merge over the shifts stage 1 traced (Eq. 10–11) ----
         y, x = wp.tid()
         q = y * width + x
         pixels = width * height
         res_out[q] = res[q]
         samples_out[q] = samples[q]
-        pc = points[q]
-        if pc.valid == 0:
+        if points[q].valid == 0:
             return
         key = random_subkey(sample_key(seed, frame, q, 0), 10 + spatial)
-        nb = int(-1)
-        if spatial != 0:
-            n = spatial_neighbor(x, y, width, height, radius, wp.vec2(random_uniform(key, 8), random_uniform(key, 9)))
-            if n.valid != 0:
-                nb = n.y * width + n.x
-        else:
-            proj = camera_project(cam_prev, pc.si.p)  # x₁ reprojected into the last frame's camera
-            if proj.valid != 0 and proj.inside != 0:
-                nb = wp.min(int(proj.pixel[1]), height - 1) * width + wp.min(int(proj.pixel[0]), width - 1)
-        present = int(0)
-        if nb >= 0:
-            present = points_n[nb].valid
+        nb = reuse_domain(cam_prev, seed, frame, width, height, spatial, radius, points, points_n, q)
         absent = reuse_neighbor(reservoir_empty(), wp.vec2(0.0, 0.0), 0, 0, 0, 0)
         n0 = absent
+        sh = ReuseShifts()
+        if nb >= 0:
+            n0 = reuse_neighbor(res_n[nb], samples_n[nb].u, 3 * pixels + q, pixels + q, 2 * pixels + q, 1)
+            sh = shifted[q]
+            c = carried[q]
+            sh.carried = c.carried
+            sh.walks += c.walks
+            sh.newton += c.newton
+            sh.succeeded += c.succeeded
         y_c = samples[q]
-        set_sample_view(spec, q, pc, y_c)  # canonical: x₁ here, y_c's caster and x_n
-        if present != 0:
-            pn = points_n[nb]
-            y_n = samples_n[nb]
-            set_sample_view(spec, pixels + q, pc, y_n)  # T_i(y_n) lands here
-            set_sample_view(spec, 2 * pixels + q, pn, y_c)  # y_c carried into the neighbour's domain
-            set_sample_view(spec, 3 * pixels + q, pn, y_n)  # y_n in its own domain
-            n0 = reuse_neighbor(res_n[nb], y_n.u, 3 * pixels + q, pixels + q, 2 * pixels + q, 1)
-        out = SMS.reuse(spec, res[q], y_c.u, q, n0, absent, cap, key)
+        out = SMS.reuse_merge(res[q], y_c.u, n0, absent, sh, cap, key)
         _tally(stats, q, 10, float(out.walks))
         _tally(stats, q, 11, float(out.valid))
         _tally(stats, q, 12, float(out.newton))
@@ -733,7 +794,7 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
         res[d.view] = initial_reservoir(d.p_hat, trials_result(d, prior_tiles[d.row], hit[e], newton_total[e], stats))
 
     out = {"camera_pass": camera_pass, "trials_round": trials_round, "trials_settle": trials_settle, "trials_shade": trials_shade, "trials_reservoir": trials_reservoir,
-           "prior_walks": prior_walks, "prior_sets": prior_sets, "sample_pass": sample_pass, "restir_initial": restir_initial, "restir_reuse": restir_reuse, "restir_shade": restir_shade, "first_non_delta": first_non_delta, "caustics": caustics}
+           "prior_walks": prior_walks, "prior_sets": prior_sets, "sample_pass": sample_pass, "restir_initial": restir_initial, "restir_shifts": restir_shifts, "restir_merge": restir_merge, "restir_shade": restir_shade, "first_non_delta": first_non_delta, "caustics": caustics}
     _KERNELS[key] = out
     return out
 
@@ -974,6 +1035,8 @@ class SMSReSTIR(SMSRenderer):
         # views: 4 per pixel (canonical, a neighbour's sample here, ours there, the neighbour's own) + prior rows
         self.spec = make_caustic_spec(built, 4 * n + self.prior_rows, self.chain, self.max_depth)
         self.prior_view_base = 4 * n
+        self.carried = wp.zeros(n, dtype=ReuseShifts, device=dev)  # the reuse shifts: y_c carried there,
+        self.shifted = wp.zeros(n, dtype=ReuseShifts, device=dev)  # and the neighbour's sample shifted here
         self.points_prev = wp.zeros(n, dtype=ShadingPoint, device=dev)
         self.res = [wp.zeros(n, dtype=Reservoir, device=dev) for _ in range(4)]  # initial, temporal, final, last frame's
         self.smp = [wp.zeros(n, dtype=CausticSample, device=dev) for _ in range(4)]
@@ -982,18 +1045,18 @@ class SMSReSTIR(SMSRenderer):
     def kernels(self) -> list[Any]:
         k = self.kernels_
         prior = [k["prior_walks"], k["prior_sets"]] if self.prior and self.casters_host else []
-        return [*prior, k["camera_pass"], k["restir_initial"], *self._trial_kernels("trials_reservoir"), k["restir_reuse"], k["restir_shade"], image_from_sum]
+        return [*prior, k["camera_pass"], k["restir_initial"], *self._trial_kernels("trials_reservoir"), k["restir_shifts"], k["restir_merge"], k["restir_shade"], image_from_sum]
 
     def _reuse(self, frame: int, spatial: int, points_n: wp.array, src: int, nb: int, dst: int) -> None:
         cam_prev = self.built.camera_data(float(frame - 1), self.width, self.height)
-        wp.launch(
-            self.kernels_["restir_reuse"],
-            dim=(self.height, self.width),
-            inputs=[self.spec, cam_prev, self.seed, int(frame), self.width, self.height, spatial, self.radius, self.history_cap, self.points, points_n,
-                    self.res[src], self.smp[src], self.res[nb], self.smp[nb]],
-            outputs=[self.res[dst], self.smp[dst], self.stats],
-            device=self.built.device,
-        )
+        dev = self.built.device
+        domain = [cam_prev, self.seed, int(frame), self.width, self.height, spatial, self.radius]
+        buffers = [self.points, points_n, self.res[src], self.smp[src], self.res[nb], self.smp[nb]]
+        # the two shifts of every pixel in threads of their own, then the merge (seed 003, Sec. 5.2)
+        wp.launch(self.kernels_["restir_shifts"], dim=(2, self.height, self.width), inputs=[self.spec, *domain, *buffers],
+                  outputs=[self.carried, self.shifted], device=dev)
+        wp.launch(self.kernels_["restir_merge"], dim=(self.height, self.width), inputs=[*domain, self.history_cap, *buffers, self.carried, self.shifted],
+                  outputs=[self.res[dst], self.smp[dst], self.stats], device=dev)
 
     def render_frame(self, frame: int) -> wp.array:
         self.reset()

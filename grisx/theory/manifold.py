@@ -105,6 +105,7 @@ __all__ = [
     "SMSSample",
     "ManifoldShift",
     "ManifoldReuse",
+    "ReuseShifts",
     "ReuseNeighbor",
     "reuse_neighbor",
     "SeedSpace",
@@ -248,6 +249,24 @@ class ManifoldReuse:
     walks: int
     newton: int
     valid: int
+
+
+@wp.struct
+class ReuseShifts:
+    """A reuse pass's manifold shifts, traced apart from its merge (slot n = 0, 1 of :class:`ReuseNeighbor`):
+    ``carried`` p̂_{←n}(y_c), the canonical sample carried into neighbour n's domain (0 where the shift
+    fails), and neighbour n's sample shifted here: ``u``, ``valid``, its target ``p_hat`` and Jacobian; the
+    walks, their Newton steps and the shifts that succeeded."""
+
+    carried: wp.vec2
+    u0: wp.vec2
+    u1: wp.vec2
+    valid: wp.vec2i
+    p_hat: wp.vec2
+    jacobian: wp.vec2
+    walks: int
+    newton: int
+    succeeded: int
 
 
 @wp.struct
@@ -542,6 +561,10 @@ class ManifoldSampler:
     ``reuse(spec, r_c, y_c, view_c, n0, n1, cap, key) -> ManifoldReuse``
         (with a ``target``) GRIS of the canonical reservoir with ≤ 2 :class:`ReuseNeighbor`
         records through manifold shifts and pairwise MIS (Eq. 10–11); confidence capped.
+        It is ``reuse_merge(r_c, y_c, n0, n1, shifts, cap, key)`` over the shifts that
+        ``reuse_carry(spec, r_c, y_c, view_c, nb, n, shifts)`` (y_c into neighbour n's domain) and
+        ``reuse_shift(spec, nb, n, shifts)`` (neighbour n's sample here) record in a
+        :class:`ReuseShifts`, so a renderer can trace the shifts in passes of their own.
     """
 
     walk: Any
@@ -550,6 +573,9 @@ class ManifoldSampler:
     shift: Any
     trial: Any
     reuse: Any = None
+    reuse_carry: Any = None
+    reuse_shift: Any = None
+    reuse_merge: Any = None
 
 
 def make_manifold_sampler(
@@ -711,17 +737,55 @@ def make_manifold_sampler(
         return n1
 
     @wp.func
-    def reuse(
-        spec: spec_type, r_c: Reservoir, y_c: wp.vec2, view_c: int, n0: ReuseNeighbor, n1: ReuseNeighbor, cap: float, key: wp.uint32
+    def reuse_carry(spec: spec_type, r_c: Reservoir, y_c: wp.vec2, view_c: int, nb: ReuseNeighbor, n: int, shifts: ReuseShifts) -> ReuseShifts:
+        # p̂_{←n}(y_c): the canonical sample shifted into neighbour n's domain, for m_c (0 where the shift fails)
+        out = shifts
+        carried = float(0.0)
+        if nb.present != 0 and r_c.ucw > 0.0:
+            s = shift(spec, view_c, nb.from_here, y_c)
+            out.walks += 2
+            out.newton += s.iterations
+            if s.valid:
+                out.succeeded += 1
+                carried = target_from(target(spec, nb.from_here, s.u), s.jacobian)
+        out.carried[n] = carried
+        return out
+
+    @wp.func
+    def reuse_shift(spec: spec_type, nb: ReuseNeighbor, n: int, shifts: ReuseShifts) -> ReuseShifts:
+        # T_n(y_n): neighbour n's sample shifted here (seed 003, Sec. 5.2), its target and Jacobian
+        out = shifts
+        out.valid[n] = 0
+        if nb.present != 0 and nb.r.ucw > 0.0:
+            s = shift(spec, nb.view, nb.to_here, nb.y)
+            out.walks += 2
+            out.newton += s.iterations
+            if s.valid:
+                out.succeeded += 1
+                out.valid[n] = 1
+                out.p_hat[n] = target(spec, nb.to_here, s.u)
+                out.jacobian[n] = s.jacobian
+                if n == 0:
+                    out.u0 = s.u
+                else:
+                    out.u1 = s.u
+        return out
+
+    @wp.func
+    def _shifted(shifts: ReuseShifts, n: int) -> wp.vec2:
+        if n == 0:
+            return shifts.u0
+        return shifts.u1
+
+    @wp.func
+    def reuse_merge(
+        r_c: Reservoir, y_c: wp.vec2, n0: ReuseNeighbor, n1: ReuseNeighbor, shifts: ReuseShifts, cap: float, key: wp.uint32
     ) -> ManifoldReuse:
-        # Pairwise MIS (seed 003, Sec. 5.2): each neighbour costs 4 manifold walks — its sample
-        # shifted here and back, the canonical sample shifted there and back.
+        # Pairwise MIS (seed 003, Sec. 5.2) over the shifts already traced
         out = ManifoldReuse()
-        out.walks = 0
-        out.newton = 0
-        out.valid = 0
-        # a loop bound Warp cannot unroll: each shift (two manifold walks, each a chain shot per Newton step) is
-        # then compiled once per loop, not once per neighbour (the reuse kernel's first compile: −45%)
+        out.walks = shifts.walks
+        out.newton = shifts.newton
+        out.valid = shifts.succeeded
         slots = int(2)
         k = int(0)
         total = r_c.confidence
@@ -730,44 +794,30 @@ def make_manifold_sampler(
             if nb.present != 0:
                 k += 1
                 total += nb.r.confidence
-        # canonical MIS weight m_c(y_c) = Σ_i pair terms (needs p̂_{←i}(y_c): y_c shifted into domain i)
+        # canonical MIS weight m_c(y_c) = Σ_i pair terms (with p̂_{←i}(y_c): y_c shifted into domain i)
         m_c = float(0.0)
         if k == 0:
             m_c = 1.0
         for n in range(slots):
             nb = _pick_neighbor(n, n0, n1)
             if nb.present != 0:
-                carried = float(0.0)
-                if r_c.ucw > 0.0:
-                    s = shift(spec, view_c, nb.from_here, y_c)
-                    out.walks += 2
-                    out.newton += s.iterations
-                    if s.valid:
-                        out.valid += 1
-                        carried = target_from(target(spec, nb.from_here, s.u), s.jacobian)
-                m_c += pairwise_mis_canonical_term(nb.r.confidence, carried, r_c.confidence, r_c.target, k, total)
+                m_c += pairwise_mis_canonical_term(nb.r.confidence, shifts.carried[n], r_c.confidence, r_c.target, k, total)
         r = reservoir_merge(reservoir_empty(), r_c, m_c, r_c.target, 1.0, random_uniform(key, 0))
         y = y_c
         out.source = -1
         for n in range(slots):
             nb = _pick_neighbor(n, n0, n1)
             if nb.present != 0:
-                merged = False
-                if nb.r.ucw > 0.0:
-                    s = shift(spec, nb.view, nb.to_here, nb.y)  # seed 003, Sec. 5.2: T_i
-                    out.walks += 2
-                    out.newton += s.iterations
-                    if s.valid:
-                        out.valid += 1
-                        p_hat = target(spec, nb.to_here, s.u)
-                        # p̂_{←i}(T(x)) = p̂_i(x) |∂T⁻¹/∂y| with Jacobian 1
-                        m = pairwise_mis_neighbor(nb.r.confidence, target_from(nb.r.target, s.jacobian), r_c.confidence, p_hat, k, total)
-                        r = reservoir_merge(r, nb.r, m, p_hat, s.jacobian, random_uniform(key, 1 + n))  # Eq. 10
-                        merged = True
-                        if r.selected:
-                            y = s.u
-                            out.source = n
-                if not merged:
+                if shifts.valid[n] != 0:
+                    p_hat = shifts.p_hat[n]
+                    jacobian = shifts.jacobian[n]
+                    # p̂_{←i}(T(x)) = p̂_i(x) |∂T⁻¹/∂y| with Jacobian 1
+                    m = pairwise_mis_neighbor(nb.r.confidence, target_from(nb.r.target, jacobian), r_c.confidence, p_hat, k, total)
+                    r = reservoir_merge(r, nb.r, m, p_hat, jacobian, random_uniform(key, 1 + n))  # Eq. 10
+                    if r.selected:
+                        y = _shifted(shifts, n)
+                        out.source = n
+                else:
                     r = reservoir_update(r, 0.0, 0.0, nb.r.confidence, 0.0)  # confidence stays deterministic
         r = reservoir_finalize(r)  # Eq. 11
         r.confidence = confidence_capped(r.confidence, cap)
@@ -775,4 +825,20 @@ def make_manifold_sampler(
         out.y = y
         return out
 
-    return ManifoldSampler(walk=walk, bernoulli=bernoulli, sample=sample, shift=shift, trial=trial, reuse=reuse)
+    @wp.func
+    def reuse(
+        spec: spec_type, r_c: Reservoir, y_c: wp.vec2, view_c: int, n0: ReuseNeighbor, n1: ReuseNeighbor, cap: float, key: wp.uint32
+    ) -> ManifoldReuse:
+        # each neighbour costs up to 4 manifold walks: the canonical sample shifted there and back, its sample
+        # shifted here and back. A loop bound Warp cannot unroll: each shift (two walks, each a chain shot per
+        # Newton step) is compiled once per loop, not once per neighbour
+        shifts = ReuseShifts()
+        slots = int(2)
+        for n in range(slots):
+            shifts = reuse_carry(spec, r_c, y_c, view_c, _pick_neighbor(n, n0, n1), n, shifts)
+        for n in range(slots):
+            shifts = reuse_shift(spec, _pick_neighbor(n, n0, n1), n, shifts)
+        return reuse_merge(r_c, y_c, n0, n1, shifts, cap, key)
+
+    return ManifoldSampler(walk=walk, bernoulli=bernoulli, sample=sample, shift=shift, trial=trial, reuse=reuse,
+                           reuse_carry=reuse_carry, reuse_shift=reuse_shift, reuse_merge=reuse_merge)
