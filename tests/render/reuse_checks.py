@@ -155,7 +155,7 @@ def builtin_image_mean(built: Any, size: tuple[int, int], max_depth: int, spp: i
 
 def check(method: str, params: dict[str, Any] | None = None, *, scene: Any = "cornell-box", camera: str = "static",
           frames: int = 4, runs: int = 64, k: float = DEFAULT_K, device: str = "cpu", res: tuple[int, int] = RES, reference_spp: int = 4096,
-          reference_image: tuple[np.ndarray, np.ndarray] | None = None, block: int = 8) -> ReuseTestResult:
+          reference_image: tuple[np.ndarray, np.ndarray] | None = None, block: int = 8, skew_corrected: bool = False) -> ReuseTestResult:
     params = dict(params or {})
     sc = _load(scene)
     depth = _depth(method, params, sc)
@@ -180,4 +180,4 @@ def check(method: str, params: dict[str, Any] | None = None, *, scene: Any = "co
         ref, var = reference_image
     else:
         ref, var = reference(scene, depth, camera, frames - 1 if last_frame else 0, res=res, spp=reference_spp)
-    return reuse_unbiasedness_test(run, ref, var, runs, block=block, k=k)
+    return reuse_unbiasedness_test(run, ref, var, runs, block=block, k=k, skew_corrected=skew_corrected)
