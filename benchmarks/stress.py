@@ -110,7 +110,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--device", default="cpu")
     ap.add_argument("--scenes", default="cornell-box,closed-room,glossy-room")
-    ap.add_argument("--methods", default=None, help="comma-separated radiance methods (default: every registered one)")
+    ap.add_argument("--methods", default=None, help="comma-separated radiance methods (default: every registered one; named ones are soaked even when they take spp)")
     ap.add_argument("--res", default=None, help="WxH (default 320x240 on CUDA, 16x16 on CPU)")
     ap.add_argument("--frames", type=int, default=None, help="soak frames (default 10000 on CUDA, 1000 on CPU)")
     ap.add_argument("--batch", type=int, default=100)
@@ -133,7 +133,8 @@ def main(argv: list[str] | None = None) -> int:
     methods = args.methods.split(",") if args.methods else sorted(n for n, m in METHODS.items() if m.kind == "radiance")
     for method in methods:
         for scene in scenes:
-            if not METHODS[method].uses_spp:
+            # spp methods keep nothing between frames, except where asked by name (gpt: the Poisson solve's warm start)
+            if not METHODS[method].uses_spp or args.methods:
                 for camera in ("static", "moving"):
                     rows.append(soak(method, scene, camera, args))
                     print(json.dumps(rows[-1]), file=sys.stderr, flush=True)
