@@ -96,6 +96,7 @@ from grisx.theory.manifold import (
     NEWTON_MAX_ITERATIONS,
     PRIOR_ALPHA,
     UNBOUNDED_TRIALS,
+    ReuseNeighbor,
     ReuseShifts,
     SeedSpace,
     SMSSample,
@@ -246,9 +247,22 @@ def _tally_trials(stats: wp.array2d(dtype=wp.float64), thread: int, trials: int,
 
 
 @wp.func
+def caustic_ucw(trials_ucw: float, pdf: float) -> float:
+    """W of an SMS sample: the trials' K/P(C) over p(x_n | light) P(light, O) (seed 003, Eq. 1, 5)."""
+    return trials_ucw / pdf
+
+
+@wp.func
 def candidate_ucw(c: CausticCandidate) -> float:
-    """W of a candidate whose trials are done: K/P(C) / (p(x_n | light) P(light, O)) (seed 003, Eq. 1, 5)."""
-    return c.s.ucw / c.pdf
+    """W of a candidate whose trials are done (:func:`caustic_ucw`)."""
+    return caustic_ucw(c.s.ucw, c.pdf)
+
+
+@wp.func
+def neighbor_in_views(res_n: wp.array(dtype=Reservoir), samples_n: wp.array(dtype=CausticSample), nb: int, q: int, pixels: int) -> ReuseNeighbor:
+    """Neighbour ``nb`` of pixel q as a :class:`ReuseNeighbor` in the reuse passes' view layout: q canonical,
+    +pixels its sample shifted here, +2 pixels the canonical sample there, +3 pixels its own domain."""
+    return reuse_neighbor(res_n[nb], samples_n[nb].u, 3 * pixels + q, pixels + q, 2 * pixels + q, 1)
 
 
 @wp.func
@@ -610,7 +624,7 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
         pn = points_n[nb]
         y_c = samples[q]
         y_n = samples_n[nb]
-        n0 = reuse_neighbor(res_n[nb], y_n.u, 3 * pixels + q, pixels + q, 2 * pixels + q, 1)
+        n0 = neighbor_in_views(res_n, samples_n, nb, q, pixels)
         if side == 0:
             set_sample_view(spec, q, pc, y_c)
             set_sample_view(spec, 2 * pixels + q, pn, y_c)
@@ -656,7 +670,7 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
         n0 = absent
         sh = ReuseShifts()
         if nb >= 0:
-            n0 = reuse_neighbor(res_n[nb], samples_n[nb].u, 3 * pixels + q, pixels + q, 2 * pixels + q, 1)
+            n0 = neighbor_in_views(res_n, samples_n, nb, q, pixels)
             sh = shifted[q]
             c = carried[q]
             sh.carried = c.carried
@@ -760,7 +774,7 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
         # K = 1 + the first hit (the cap when none hit); W = K/P(C) / (p(x_n | light) P(light, O)) (Eq. 1, 5)
         trials = wp.min(h + 1, p.cap)
         _tally_trials(stats, p.view, trials, p.newton + newton, h >= p.cap)
-        return bernoulli_ucw(trials, conditional_space(p.space, prior, p.u).p_c) / p.pdf
+        return caustic_ucw(bernoulli_ucw(trials, conditional_space(p.space, prior, p.u).p_c), p.pdf)
 
     @wp.kernel(module=trials_module)
     def trials_shade(
