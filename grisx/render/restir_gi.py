@@ -12,7 +12,7 @@ ReSTIR GI resamples sample points between pixels and frames (seed 004,
 Sec. 4–5); each frame runs the phases of its Figure 4:
 
 1. **Initial sampling** (Alg. 2). A direction from the source pdf p_q —
-   ``source=uniform`` (default, the paper's choice), ``cosine`` or ``bsdf`` —
+   ``source=bsdf`` (default), ``cosine`` or ``uniform`` (the paper's choice) —
    a ray to x_s, and L_r at x_s by **path tracing with NEE and MIS**: the
    reference path tracer's own ``trace_path`` (:func:`grisx.render.pt.make_trace_path`)
    started at x_v toward x_s, minus the emission at x_s. The **Sample** record
@@ -22,7 +22,7 @@ Sec. 4–5); each frame runs the phases of its Figure 4:
    previous frame's temporal reservoir at the reprojected pixel (confidence
    capped at 30) and the new sample with w = p̂/p (seed 004, Eq. 5, 9/10).
 3. **Spatial resampling** (Alg. 4) into the spatial reservoir buffer: the
-   previous frame's spatial reservoir (confidence capped at 500) and this
+   previous frame's spatial reservoir (confidence capped at 30; the paper: 500) and this
    pixel's temporal reservoir, plus up to *maxIterations* temporal reservoirs
    of neighbours (9 while the spatial reservoir holds fewer than half the cap,
    else 3) that pass the similarity test (normals within 25°, depth within
@@ -77,16 +77,52 @@ the visible point that found them (target 0 elsewhere, and Z counts so). On
 diffuse sample points the option changes nothing (a test checks it); it
 costs 76 more bytes per stored sample (in every mode).
 
-**Unbiased reuse** (Alg. 4 l. 16–19). Candidates are streamed with weights
-c_i p̂(y_i) W_i |J| and the kept sample y gets W = w_sum / (Z(y) p̂(y))
-(:func:`~grisx.theory.reservoir.reservoir_finalize_mis`), Z(y) the total
-confidence of the domains that can produce y: with ``unbiased=true`` each
-domain is tested by its own target and a **visibility ray** from its visible
-point to y (support counting, :func:`~grisx.theory.mis.support_count_term`);
-``unbiased=false`` counts every domain (Z = Σ c_i) — cheaper and biased where
-visibility differs between neighbours (seed 004, Fig. 9). Visibility at the
-current pixel (Alg. 4 l. 12) is tested in both modes: shading has no other
-shadow ray.
+**MIS weights** (``mis``). Both reuse passes are GRIS over domains — the
+history, the neighbours and the pixel's own (canonical) sample — and need
+weights m_i(y) that sum to one over the domains that can produce y.
+
+* ``mis=support`` is the paper's (Alg. 3 l. 6, Alg. 4 l. 16–19): candidates
+  are streamed with weights c_i p̂(y_i) W_i |J| and the *kept* sample y gets
+  W = w_sum / (Z(y) p̂(y)) (:func:`~grisx.theory.reservoir.reservoir_finalize_mis`),
+  Z(y) the confidence of the domains that can produce y (support counting,
+  :func:`~grisx.theory.mis.support_count_term`). It is unbiased, but the
+  weights of the candidates *not* kept stay in w_sum undivided: a sample
+  that few domains support is kept rarely and then carries w_sum / Z with a
+  small Z. Its frames have heavy tails: 12 independent runs of closed-room
+  at 128×72, per-frame relMSE of frames 16–31, had mean 1.25 and worst run
+  5.8 under the static camera (pt at 1 spp: 0.54), 3.0 and 19.3 along the
+  camera path.
+* ``mis=pairwise`` (default) weighs every candidate *before* selection
+  (so f(y) W = (f/p̂)(y) Σ_i w_i, RIS's own light-tailed form): each domain
+  against the canonical one only (:func:`~grisx.theory.mis.pairwise_mis_neighbor`,
+  Bitterli 2022, Ch. 9), the temporal pass's two domains by the balance
+  heuristic (:func:`~grisx.theory.mis.two_domain_balance`; seed 001,
+  Eq. 15). p̂_{←i}(y) of a candidate shifted from domain i is its own target
+  over |J|; of the canonical sample, that sample reconnected at domain i's
+  visible point in domain i's frame (``target_at_domain``) — the ray the
+  Z test traced. Same rays, in stages ``spatial_canonical_pass`` (m_c) and
+  ``spatial_merge_pass``.
+
+In both modes ``unbiased=true`` tests each domain's support by its own target
+and a **visibility ray** from its visible point to y; ``unbiased=false``
+assumes every domain sees every sample — cheaper and biased where visibility
+differs between neighbours (seed 004, Fig. 9). Visibility at the current
+pixel (Alg. 4 l. 12) is tested in both: shading has no other shadow ray.
+
+**Defaults that differ from the paper** (measured, ``benchmarks/README.md``,
+"ReSTIR GI's MIS weights"): pairwise MIS; ``source=bsdf`` — at a glossy
+visible point a uniform direction rarely falls in the lobe and, when it
+does, w = p̂/p is a firefly that reuse then carries (glossy-room along the
+camera path, 128×72, pairwise, cap 30: mean per-frame relMSE 17.7 uniform,
+1.52 BSDF-sampled; pt at 1 spp 1.67); and
+``spatial_cap=30`` instead of 500. A pairwise weight trusts each domain's
+confidence against the canonical one's: the spatial history with c = 500
+against a canonical sample with c ≤ 30 split over k pairs can carry up to
+≈ 500·k/30 times its share, and a camera that moves finds the cases where
+it does (closed-room along the path: 1.23 at 500, 0.27 at 100, 0.23 at 30;
+under a static camera 0.147 / 0.138 / 0.145: the long memory buys nothing
+there). ``source=uniform, spatial_cap=500, mis=support`` is Alg. 2–4 as
+published.
 
 **Jacobian rejection** (not in the paper; ``max_jacobian`` = τ, default 10;
 0 turns it off and gives the paper's algorithm). A reconnection to a sample
@@ -209,7 +245,15 @@ from grisx.scene.scene import (
     make_surface,
 )
 from grisx.theory.gris import ris_weight
-from grisx.theory.mis import support_count, support_count_term, support_mis
+from grisx.theory.mis import (
+    pairwise_mis_canonical_term,
+    pairwise_mis_neighbor,
+    support_count,
+    support_count_term,
+    support_mis,
+    target_from,
+    two_domain_balance,
+)
 from grisx.theory.random import random_subkey, random_uniform
 from grisx.theory.reservoir import (
     Reservoir,
@@ -267,6 +311,10 @@ _STRATEGY_MIS = wp.constant(STRATEGIES["mis"])
 _INV_2PI = wp.constant(1.0 / (2.0 * math.pi))
 _TILE_W = wp.constant(64)
 _TILE_H = wp.constant(32)
+#: MIS weights of the reuse passes (``mis``): pairwise MIS, each candidate weighed before selection, or the
+#: paper's support counting, 1/Z applied to the kept sample (Alg. 3 l. 6, Alg. 4 l. 16–19)
+MIS = {"pairwise": 0, "support": 1}
+_MIS_PAIRWISE = wp.constant(MIS["pairwise"])
 KEPT_NONE = wp.constant(-2)  # the spatial pass's kept sample: none, this pixel's own, else a domain code
 KEPT_OWN = wp.constant(-1)
 
@@ -317,6 +365,16 @@ class NeighborDomain:
     sample: GISample
     si: SurfaceInteraction
     wo: wp.vec3
+
+
+@wp.struct
+class SpatialPlan:
+    """Alg. 4 l. 2–3 at one pixel: last frame's pixel of its surface, the neighbours to draw, and whether
+    they are neighbours' last spatial reservoirs (Fig. 10)."""
+
+    history: NeighborPixel
+    iterations: int
+    from_spatial: int
 
 
 @wp.struct
@@ -566,6 +624,42 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         if domain_supports(scene, si_src, wo_src, s, target_mode, test_support) == 0:
             return False
         return unbiased == 0 or shift_accepted(reconnection_jacobian(scene, si_src, wo_src, si_dst, wo_dst, s), max_jacobian)
+
+    @wp.func
+    def target_back(target_at_source: float, jacobian: float) -> float:
+        """p̂_{←i}(y) of a sample y = T(x) shifted from domain i with weight Jacobian |∂T/∂x| = ``jacobian``:
+        p̂_i(x) / |∂T/∂x| (the inverse reconnection's Jacobian is the reciprocal of Eq. 11's)."""
+        if jacobian > 0.0:
+            return target_from(target_at_source, 1.0 / jacobian)
+        return 0.0
+
+    @wp.func
+    def target_at_domain(
+        scene: SceneData,
+        si_src: SurfaceInteraction,
+        wo_src: wp.vec3,
+        si_dst: SurfaceInteraction,
+        wo_dst: wp.vec3,
+        s: GISample,
+        target_mode: int,
+        test_visibility: int,
+        use_jacobian: int,
+        max_jacobian: float,
+        across: int,
+    ) -> float:
+        """p̂_{←src}(s) = p̂_src(T⁻¹ s) |∂T⁻¹/∂s| (seed 001, Eq. 16) for a sample ``s`` at visible point dst:
+        domain src's target of it, carried to dst through the inverse reconnection — 0 where src cannot
+        produce it, by the very tests its own candidates pass (:func:`reconnect`). Domain src is evaluated
+        in ``scene`` (last frame's for a domain of last frame, ``across``)."""
+        if reused_part_moved(scene, s, across):
+            return 0.0
+        j = reconnection_jacobian(scene, si_src, wo_src, si_dst, wo_dst, s)  # src → dst, at T⁻¹ s (x_s is fixed)
+        if not shift_accepted(j, max_jacobian):
+            return 0.0
+        t = target_shifted(scene, si_src, wo_src, s, target_mode, test_visibility)
+        if use_jacobian == 0:
+            return t
+        return target_back(t, j)
 
     @wp.func
     def outgoing_radiance(
@@ -935,6 +1029,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         use_jacobian: int,
         unbiased: int,
         max_jacobian: float,
+        mis_mode: int,
         res_in: wp.array2d(dtype=Reservoir),
         s_in: wp.array2d(dtype=GISample),
         res_prev: wp.array2d(dtype=Reservoir),
@@ -964,11 +1059,21 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         # ---- Alg. 3: the history reservoir (reconnected if the visible point moved), then the new sample ----
         out = reservoir_empty()
         sh = reconnect(scene, si_p, wo_p, si, wo, s_prev[tn.y, tn.x], target_mode, moved, use_jacobian, max_jacobian, 1)
-        out = reservoir_merge(out, r_p, r_p.confidence, sh.target, sh.jacobian, random_uniform(key, 0))
+        m_h = r_p.confidence  # support counting streams c_i and applies 1/Z to the kept sample below
+        m_n = r_new.confidence
+        if mis_mode == _MIS_PAIRWISE:
+            # pairwise MIS with one neighbour: the generalized balance heuristic over the two domains (seed 001,
+            # Eq. 15), each candidate weighed before selection. p̂_{←h} of the history's shifted sample is its own
+            # target over |J|; p̂_{←h} of the new one needs it reconnected at last frame's x_v, in last frame's scene
+            t_n_from_h = target_at_domain(scene_prev, si_p, wo_p, si, wo, s_in[y, x], target_mode, unbiased * moved, use_jacobian,
+                                          max_jacobian, 1)
+            m_h = two_domain_balance(r_p.confidence, target_back(r_p.target, sh.jacobian), r_new.confidence, sh.target)
+            m_n = two_domain_balance(r_new.confidence, r_new.target, r_p.confidence, t_n_from_h)
+        out = reservoir_merge(out, r_p, m_h, sh.target, sh.jacobian, random_uniform(key, 0))
         kept = int(0)  # which sample is kept (0: none, 1: the history's, 2: the new one), loaded once below
         if out.selected:
             kept = 1
-        out = reservoir_merge(out, r_new, r_new.confidence, r_new.target, 1.0, random_uniform(key, 1))
+        out = reservoir_merge(out, r_new, m_n, r_new.target, 1.0, random_uniform(key, 1))
         if out.selected:
             kept = 2
         sel = gi_sample_none()
@@ -976,12 +1081,15 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
             sel = s_prev[tn.y, tn.x]
         elif kept == 2:
             sel = s_in[y, x]
-        # ---- W = w / (Z p̂): Z counts the domains that can produce the kept sample (Alg. 3 l. 6 with Alg. 4's Z) ----
-        z = support_count_term(r_new.confidence, out.target)
-        if sel.valid != 0:
-            z = support_count(z, r_p.confidence, domain_counts(scene_prev, si_p, wo_p, si, wo, sel, target_mode, unbiased * moved, unbiased,
-                                                               max_jacobian, 1))
-        out = reservoir_finalize_mis(out, support_mis(1.0, out.target, z))
+        if mis_mode == _MIS_PAIRWISE:
+            out = reservoir_finalize(out)
+        else:
+            # ---- W = w / (Z p̂): Z counts the domains that can produce the kept sample (Alg. 3 l. 6 with Alg. 4's Z) ----
+            z = support_count_term(r_new.confidence, out.target)
+            if sel.valid != 0:
+                z = support_count(z, r_p.confidence, domain_counts(scene_prev, si_p, wo_p, si, wo, sel, target_mode, unbiased * moved,
+                                                                   unbiased, max_jacobian, 1))
+            out = reservoir_finalize_mis(out, support_mis(1.0, out.target, z))
         res_out[y, x] = out
         s_out[y, x] = sel
 
@@ -1000,7 +1108,119 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         return neighbor_domain(sf, domain_pixel(code, sf.si.shape[1]), int(domain_flags(code) != 0), temporal_cap, spatial_cap,
                                res_t, s_t, res_s_prev, s_s_prev)
 
-    # ---- the spatial pass (Alg. 4) in two stages: resample the candidates, then count Z over the same domains ----
+    # ---- the spatial pass (Alg. 4): which domains a pixel reuses (shared by both MIS modes' stages) ----
+    @wp.func
+    def spatial_plan(
+        sf: ScreenFrame,
+        x: int,
+        y: int,
+        use_history: int,
+        spatial_cap: float,
+        iterations_low: int,
+        iterations_high: int,
+        low_m: float,
+        res_s_prev: wp.array2d(dtype=Reservoir),
+    ) -> SpatialPlan:
+        """Alg. 4 l. 2–3: last frame's spatial reservoir of this surface (reprojected), how many neighbours
+        to draw, and whether they are neighbours' last spatial reservoirs (this pixel's M is low: Fig. 10)."""
+        plan = SpatialPlan()
+        plan.history = NeighborPixel()
+        plan.history.valid = 0
+        c_s = float(0.0)
+        if use_history != 0:
+            tn = temporal_neighbor(sf.g, sf.g_prev, x, y, SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH)
+            if tn.valid != 0:
+                plan.history = tn
+                c_s = confidence_capped(res_s_prev[tn.y, tn.x].confidence, spatial_cap)
+        plan.iterations = iterations_high
+        if c_s < 0.5 * spatial_cap:
+            plan.iterations = iterations_low
+        plan.from_spatial = int(use_history != 0 and c_s < low_m)
+        return plan
+
+    @wp.func
+    def spatial_domain(
+        sf: ScreenFrame, plan: SpatialPlan, x: int, y: int, d: int, rejections: int, key: wp.uint32, adaptive: int, radius: float,
+        min_radius: float,
+    ) -> NeighborPixel:
+        """Draw ``d``: −1 the history, d ≥ 0 the d-th neighbour (Alg. 4 l. 5–8); invalid if not similar."""
+        if d < 0:
+            return plan.history
+        if plan.from_spatial != 0:
+            return pick_neighbor(sf.g, sf.g_prev, x, y, d, rejections, key, adaptive, radius, min_radius)
+        return pick_neighbor(sf.g, sf.g, x, y, d, rejections, key, adaptive, radius, min_radius)
+
+    @wp.func
+    def spatial_domain_flags(plan: SpatialPlan, d: int) -> int:
+        """Draw ``d``'s domain flags: the history is last frame's; neighbours are too while M is low (Fig. 10)."""
+        if d < 0:
+            return DOMAIN_PREVIOUS | DOMAIN_HISTORY
+        return plan.from_spatial * DOMAIN_PREVIOUS
+
+    @wp.func
+    def spatial_domain_u(key: wp.uint32, d: int) -> float:
+        """The random number that merges draw ``d``'s candidate."""
+        if d < 0:
+            return random_uniform(key, 0)
+        return random_uniform(key, 4 * d + 10)
+
+    @wp.func
+    def draw_spatial_domains(
+        sf: ScreenFrame,
+        plan: SpatialPlan,
+        x: int,
+        y: int,
+        key: wp.uint32,
+        adaptive: int,
+        radius: float,
+        min_radius: float,
+        domains: wp.array3d(dtype=wp.int32),
+        slots: wp.array3d(dtype=wp.int32),
+    ) -> int:
+        """Draw the pixel's domains once into the DomainList (codes, draw indices d): the history (d = −1),
+        then the neighbours (Alg. 4 l. 4–10). Every later stage reads these very domains. Returns the count."""
+        width = sf.si.shape[1]
+        count = int(0)
+        rejections = int(0)
+        for d in range(-1, plan.iterations):
+            nb = spatial_domain(sf, plan, x, y, d, rejections, key, adaptive, radius, min_radius)
+            if d >= 0 and nb.valid == 0:
+                rejections += 1
+            if nb.valid != 0 and count < domains.shape[2]:
+                domains[y, x, count] = domain_code(nb.x, nb.y, width, spatial_domain_flags(plan, d))
+                slots[y, x, count] = d
+                count += 1
+        return count
+
+    @wp.func
+    def domains_confidence(
+        sf: ScreenFrame,
+        x: int,
+        y: int,
+        count: int,
+        temporal_cap: float,
+        spatial_cap: float,
+        res_t: wp.array2d(dtype=Reservoir),
+        s_t: wp.array2d(dtype=GISample),
+        res_s_prev: wp.array2d(dtype=Reservoir),
+        s_s_prev: wp.array2d(dtype=GISample),
+        domains: wp.array3d(dtype=wp.int32),
+    ) -> float:
+        """Σ_i c_i over the pixel's drawn domains (capped confidences)."""
+        total = float(0.0)
+        for j in range(count):
+            total += domain_of(sf, domains[y, x, j], temporal_cap, spatial_cap, res_t, s_t, res_s_prev, s_s_prev).res.confidence
+        return total
+
+    @wp.func
+    def shift_tests_visibility(scene: SceneData, code: wp.int32, si_src: SurfaceInteraction, si_dst: SurfaceInteraction) -> int:
+        """Whether a shift from domain ``code`` needs a shadow ray: always, but for this surface's own history
+        when neither its visible point nor the scene moved (then x_s was visible from it already)."""
+        if domain_flags(code) & DOMAIN_HISTORY:
+            return int(wp.length_sq(si_src.p - si_dst.p) > 0.0 or scene.moved_count > 0)
+        return 1
+
+    # ---- mis=support, the paper's Alg. 4 in two stages: resample the candidates, then count Z over the same domains ----
     @wp.kernel(module=module, cuda_max_registers=PATH_REGISTERS)
     def spatial_resample_pass(
         scene: SceneData,
@@ -1025,10 +1245,10 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         s_out: wp.array2d(dtype=GISample),
         kept: wp.array2d(dtype=wp.int32),
         domains: wp.array3d(dtype=wp.int32),
+        slots: wp.array3d(dtype=wp.int32),
         domain_count: wp.array2d(dtype=wp.int32),
     ):
         y, x = wp.tid()
-        width = sf.si.shape[1]
         key = pixel_key(sf, x, y, 4)
         r_t = res_t[y, x]
         si = sf.si[y, x]
@@ -1042,56 +1262,29 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         # the kept sample is tracked by the domain it lives in (KEPT_OWN: this pixel's), not copied at each
         # selection; the MIS stage loads it once
         sel = int(KEPT_NONE)
-        count = int(0)
-        capacity = domains.shape[2]
-        # ---- Alg. 4 l. 2: last frame's spatial reservoir of this surface (reprojected): domain −1 below ----
-        c_s = float(0.0)
-        h = NeighborPixel()
-        h.valid = 0
-        if use_history != 0:
-            tn = temporal_neighbor(sf.g, sf.g_prev, x, y, SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH)
-            if tn.valid != 0:
-                h = tn
-                c_s = confidence_capped(res_s_prev[tn.y, tn.x].confidence, spatial_cap)
-        iterations = iterations_high
-        if c_s < 0.5 * spatial_cap:
-            iterations = iterations_low
-        from_spatial = int(use_history != 0 and c_s < low_m)
-        g_n = sf.g
-        if from_spatial != 0:
-            g_n = sf.g_prev
-        rejections = int(0)
-        # ---- one loop, one call site of the shift: d = −1 is the history, then this pixel's temporal
-        # reservoir; d ≥ 0 the neighbours' temporal reservoirs (spatial ones while this pixel's M is low:
-        # Fig. 10), Alg. 4 l. 4–14 ----
-        for d in range(-1, iterations):
-            nb = h
-            flags = DOMAIN_PREVIOUS | DOMAIN_HISTORY
-            u = random_uniform(key, 0)
-            if d >= 0:
-                nb = pick_neighbor(sf.g, g_n, x, y, d, rejections, key, adaptive, radius, min_radius)
-                flags = from_spatial * DOMAIN_PREVIOUS
-                u = random_uniform(key, 4 * d + 10)
-                if nb.valid == 0:
-                    rejections += 1
-            if nb.valid != 0 and count < capacity:
-                code = domain_code(nb.x, nb.y, width, flags)
-                domains[y, x, count] = code
-                count += 1
-                n = neighbor_domain(sf, nb, int(flags != 0), temporal_cap, spatial_cap, res_t, s_t, res_s_prev, s_s_prev)
-                test_visibility = int(1)
-                if d < 0:  # the same surface last frame: visibility is only in question if x_v or the scene moved
-                    test_visibility = int(wp.length_sq(n.si.p - si.p) > 0.0 or scene.moved_count > 0)
-                sh = reconnect(scene, n.si, n.wo, si, wo, n.sample, target_mode, test_visibility, use_jacobian, max_jacobian,  # Alg. 4 l. 11–12
-                               int(flags != 0))
-                out = reservoir_merge(out, n.res, n.res.confidence, sh.target, sh.jacobian, u)
-                if out.selected:
-                    sel = code
-            if d < 0:  # ---- this pixel's temporal reservoir ----
+        plan = spatial_plan(sf, x, y, use_history, spatial_cap, iterations_low, iterations_high, low_m, res_s_prev)
+        count = draw_spatial_domains(sf, plan, x, y, key, adaptive, radius, min_radius, domains, slots)
+        # ---- one loop, one call site of the shift, in the paper's order: the history (d = −1), this pixel's
+        # temporal reservoir, then the neighbours' temporal reservoirs (spatial ones while this pixel's M is
+        # low: Fig. 10), Alg. 4 l. 4–14 ----
+        own_at = int(0)
+        if count > 0 and slots[y, x, 0] < 0:
+            own_at = 1
+        for i in range(count + 1):
+            if i == own_at:  # ---- this pixel's temporal reservoir ----
                 r_t.confidence = confidence_capped(r_t.confidence, temporal_cap)
                 out = reservoir_merge(out, r_t, r_t.confidence, r_t.target, 1.0, random_uniform(key, 1))
                 if out.selected:
                     sel = KEPT_OWN
+            else:
+                j = i - int(i > own_at)
+                code = domains[y, x, j]
+                n = domain_of(sf, code, temporal_cap, spatial_cap, res_t, s_t, res_s_prev, s_s_prev)
+                sh = reconnect(scene, n.si, n.wo, si, wo, n.sample, target_mode, shift_tests_visibility(scene, code, n.si, si),  # Alg. 4 l. 11–12
+                               use_jacobian, max_jacobian, int(domain_flags(code) != 0))
+                out = reservoir_merge(out, n.res, n.res.confidence, sh.target, sh.jacobian, spatial_domain_u(key, slots[y, x, j]))
+                if out.selected:
+                    sel = code
         res_out[y, x] = out  # W is set by the MIS stage
         kept[y, x] = wp.int32(sel)
         domain_count[y, x] = wp.int32(count)
@@ -1135,9 +1328,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
             for j in range(count):
                 c = domains[y, x, j]
                 n = domain_of(sf, c, temporal_cap, spatial_cap, res_t, s_t, res_s_prev, s_s_prev)
-                test_support = unbiased
-                if domain_flags(c) & DOMAIN_HISTORY:  # visibility from last frame's x_v is only in question if it or the scene moved
-                    test_support = unbiased * int(wp.length_sq(n.si.p - si.p) > 0.0 or scene.moved_count > 0)
+                test_support = unbiased * shift_tests_visibility(scene, c, n.si, si)
                 if n.res.confidence > 0.0:
                     # the kept sample's own domain supports it without a ray: its reservoir's target is p̂ of that
                     # very sample at its visible point, visibility included (a kept sample has target > 0)
@@ -1153,6 +1344,129 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         out = reservoir_finalize_mis(out, support_mis(1.0, out.target, z))
         res_out[y, x] = out
         s_out[y, x] = sel
+
+    # ---- mis=pairwise in two stages: the canonical sample's weight against each domain, then the merge ----
+    @wp.kernel(module=module, cuda_max_registers=PATH_REGISTERS)
+    def spatial_canonical_pass(
+        scene: SceneData,
+        scene_prev: SceneData,
+        sf: ScreenFrame,
+        use_history: int,
+        temporal_cap: float,
+        spatial_cap: float,
+        iterations_low: int,
+        iterations_high: int,
+        adaptive: int,
+        radius: float,
+        min_radius: float,
+        low_m: float,
+        target_mode: int,
+        unbiased: int,
+        use_jacobian: int,
+        max_jacobian: float,
+        res_t: wp.array2d(dtype=Reservoir),
+        s_t: wp.array2d(dtype=GISample),
+        res_s_prev: wp.array2d(dtype=Reservoir),
+        s_s_prev: wp.array2d(dtype=GISample),
+        res_out: wp.array2d(dtype=Reservoir),
+        s_out: wp.array2d(dtype=GISample),
+        domains: wp.array3d(dtype=wp.int32),
+        slots: wp.array3d(dtype=wp.int32),
+        domain_count: wp.array2d(dtype=wp.int32),
+        m_canonical: wp.array2d(dtype=float),
+    ):
+        y, x = wp.tid()
+        key = pixel_key(sf, x, y, 4)
+        r_c = res_t[y, x]
+        si = sf.si[y, x]
+        domain_count[y, x] = -1
+        if si.valid == 0 or r_c.confidence <= 0.0:
+            res_out[y, x] = r_c  # not resampled: passed through
+            s_out[y, x] = s_t[y, x]
+            return
+        wo = sf.wo[y, x]
+        # ---- the domains, drawn once into the DomainList (the merge stage reads the same ones) ----
+        plan = spatial_plan(sf, x, y, use_history, spatial_cap, iterations_low, iterations_high, low_m, res_s_prev)
+        k = draw_spatial_domains(sf, plan, x, y, key, adaptive, radius, min_radius, domains, slots)
+        c_c = confidence_capped(r_c.confidence, temporal_cap)
+        total = c_c + domains_confidence(sf, x, y, k, temporal_cap, spatial_cap, res_t, s_t, res_s_prev, s_s_prev, domains)
+        # ---- m_c = Σ_i (pair i's share of the canonical sample): y_c carried to each domain ----
+        y_c = s_t[y, x]
+        m_c = pairwise_mis_canonical_term(0.0, 0.0, c_c, r_c.target, 0, total)  # no domain: 1
+        if k > 0:
+            m_c = float(0.0)
+        for j in range(k):
+            code = domains[y, x, j]
+            n = domain_of(sf, code, temporal_cap, spatial_cap, res_t, s_t, res_s_prev, s_s_prev)
+            test = unbiased * shift_tests_visibility(scene, code, n.si, si)
+            t_cj = float(0.0)  # p̂_{←j}(y_c), each domain in its own frame's scene
+            if domain_flags(code) & DOMAIN_PREVIOUS:
+                t_cj = target_at_domain(scene_prev, n.si, n.wo, si, wo, y_c, target_mode, test, use_jacobian, max_jacobian, 1)
+            else:
+                t_cj = target_at_domain(scene, n.si, n.wo, si, wo, y_c, target_mode, test, use_jacobian, max_jacobian, 0)
+            m_c += pairwise_mis_canonical_term(n.res.confidence, t_cj, c_c, r_c.target, k, total)
+        m_canonical[y, x] = m_c
+        domain_count[y, x] = k
+
+    @wp.kernel(module=module, cuda_max_registers=PATH_REGISTERS)
+    def spatial_merge_pass(
+        scene: SceneData,
+        sf: ScreenFrame,
+        temporal_cap: float,
+        spatial_cap: float,
+        target_mode: int,
+        use_jacobian: int,
+        max_jacobian: float,
+        res_t: wp.array2d(dtype=Reservoir),
+        s_t: wp.array2d(dtype=GISample),
+        res_s_prev: wp.array2d(dtype=Reservoir),
+        s_s_prev: wp.array2d(dtype=GISample),
+        domains: wp.array3d(dtype=wp.int32),
+        slots: wp.array3d(dtype=wp.int32),
+        domain_count: wp.array2d(dtype=wp.int32),
+        m_canonical: wp.array2d(dtype=float),
+        res_out: wp.array2d(dtype=Reservoir),
+        s_out: wp.array2d(dtype=GISample),
+    ):
+        y, x = wp.tid()
+        k = int(domain_count[y, x])
+        if k < 0:
+            return  # not resampled: the canonical stage passed the temporal reservoir through
+        key = pixel_key(sf, x, y, 4)
+        si = sf.si[y, x]
+        wo = sf.wo[y, x]
+        r_c = res_t[y, x]
+        c_c = confidence_capped(r_c.confidence, temporal_cap)
+        total = c_c + domains_confidence(sf, x, y, k, temporal_cap, spatial_cap, res_t, s_t, res_s_prev, s_s_prev, domains)
+        # ---- the canonical sample with weight m_c, then each domain's sample reconnected here (Alg. 4 l. 11–12),
+        # weighed against the canonical domain only (pairwise MIS: Bitterli 2022, Ch. 9; seed 000, Eq. 9) ----
+        out = reservoir_empty()
+        r_c.confidence = c_c
+        out = reservoir_merge(out, r_c, m_canonical[y, x], r_c.target, 1.0, random_uniform(key, 1))
+        sel = int(KEPT_NONE)
+        if out.selected:
+            sel = KEPT_OWN
+        for j in range(k):
+            code = domains[y, x, j]
+            n = domain_of(sf, code, temporal_cap, spatial_cap, res_t, s_t, res_s_prev, s_s_prev)
+            across = int(domain_flags(code) != 0)
+            sh = reconnect(scene, n.si, n.wo, si, wo, n.sample, target_mode, shift_tests_visibility(scene, code, n.si, si), use_jacobian,
+                           max_jacobian, across)
+            t_jj = n.res.target  # p̂_{←j} of its own shifted sample: its target at home over |J|
+            if use_jacobian != 0:
+                t_jj = target_back(n.res.target, sh.jacobian)
+            m_j = pairwise_mis_neighbor(n.res.confidence, t_jj, c_c, sh.target, k, total)
+            out = reservoir_merge(out, n.res, m_j, sh.target, sh.jacobian, spatial_domain_u(key, slots[y, x, j]))
+            if out.selected:
+                sel = code
+        out = reservoir_finalize(out)  # W = Σ w / p̂(y): every weight was applied before selection
+        res_out[y, x] = out
+        if sel == KEPT_OWN:
+            s_out[y, x] = s_t[y, x]
+        elif sel != KEPT_NONE:
+            s_out[y, x] = domain_of(sf, sel, temporal_cap, spatial_cap, res_t, s_t, res_s_prev, s_s_prev).sample
+        else:
+            s_out[y, x] = gi_sample_none()
 
     @wp.kernel(module=module)
     def shade_pass(
@@ -1180,7 +1494,8 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
     return types.SimpleNamespace(
         gi_eval=gi_eval, validate_pass=validate_pass, direct_pass=direct_pass, initial_pass=initial_pass,
         sample_radiance_pass=sample_radiance_pass, sample_radiance_exact_pass=sample_radiance_exact_pass, initial_target_pass=initial_target_pass, temporal_pass=temporal_pass, spatial_resample_pass=spatial_resample_pass,
-        spatial_mis_pass=spatial_mis_pass, shade_pass=shade_pass
+        spatial_mis_pass=spatial_mis_pass, spatial_canonical_pass=spatial_canonical_pass, spatial_merge_pass=spatial_merge_pass,
+        shade_pass=shade_pass
     )
 
 
@@ -1194,14 +1509,15 @@ class ReSTIRGI(ScreenSpaceRenderer):
         height: int,
         *,
         seed: int = 0,
-        source: str = "uniform",
+        source: str = "bsdf",
         target: str = "full",
         jacobian: bool = True,
         unbiased: bool = True,
+        mis: str = "pairwise",
         temporal: bool = True,
         spatial: bool = True,
         history_cap: float = 30.0,
-        spatial_cap: float = 500.0,
+        spatial_cap: float = 30.0,
         iterations_low: int = 9,
         iterations_high: int = 3,
         adaptive_radius: bool = True,
@@ -1226,6 +1542,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
         self.target = TARGETS[target]
         self.jacobian = int(bool(jacobian))
         self.unbiased = int(bool(unbiased))
+        self.mis = MIS[mis]
         self.temporal = bool(temporal)
         self.spatial = bool(spatial)
         self.history_cap = float(history_cap)  # the M cap of temporal reservoirs (the paper's temporal cap)
@@ -1268,6 +1585,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
         # the spatial pass's two stages share the domains drawn and the kept sample's domain
         self.domains = DomainList(self.height, self.width, max(self.iterations_low, self.iterations_high) + 1, dev)
         self.kept = wp.zeros(shape, dtype=wp.int32, device=dev)
+        self.m_canonical = wp.zeros(shape, dtype=float, device=dev)  # mis=pairwise: the canonical sample's weight
         # the initial stages hand over p_q of the direction and the hit at x_s (the path tracer starts there)
         self.source_pdf = wp.zeros(shape, dtype=float, device=dev)
         self.sample_hit = wp.zeros(shape, dtype=SurfaceInteraction, device=dev)  # x_s, from the initial pass to the path tracer
@@ -1285,8 +1603,13 @@ class ReSTIRGI(ScreenSpaceRenderer):
     def kernels(self) -> list[Any]:
         radiance = self.k.sample_radiance_exact_pass if self.exact_bsdf else self.k.sample_radiance_pass
         ks = [self.gbuffer.kernel(self.built), self.k.validate_pass, self.k.direct_pass, self.k.initial_pass, radiance, self.k.initial_target_pass,
-              self.k.temporal_pass, self.k.spatial_resample_pass, self.k.spatial_mis_pass, self.k.shade_pass]
+              self.k.temporal_pass, *self._spatial_kernels(), self.k.shade_pass]
         return ks + (self.di.kernels() if self.di is not None else [])
+
+    def _spatial_kernels(self) -> list[Any]:
+        if self.mis == MIS["pairwise"]:
+            return [self.k.spatial_canonical_pass, self.k.spatial_merge_pass]
+        return [self.k.spatial_resample_pass, self.k.spatial_mis_pass]
 
     def render_frame(self, frame: int) -> wp.array:
         dim = (self.height, self.width)
@@ -1350,13 +1673,38 @@ class ReSTIRGI(ScreenSpaceRenderer):
                 dim=dim,
                 inputs=[
                     scene, scene_prev, sf, int(history and self.temporal), self.history_cap, self.target, self.jacobian, self.unbiased,
-                    self.max_jacobian, self.initial[0], self.initial[1], self.temporal_buf.previous[0], self.temporal_buf.previous[1],
+                    self.max_jacobian, self.mis, self.initial[0], self.initial[1], self.temporal_buf.previous[0],
+                    self.temporal_buf.previous[1],
                 ],
                 outputs=[t_out[0], t_out[1]],
                 device=dev,
             )
         s_out = self.spatial_buf.current
-        if self.spatial:
+        if self.spatial and self.mis == MIS["pairwise"]:
+            with self._phase("gi_spatial"):
+                wp.launch(
+                    self.k.spatial_canonical_pass,
+                    dim=dim,
+                    inputs=[
+                        scene, scene_prev, sf, history, self.history_cap, self.spatial_cap, self.iterations_low, self.iterations_high,
+                        self.adaptive, self.radius, self.min_radius, self.low_m, self.target, self.unbiased, self.jacobian,
+                        self.max_jacobian, t_out[0], t_out[1], self.spatial_buf.previous[0], self.spatial_buf.previous[1],
+                    ],
+                    outputs=[s_out[0], s_out[1], self.domains.codes, self.domains.slots, self.domains.count, self.m_canonical],
+                    device=dev,
+                )
+                wp.launch(
+                    self.k.spatial_merge_pass,
+                    dim=dim,
+                    inputs=[
+                        scene, sf, self.history_cap, self.spatial_cap, self.target, self.jacobian, self.max_jacobian,
+                        t_out[0], t_out[1], self.spatial_buf.previous[0], self.spatial_buf.previous[1],
+                        self.domains.codes, self.domains.slots, self.domains.count, self.m_canonical,
+                    ],
+                    outputs=[s_out[0], s_out[1]],
+                    device=dev,
+                )
+        elif self.spatial:
             with self._phase("gi_spatial"):
                 wp.launch(
                     self.k.spatial_resample_pass,
@@ -1366,7 +1714,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
                         self.adaptive, self.radius, self.min_radius, self.low_m, self.target, self.jacobian,
                         self.max_jacobian, t_out[0], t_out[1], self.spatial_buf.previous[0], self.spatial_buf.previous[1],
                     ],
-                    outputs=[s_out[0], s_out[1], self.kept, self.domains.codes, self.domains.count],
+                    outputs=[s_out[0], s_out[1], self.kept, self.domains.codes, self.domains.slots, self.domains.count],
                     device=dev,
                 )
                 wp.launch(
@@ -1419,7 +1767,8 @@ register(
             Param("source", ..., "initial direction pdf (Alg. 2)", kind="choice", choices=("uniform", "cosine", "bsdf")),
             Param("target", ..., "full: Eq. 9 (L_o f cos); radiance: Eq. 10 (L_o)", kind="choice", choices=("full", "radiance")),
             Param("jacobian", ..., "reconnection Jacobian of Eq. 11 (false reproduces Fig. 7's bias)", kind="bool"),
-            Param("unbiased", ..., "true: Z counts only domains that can produce the sample (visibility rays, Alg. 4 l. 16-19); false: Z = sum of M", kind="bool"),
+            Param("unbiased", ..., "true: each domain's support tested with a visibility ray (Alg. 4 l. 16-19); false: every domain assumed to see every sample (biased)", kind="bool"),
+            Param("mis", ..., "reuse weights: pairwise (each candidate weighed against this pixel's own sample before selection) or support (the paper: 1/Z of the kept sample)", kind="choice", choices=("pairwise", "support")),
             Param("temporal", ..., "temporal resampling (Alg. 3)", kind="bool"),
             Param("spatial", ..., "spatial resampling (Alg. 4)", kind="bool"),
             Param("history_cap", ..., "M cap of temporal reservoirs (the history cap; the paper's temporal cap)", minimum=0.0),
