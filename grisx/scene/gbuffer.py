@@ -10,6 +10,7 @@ roughness (which the hybrid shift tests against 0.2), material id, linear
 (camera-space) depth, triangle and barycentrics, emitted radiance, and the
 **motion vector into the previous frame**: the hit point is carried back
 through its object's rigid motion and projected with the previous camera,
+minus its projection with this frame's (exactly 0 where nothing moved),
 giving a fractional pixel offset (seed 000's pixel pairs are reprojected
 with subpixel motion vectors) and its rounded integer version (seed 004's
 temporal reuse looks up one pixel).
@@ -132,12 +133,17 @@ def make_gbuffer_kernel(kinds: frozenset[int]) -> Any:
         g.emission[y, x] = emitter_radiance(scene.lights, si.tri, si.p, si.ng, -ray.d)
         g.hit[y, x] = 1
         # ---- motion vector: back through the object's motion, then the previous camera ----
+        # The point is projected with both cameras after the same round trip through its object's frame, so what
+        # did not move has no motion, to the bit: measured against the camera sample, the round trip's rounding
+        # alone (≈ 5e-6 px here, more on a GPU with a scene in large units) read as motion and sent a static
+        # camera's temporal film shifts off their identity (ReSTIR G-PT's unit invariance on the H200).
         p_base = wp.transform_point(wp.inverse(transforms[si.object]), si.p)
         p_prev = wp.transform_point(transforms_prev[si.object], p_base)
         proj = camera_project(cam_prev, p_prev)
+        here = camera_project(cam, wp.transform_point(transforms[si.object], p_base))
         mv = wp.vec2(0.0, 0.0)
-        if proj.valid != 0:
-            mv = proj.pixel - cs.pixel
+        if proj.valid != 0 and here.valid != 0:
+            mv = proj.pixel - here.pixel
         g.motion[y, x] = mv
         # the previous frame's pixel that holds the point, relative to this one (round(mv) at the pixel centre)
         q = cs.pixel + mv
