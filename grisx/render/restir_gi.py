@@ -1205,15 +1205,19 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         temporal_cap: float,
         spatial_cap: float,
         res_t: wp.array2d(dtype=Reservoir),
-        s_t: wp.array2d(dtype=GISample),
         res_s_prev: wp.array2d(dtype=Reservoir),
-        s_s_prev: wp.array2d(dtype=GISample),
         domains: wp.array3d(dtype=wp.int32),
     ) -> float:
-        """Σ_i c_i over the pixel's drawn domains (capped confidences)."""
+        """Σ_i c_i over the pixel's drawn domains (capped confidences; each domain's reservoir alone is read)."""
+        width = sf.si.shape[1]
         total = float(0.0)
         for j in range(count):
-            total += domain_of(sf, domains[y, x, j], temporal_cap, spatial_cap, res_t, s_t, res_s_prev, s_s_prev).res.confidence
+            code = domains[y, x, j]
+            nb = domain_pixel(code, width)
+            if domain_flags(code) != 0:
+                total += confidence_capped(res_s_prev[nb.y, nb.x].confidence, spatial_cap)
+            else:
+                total += confidence_capped(res_t[nb.y, nb.x].confidence, temporal_cap)
         return total
 
     @wp.func
@@ -1393,7 +1397,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         plan = spatial_plan(sf, x, y, use_history, spatial_cap, iterations_low, iterations_high, low_m, res_s_prev)
         k = draw_spatial_domains(sf, plan, x, y, key, adaptive, radius, min_radius, domains, slots)
         c_c = confidence_capped(r_c.confidence, temporal_cap)
-        total = c_c + domains_confidence(sf, x, y, k, temporal_cap, spatial_cap, res_t, s_t, res_s_prev, s_s_prev, domains)
+        total = c_c + domains_confidence(sf, x, y, k, temporal_cap, spatial_cap, res_t, res_s_prev, domains)
         # ---- m_c = Σ_i (pair i's share of the canonical sample): y_c carried to each domain ----
         y_c = s_t[y, x]
         m_c = pairwise_mis_canonical_term(0.0, 0.0, c_c, r_c.target, 0, total)  # no domain: 1
@@ -1441,7 +1445,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         wo = sf.wo[y, x]
         r_c = res_t[y, x]
         c_c = confidence_capped(r_c.confidence, temporal_cap)
-        total = c_c + domains_confidence(sf, x, y, k, temporal_cap, spatial_cap, res_t, s_t, res_s_prev, s_s_prev, domains)
+        total = c_c + domains_confidence(sf, x, y, k, temporal_cap, spatial_cap, res_t, res_s_prev, domains)
         # ---- the canonical sample with weight m_c, then each domain's sample reconnected here (Alg. 4 l. 11–12),
         # weighed against the canonical domain only (pairwise MIS: Bitterli 2022, Ch. 9; seed 000, Eq. 9) ----
         out = reservoir_empty()
