@@ -1460,9 +1460,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
             across = int(domain_flags(code) != 0)
             sh = reconnect(scene, n.si, n.wo, si, wo, n.sample, target_mode, shift_tests_visibility(scene, code, n.si, si), use_jacobian,
                            max_jacobian, across)
-            t_jj = n.res.target  # p̂_{←j} of its own shifted sample: its target at home over |J|
-            if use_jacobian != 0:
-                t_jj = target_back(n.res.target, sh.jacobian)
+            t_jj = target_back(n.res.target, sh.jacobian)  # p̂_{←j} of its own shifted sample: its target at home over |J| (1 without)
             m_j = pairwise_mis_neighbor(n.res.confidence, t_jj, c_c, sh.target, k, total)
             out = reservoir_merge(out, n.res, m_j, sh.target, sh.jacobian, spatial_domain_u(key, slots[y, x, j]))
             if out.selected:
