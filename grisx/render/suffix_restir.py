@@ -59,7 +59,14 @@ than the other prefix leaves (``max_depth`` counts the whole path). Per frame:
     α = 1 in the gather's MIS (Eq. 15): a borrowed suffix's reservoir confidence (up to
     ``history_cap``) describes its quality *at its own prefix*, not at the integration prefix,
     and weighting by it was measured worse (closed room, 24×18, frame 6: relMSE 0.175 against
-    0.068 with α = 1). ``gather_k`` = 1 by default: one borrowed ReSTIR suffix per prefix, the paper's
+    0.068 with α = 1). ``gather_alpha=confidence`` is the prototype's choice (α_j = the borrowed
+    reservoir's confidence, capped at ``history_cap``; the canonical domain keeps 1). Which is better
+    depends on the scene (this CPU, 96×54, depth 12, mean relMSE of frames 8–15, one seed): on door-ajar
+    with the canonical suffix rouletted it lowers relMSE from 0.82 to 0.61. On closed-room it raises it,
+    0.125 → 0.170 rouletted and 0.028 → 0.062 traced per prefix. Why the canonical term still dominates
+    door-ajar at α_j ≈ 20 (``canonical=false``: 0.061) is open. Only 6% of the prefixes there find no
+    neighbour within the k-NN radius, so it is not a lack of neighbours. The likely cause is shifts that
+    fail: then m_c = 1. ``gather_k`` = 1 by default: one borrowed ReSTIR suffix per prefix, the paper's
     setting (Fig. 3–4 and 7). The MIS weights include the prefix's own canonical suffix domain. By
     default every prefix traces its canonical suffix (``roulette=false``, the right column of the
     paper's Fig. 4); ``roulette=true`` is Eq. 23 generalized: R = ``canonical_suffixes`` of the N
@@ -162,6 +169,8 @@ __all__ = ["Prefix", "SupportReservoir", "SuffixReSTIR", "make_suffix_restir_ker
 #: the gather's MIS (Eq. 22): the generalized balance heuristic over all domains (O(k²) shifts per prefix,
 #: the paper's), or pairs of each borrowed domain with the canonical one (O(k); grisx.theory.conditional)
 GATHER_MIS = {"balance": int(PROXY_TARGET), "pairwise": int(PAIRWISE_TARGET)}
+#: a borrowed suffix's domain weight α_j in the gather's MIS (Eq. 15): 1, or its reservoir's confidence (capped)
+GATHER_ALPHA = ("one", "confidence")
 #: where a prefix ends: the hybrid shift's reconnection rule (the paper's), or always after one bounce (x₂)
 PREFIX_RULES = ("hybrid", "bounce")
 #: where direct light comes from: NEE at the prefix vertex x₁, or ReSTIR DI on the same G-buffer (restir_pt's choice)
@@ -743,6 +752,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         own_suffixes: int,
         kept: int,
         canonical: int,
+        alpha_cap: float,
         max_bounces: int,
         grid: wp.uint64,
         grid_radius: float,
@@ -798,7 +808,10 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             if l < found:
                 q = knn_idx[t, l]
                 s = support[q // width, q % width]
-                row_set(rows, t, 1 + l, s.prefix, s.suffix.path, s.suffix.res, 1.0)  # α = 1: see the module docstring
+                alpha = float(1.0)  # α = 1, or the reservoir's confidence (capped): see the module docstring
+                if alpha_cap > 0.0:
+                    alpha = confidence_capped(s.suffix.res.confidence, alpha_cap)
+                row_set(rows, t, 1 + l, s.prefix, s.suffix.path, s.suffix.res, alpha)
         # entries after: the pixel's own suffixes (MMIS), the prefix's own one left empty (it is entry 0)
         for l in range(own_suffixes):
             e = 1 + gather_k + l
@@ -952,6 +965,7 @@ class SuffixReSTIR(ScreenSpaceRenderer):
         canonical_suffixes: int = 1,
         canonical: bool = True,
         gather_mis: str = "balance",
+        gather_alpha: str = "one",
         prefix: str = "hybrid",
         temporal: bool = True,
         spatial: bool = True,
@@ -978,6 +992,8 @@ class SuffixReSTIR(ScreenSpaceRenderer):
             raise InvalidParameterError(f"prefix must be one of {', '.join(PREFIX_RULES)}, not '{prefix}'")
         if gather_mis not in GATHER_MIS:
             raise InvalidParameterError(f"gather_mis must be one of {', '.join(GATHER_MIS)}, not '{gather_mis}'")
+        if gather_alpha not in GATHER_ALPHA:
+            raise InvalidParameterError(f"gather_alpha must be one of {', '.join(GATHER_ALPHA)}, not '{gather_alpha}'")
         if prefixes < 1 or gather_k < 0 or gather_radius < 0.0 or suffixes < 0 or suffixes > prefixes:
             raise InvalidParameterError("suffix-restir needs prefixes >= 1, gather_k >= 0, gather_radius >= 0 and 0 <= suffixes <= prefixes")
         if max_depth == 0 or max_depth < -1 or rr_depth < 1 or neighbors < 0 or radius <= 0.0:
@@ -993,6 +1009,8 @@ class SuffixReSTIR(ScreenSpaceRenderer):
         if self.roulette:
             self.kept = min(int(canonical_suffixes), self.kept)
         self.mis_mode = GATHER_MIS[gather_mis]
+        # a borrowed suffix's α: 1 (alpha_cap 0), or its confidence capped at the history cap
+        self.alpha_cap = 0.0 if gather_alpha == "one" else (float(history_cap) if history_cap > 0.0 else 1.0e30)
         self.temporal, self.spatial = bool(temporal), bool(spatial)
         self.suffix_in_prefix_target = bool(suffix_in_prefix_target)
         self.neighbors, self.radius, self.history_cap = int(neighbors), float(radius), float(history_cap)
@@ -1123,7 +1141,7 @@ class SuffixReSTIR(ScreenSpaceRenderer):
                     dim=dim,
                     inputs=[
                         self.spec, self.full_sp, self.seed, int(frame), j, self.prefixes, self.gather_k, self.suffixes, self.kept, int(self.canonical),
-                        self.max_bounces, self.grid.id, self.grid_radius, dom, direct, cur, self.points,
+                        self.alpha_cap, self.max_bounces, self.grid.id, self.grid_radius, dom, direct, cur, self.points,
                         self.own_z, self.own_x, self.own_res, self.knn_idx, self.knn_dist, self.rows["gather"],
                     ],
                     outputs=[self.accum],
@@ -1196,6 +1214,7 @@ register(
             Param("radius", ..., "spatial reuse radius in pixels", minimum=1.0),
             Param("history_cap", ..., "temporal confidence cap of prefixes and suffixes"),
             Param("prefix", ..., "where a prefix ends: hybrid (at the first pair of rough vertices, the paper's split) or bounce (always at x2)", kind="choice", choices=PREFIX_RULES),
+            Param("gather_alpha", ..., "a borrowed suffix's domain weight in the gather's MIS: one, or its reservoir's confidence capped at history_cap (the prototype's)", kind="choice", choices=GATHER_ALPHA),
             Param("gather_mis", ..., "gather MIS: balance (Eq. 15 over the k + 1 domains, O(k^2) shifts) or pairwise (each borrowed domain against the canonical, O(k))", kind="choice", choices=tuple(GATHER_MIS)),
             Param("suffix_in_prefix_target", ..., "prefix target f_p times the old suffix's target (seed 001, Sec. S.1.1): biased, for teaching", kind="bool"),
             *_SHARED,
