@@ -60,7 +60,7 @@ resampling weights and then drop them: cheap next to the shifts they share.
 
 **Direct light** is handled apart, as the paper does after Lin et al. 2022 (``direct=restir-di``, the
 default; ``direct=nee`` keeps it in the path reservoirs): the path candidates start at two segments
-after x₁, and :class:`ReSTCVDI` (``restcv-di``, ReSTIR DI with 32 light candidates and 5 neighbours)
+after x₁, and :class:`ReSTCVDI` (``restcv-di``, ReSTIR DI with its 8 light candidates and 3 neighbours)
 estimates the **intermediate auxiliary** Ḋ_i — the direct light in colour with the glossy part of the
 BSDF omitted — by the same control variates, then adds the **second-level CV** ⟨D_i − Ḋ_i⟩ =
 (f − ḟ)(y) W_y from its final light sample (Sec. 5.3): ⟨D_i⟩ = ⟨Ḋ_i⟩ + ⟨D_i − Ḋ_i⟩. STCV and ICV,

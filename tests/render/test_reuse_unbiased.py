@@ -95,8 +95,9 @@ HARD_FRAMES = 4
 GLASS_PARAMS = {"restir-gi": {"exact_bsdf": True}}
 
 
-def _hard(method: str, params: dict, case: str, k: float = DEFAULT_K):
-    scene, camera, runs, block = HARD[case]
+def _hard(method: str, params: dict, case: str, k: float = DEFAULT_K, runs: int | None = None):
+    scene, camera, case_runs, block = HARD[case]
+    runs = runs or case_runs
     if case == "glass":
         params = {**GLASS_PARAMS.get(method, {}), **params}
     result = check(method, params, scene=scene, camera=camera, frames=HARD_FRAMES, runs=runs, k=k, block=block, reference_spp=2048)
@@ -137,7 +138,8 @@ def test_spatial_reuse_alone_is_unbiased_around_moving_objects(method, params):
         ("restcv", {"alpha": "sample"}, "fast-camera"),
         ("stcv", {"alpha": "sample"}, "fast-camera"),
         ("restcv-di", {"unbiased": False}, "fast-camera"),
-        ("restcv-di", {"difference_mis": "none"}, "fast-camera"),
+        # 512 runs: with ReSTIR DI's 8 candidates and 3 neighbours (was 32 and 5) 128 runs read block z 5.9, under 6.6
+        ("restcv-di", {"difference_mis": "none", "runs": 512}, "fast-camera"),
         ("restcv", {"alpha": "sample"}, "glass"),
         ("stcv", {"alpha": "sample"}, "glass"),
         ("restcv-di", {"difference_mis": "none"}, "glass"),
@@ -146,7 +148,8 @@ def test_spatial_reuse_alone_is_unbiased_around_moving_objects(method, params):
     ids=lambda v: v if isinstance(v, str) else "-".join(f"{k}={x}" for k, x in v.items()),
 )
 def test_biased_siblings_are_caught_in_the_hard_cases(method, params, case):
-    result = _hard(method, params, case, k=BIASED_K)
+    params = dict(params)
+    result = _hard(method, params, case, k=BIASED_K, runs=params.pop("runs", None))
     assert not result.passed, result
 
 
