@@ -58,8 +58,9 @@ DEEP = {"max_depth": 32}  # with Russian roulette from the scene's rr_depth
         ("closed-room", {**DEEP, "prefixes": 8, "roulette": True, "canonical_suffixes": 3}),  # R = 3 of 8 canonical suffixes, each weighted 8/3
         ("door-ajar", {"prefixes": 5, "roulette": True, "canonical_suffixes": 2}),  # a window that wraps around N = 5
         ("door-ajar", {"prefixes": 8, "roulette": True, "gather_alpha": "confidence"}),  # the prototype's α: borrowed confidence
+        ("closed-room", {**DEEP, "prefixes": 8, "roulette": True, "gather_radius": 0.003, "gather_widen": 2}),  # a small radius, widened where nothing was found
     ],
-    ids=["closed-room-N8", "closed-room-N8-no-roulette", "closed-room-N1", "door-ajar-N8", "door-ajar-N8-no-roulette", "door-ajar-N1", "closed-room-N8-restir-di", "glossy-room-N8", "glossy-room-N8-one-bounce-prefix", "closed-room-pairwise", "door-ajar-pairwise", "closed-room-k1-5-neighbors", "closed-room-R3", "door-ajar-N5-R2", "door-ajar-alpha-confidence"],
+    ids=["closed-room-N8", "closed-room-N8-no-roulette", "closed-room-N1", "door-ajar-N8", "door-ajar-N8-no-roulette", "door-ajar-N1", "closed-room-N8-restir-di", "glossy-room-N8", "glossy-room-N8-one-bounce-prefix", "closed-room-pairwise", "door-ajar-pairwise", "closed-room-k1-5-neighbors", "closed-room-R3", "door-ajar-N5-R2", "door-ajar-alpha-confidence", "closed-room-widened-radius"],
 )
 def test_unbiased_against_the_path_tracer(scene, params, device):
     # door-ajar's and glossy-room's pixels are heavy-tailed: more runs keep the standard errors honest
