@@ -76,8 +76,10 @@ than the other prefix leaves (``max_depth`` counts the whole path). Per frame:
     widens the radius ×4 up to w times for a prefix that found nothing. On this CPU, at w = 2, relMSE × ms
     moved from 75.2 to 74.9 (door-ajar, rouletted) and from 12.1 to 10.3 (closed-room, rouletted: relMSE
     0.125 → 0.083, the frame +28%). Traced per prefix it moved from 31.0 to 30.4 and from 6.6 to 6.3. Off by
-    default until measured on a GPU, where a few wide queries hold their warp. ``gather_k`` = 1 by default: one borrowed ReSTIR suffix per prefix, the paper's
-    setting (Fig. 3–4 and 7). The MIS weights include the prefix's own canonical suffix domain. By
+    default until measured on a GPU, where a few wide queries hold their warp.
+
+    ``gather_k`` = 1 by default: one borrowed ReSTIR suffix per prefix, the paper's setting (Fig. 3–4
+    and 7). The MIS weights include the prefix's own canonical suffix domain. By
     default every prefix traces its canonical suffix (``roulette=false``, the right column of the
     paper's Fig. 4); ``roulette=true`` is Eq. 23 generalized: R = ``canonical_suffixes`` of the N
     prefixes (the paper's R = 1) trace theirs, a cyclic window after one random index per frame for
