@@ -56,6 +56,7 @@ and prints the table.
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import os
 import platform
@@ -91,6 +92,28 @@ def reference_at(built: Any, width: int, height: int, frame: int, max_depth: int
     pt = PathTracer(built, width, height, spp=spp, max_depth=max_depth, seed=seed)
     pt.add_samples(frame, spp)
     return pt.mean().astype(np.float64), pt.variance_of_mean().astype(np.float64)
+
+
+def cached_reference(cache: Path | None, scene: str, camera: str, frame: int, depth: int, width: int, height: int, spp: int, seed: int,
+                     compute: Any) -> tuple[np.ndarray, np.ndarray]:
+    """``compute()``'s reference, kept in ``cache`` (a directory; None: no cache) under everything that selects it.
+
+    The key does not know the code: a cache is valid for one tree. Use a fresh directory when the path tracer
+    or a scene changes. On a GPU lease it saves each repeated call the references it already rendered.
+    """
+    if cache is None:
+        return compute()
+    tag = hashlib.sha1(scene.encode()).hexdigest()[:8]
+    path = Path(cache) / f"{Path(scene).stem}-{tag}_{camera}_f{frame}_d{depth}_{width}x{height}_spp{spp}_s{seed}.npz"
+    if path.exists():
+        with np.load(path) as z:
+            return z["ref"], z["var"]
+    ref, var = compute()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp.npz")  # written whole, then renamed: an interrupted run leaves no half file
+    np.savez(tmp, ref=ref, var=var)
+    tmp.replace(path)
+    return ref, var
 
 
 def reference_relmse(ref: np.ndarray, var: np.ndarray, eps: float) -> float:
@@ -160,7 +183,8 @@ def run_scene(scene: str, args: argparse.Namespace) -> list[dict[str, Any]]:
         def ref_for(frame: int, depth: int) -> tuple[np.ndarray, np.ndarray]:
             f = frame if camera == "moving" else ref_frames[0]
             if (f, depth) not in refs:
-                refs[f, depth] = reference_at(built, width, height, f, depth, args.reference_spp, args.seed + 7919)
+                refs[f, depth] = cached_reference(args.reference_cache, scene, camera, f, depth, width, height, args.reference_spp, args.seed + 7919,
+                                                  lambda: reference_at(built, width, height, f, depth, args.reference_spp, args.seed + 7919))
             return refs[f, depth]
 
         baseline: dict[int, dict[str, float]] = {}  # depth → pt's per-frame relMSE and seconds
@@ -262,6 +286,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--frames", type=int, default=32, help="frames per run (the second half is evaluated; all but the first timed)")
     ap.add_argument("--reference-spp", type=int, default=None, help="spp of each reference (default 1024 on CUDA, 256 on CPU)")
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--reference-cache", type=Path, default=None,
+                    help="directory keeping the references between runs (valid for one tree: use a fresh one when pt or a scene changes)")
     ap.add_argument("--jobs", type=int, default=1, help="compile processes at once, one per (scene, method); the measurements run one scene at a time")
     ap.add_argument("--quick", action="store_true", help="2 scenes, 8 frames, 64x36")
     ap.add_argument("--out", type=Path, default=Path(__file__).resolve().parent / "results" / "protocol")
@@ -283,14 +309,15 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps(run_scene(args.scene_worker, args)))
         return 0
     if args.warmup_worker:  # compile every kernel the scene's measurement will use (Warp caches them on disk)
-        args.res, args.frames, args.reference_spp = (16, 16), 2, 1
+        args.res, args.frames, args.reference_spp, args.reference_cache = (16, 16), 2, 1, None
         run_scene(args.warmup_worker, args)
         return 0
     scenes = args.scenes.split(",") if args.scenes else (["cornell-box", "closed-room"] if args.quick else list(SCENES))
     start = time.perf_counter()
     records: list[dict[str, Any]] = []
     worker_args = ["--device", args.device, "--res", f"{args.res[0]}x{args.res[1]}", "--frames", str(args.frames),
-                   "--reference-spp", str(args.reference_spp), "--seed", str(args.seed), "--methods", methods_text]
+                   "--reference-spp", str(args.reference_spp), "--seed", str(args.seed),
+                   *(["--reference-cache", str(args.reference_cache)] if args.reference_cache else []), "--methods", methods_text]
     warm = []
     entries = [e.strip() for e in methods_text.split(",") if e.strip()]
     for scene in scenes:  # compile in parallel: one process per (scene, method), each module compiles on its own core
