@@ -1062,15 +1062,22 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         moved = int(wp.length_sq(si_p.p - si.p) > 0.0 or scene.moved_count > 0)
         # ---- Alg. 3: the history reservoir (reconnected if the visible point moved), then the new sample ----
         out = reservoir_empty()
-        sh = reconnect(scene, si_p, wo_p, si, wo, s_prev[tn.y, tn.x], target_mode, moved, use_jacobian, max_jacobian, 1)
+        # a reservoir of weight W = 0 adds its confidence alone, whatever the MIS weight and target it is given: the
+        # rays that would evaluate them are not traced (the same images, bit for bit)
+        sh = GIShift()
+        sh.jacobian = 1.0
+        if r_p.ucw > 0.0:
+            sh = reconnect(scene, si_p, wo_p, si, wo, s_prev[tn.y, tn.x], target_mode, moved, use_jacobian, max_jacobian, 1)
         m_h = r_p.confidence  # support counting streams c_i and applies 1/Z to the kept sample below
         m_n = r_new.confidence
         if mis_mode == _MIS_PAIRWISE:
             # pairwise MIS with one neighbour: the generalized balance heuristic over the two domains (seed 001,
             # Eq. 15), each candidate weighed before selection. p̂_{←h} of the history's shifted sample is its own
             # target over |J|; p̂_{←h} of the new one needs it reconnected at last frame's x_v, in last frame's scene
-            t_n_from_h = target_at_domain(scene_prev, si_p, wo_p, si, wo, s_in[y, x], target_mode, unbiased * moved, use_jacobian,
-                                          max_jacobian, 1)
+            t_n_from_h = float(0.0)
+            if r_new.ucw > 0.0:
+                t_n_from_h = target_at_domain(scene_prev, si_p, wo_p, si, wo, s_in[y, x], target_mode, unbiased * moved, use_jacobian,
+                                              max_jacobian, 1)
             m_h = two_domain_balance(r_p.confidence, target_back(r_p.target, sh.jacobian), r_new.confidence, sh.target)
             m_n = two_domain_balance(r_new.confidence, r_new.target, r_p.confidence, t_n_from_h)
         out = reservoir_merge(out, r_p, m_h, sh.target, sh.jacobian, random_uniform(key, 0))
@@ -1403,7 +1410,11 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         m_c = pairwise_mis_canonical_term(0.0, 0.0, c_c, r_c.target, 0, total)  # no domain: 1
         if k > 0:
             m_c = float(0.0)
-        for j in range(k):
+        if r_c.ucw <= 0.0:
+            k_rays = 0  # the canonical sample weighs m_c · p̂ · W = 0 whatever m_c is: no ray to trace for it
+        else:
+            k_rays = k
+        for j in range(k_rays):
             code = domains[y, x, j]
             n = domain_of(sf, code, temporal_cap, spatial_cap, res_t, s_t, res_s_prev, s_s_prev)
             test = unbiased * shift_tests_visibility(scene, code, n.si, si)
@@ -1458,8 +1469,11 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
             code = domains[y, x, j]
             n = domain_of(sf, code, temporal_cap, spatial_cap, res_t, s_t, res_s_prev, s_s_prev)
             across = int(domain_flags(code) != 0)
-            sh = reconnect(scene, n.si, n.wo, si, wo, n.sample, target_mode, shift_tests_visibility(scene, code, n.si, si), use_jacobian,
-                           max_jacobian, across)
+            sh = GIShift()  # a reservoir of weight W = 0 adds its confidence alone (as in the temporal pass): no ray
+            sh.jacobian = 1.0
+            if n.res.ucw > 0.0:
+                sh = reconnect(scene, n.si, n.wo, si, wo, n.sample, target_mode, shift_tests_visibility(scene, code, n.si, si), use_jacobian,
+                               max_jacobian, across)
             t_jj = target_back(n.res.target, sh.jacobian)  # p̂_{←j} of its own shifted sample: its target at home over |J| (1 without)
             m_j = pairwise_mis_neighbor(n.res.confidence, t_jj, c_c, sh.target, k, total)
             out = reservoir_merge(out, n.res, m_j, sh.target, sh.jacobian, spatial_domain_u(key, slots[y, x, j]))
