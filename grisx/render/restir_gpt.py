@@ -256,25 +256,12 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         return c
 
     @wp.func
-    def keep(r: Reservoir, c: PairCandidate) -> PairReservoir:
-        out = PairReservoir()
-        out.res = r
-        out.path = c.path
-        out.film = c.film
-        out.k = c.k
-        out.value = c.value
-        return out
-
-    @wp.func
-    def as_candidate(p: PairReservoir) -> PairCandidate:
-        c = PairCandidate()
-        c.path = p.path
-        c.film = p.film
-        c.k = p.k
-        c.value = p.value
-        c.jacobian = 1.0
-        c.valid = True
-        return c
+    def keep_in(out: wp.array4d(dtype=PairReservoir), slot: int, orient: int, y: int, x: int, c: PairCandidate):
+        """Write candidate ``c`` as the kept sample of ``out[slot, orient, y, x]`` (its bookkeeping is written apart)."""
+        out[slot, orient, y, x].path = c.path
+        out[slot, orient, y, x].film = c.film
+        out[slot, orient, y, x].k = c.k
+        out[slot, orient, y, x].value = c.value
 
     # ---- initial paired-pixel candidates ----
     @wp.kernel(module=module)
@@ -303,30 +290,28 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         for k in range(sides):
             px = x + k * e[0]
             py = y + k * e[1]
-            pr = canonical[py, px]
-            c = as_candidate(empty)
-            c.k = k
-            c.path = pr.path
-            c.film = film[py, px]
-            c.value = wp.vec3(0.0)
             o = pair_other_pixel(x, y, orient, k)
-            ad = area_domain(scene, cam, o[0], o[1], c.film)  # u kept in the other pixel: a film translation, |J| = 1
+            ad = area_domain(scene, cam, o[0], o[1], film[py, px])  # u kept in the other pixel: a film translation, |J| = 1
             # ---- the emission at x₁ (a path of length 0) of pixel (px, py) toward the other: ω* = ½ (Eq. 4), its half
             # of the pair's difference (the gradient pass's slot: right/down for side i, left/up for side j) ----
             halves[2 * orient + k, py, px] = finite_or_dropped(pair_value(k, direct[py, px], ad.emission, 1.0, 1.0, 1.0, True), nonfinite)
-            if pr.res.ucw > 0.0 and pr.path.length > 0:
-                c.value = pair_value_in(scene, ad.dom, k, pr.path, sp, symmetric)
+            ucw = canonical[py, px].res.ucw
+            value = wp.vec3(0.0)
+            if ucw > 0.0 and canonical[py, px].path.length > 0:
+                value = pair_value_in(scene, ad.dom, k, canonical[py, px].path, sp, symmetric)
+            # the candidate (y, k) is read back from memory where it is kept, not carried across the shift: a 50-word
+            # record live beside a shift spilled at the register cap (sm_90)
             for slot in range(2):
                 if slot == 0 or positivize != 0:
-                    cur = out[slot, orient, y, x]
                     sign = pair_slot_sign(positivize, slot)
                     # the shared candidates of r+ and r- (Sec. 4.4); Eq. 20 with m = 1, |J| = 1
-                    r = pair_update(cur.res, sign, luminance(c.value), 1.0, pr.res.ucw, 1.0, 0.5, random_uniform(ukey, 2 * k + slot))
+                    r = pair_update(out[slot, orient, y, x].res, sign, luminance(value), 1.0, ucw, 1.0, 0.5, random_uniform(ukey, 2 * k + slot))
+                    out[slot, orient, y, x].res = r
                     if r.selected:
-                        cur = keep(r, c)
-                    else:
-                        cur.res = r
-                    out[slot, orient, y, x] = cur
+                        out[slot, orient, y, x].path = canonical[py, px].path
+                        out[slot, orient, y, x].film = film[py, px]
+                        out[slot, orient, y, x].k = k
+                        out[slot, orient, y, x].value = value
         for slot in range(2):
             p = out[slot, orient, y, x]
             p.res = reservoir_finalize(p.res)  # W = Σ w / p̂(y, k), Eq. 18
@@ -380,11 +365,13 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         if nx < 0:
             return
         slots = int(2)  # dynamic bounds here: Warp unrolls a constant range, and each ``outer`` inlines two shifts
+        # out[slot] holds the pair's own reservoir (copied above); the kept candidate is written there when it is kept,
+        # not carried across the shifts (a 50-word record live beside two inlined shifts spilled at the register cap)
         for slot in range(slots):
             if slot == 0 or positivize != 0:
                 sign = pair_slot_sign(positivize, slot)
-                mine = own[slot, orient, y, x]
-                c_own = mine.res.confidence
+                c_own = own[slot, orient, y, x].res.confidence
+                t_own = luminance(own[slot, orient, y, x].value)
                 n_src = pair_source_inputs(1, positivize, cross_sign)
                 c_same = src[slot, orient, ny, nx].res.confidence
                 c_other = src[1 - slot, orient, ny, nx].res.confidence
@@ -392,32 +379,33 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
                     c_same = confidence_capped(c_same, history_cap)
                     c_other = confidence_capped(c_other, history_cap)
                 # the pair's own sample: its p̂ here, and carried to the source pair by T*⁻¹ (seed 001, Eq. 16)
-                back = outer(scene, cam_src, nx, ny, orient, mine.film, -to_dst, mine.k, mine.path, sp, use_outer_jacobian, symmetric)
+                back = outer(scene, cam_src, nx, ny, orient, own[slot, orient, y, x].film, -to_dst, own[slot, orient, y, x].k,
+                             own[slot, orient, y, x].path, sp, use_outer_jacobian, symmetric)
                 b = pair_balance_empty()
-                b = pair_balance_add(b, sign, 1, c_own, 0.0, luminance(mine.value), 1.0, True, 0)
+                b = pair_balance_add(b, sign, 1, c_own, 0.0, t_own, 1.0, True, 0)
                 b = pair_balance_add(b, sign, n_src, c_same, c_other, luminance(back.value), back.jacobian, back.valid, -1)
                 r = reservoir_empty()
-                r = pair_update(r, sign, luminance(mine.value), pair_balance_mis(b, c_own), mine.res.ucw, 1.0, c_own, random_uniform(ukey, 0))
-                res = keep(r, as_candidate(mine))
+                r = pair_update(r, sign, t_own, pair_balance_mis(b, c_own), own[slot, orient, y, x].res.ucw, 1.0, c_own, random_uniform(ukey, 0))
                 # the source pair's reservoirs of this sign (and of the other, across signs) through T*
                 for input_e in range(n_src):  # 1 or 2 (pair_source_inputs)
-                    theirs = src[pair_input_slot(slot, input_e), orient, ny, nx]
+                    theirs = pair_input_slot(slot, input_e)
                     c_e = c_same
                     if input_e == 1:
                         c_e = c_other
-                    cand = outer(scene, cam, x, y, orient, theirs.film, to_dst, theirs.k, theirs.path, sp, use_outer_jacobian, symmetric)
+                    cand = outer(scene, cam, x, y, orient, src[theirs, orient, ny, nx].film, to_dst, src[theirs, orient, ny, nx].k,
+                                 src[theirs, orient, ny, nx].path, sp, use_outer_jacobian, symmetric)
                     inv_j = float(0.0)
                     if cand.valid:
                         inv_j = 1.0 / cand.jacobian
                     b = pair_balance_empty()
                     b = pair_balance_add(b, sign, 1, c_own, 0.0, luminance(cand.value), 1.0, cand.valid, -1)
-                    b = pair_balance_add(b, sign, n_src, c_same, c_other, luminance(theirs.value), inv_j, cand.valid, input_e)
+                    b = pair_balance_add(b, sign, n_src, c_same, c_other, luminance(src[theirs, orient, ny, nx].value), inv_j, cand.valid, input_e)
                     mis = pair_balance_mis(b, c_e)
-                    r = pair_update(r, sign, luminance(cand.value), mis, theirs.res.ucw, cand.jacobian, c_e, random_uniform(ukey, 1 + input_e))  # Eq. 20
+                    r = pair_update(r, sign, luminance(cand.value), mis, src[theirs, orient, ny, nx].res.ucw, cand.jacobian, c_e,
+                                    random_uniform(ukey, 1 + input_e))  # Eq. 20
                     if r.selected:
-                        res = keep(r, cand)
-                res.res = reservoir_finalize(r)
-                out[slot, orient, y, x] = res
+                        keep_in(out, slot, orient, y, x, cand)
+                out[slot, orient, y, x].res = reservoir_finalize(r)
 
     # ---- gradients and reconstruction ----
     @wp.kernel(module=module)
