@@ -46,7 +46,7 @@ from grisx.device import resolve_device, synchronize
 from grisx.errors import GrisxError
 from grisx.scene.builtin import build_builtin
 from grisx.scene.camera import Camera, CameraData, camera_ray, lookat
-from grisx.scene.gbuffer import GBuffer
+from grisx.scene.gbuffer import GBuffer, make_gbuffer_kernel
 from grisx.scene.material import Diffuse
 from grisx.scene.scene import Film, Scene, SceneData, intersect
 
@@ -97,7 +97,7 @@ def measure(scene: Scene, width: int, height: int, device: Any, repeats: int) ->
     refit_s = best_of(repeats, device, built.mesh.refit)
     cam = built.camera_data(0.0, width, height)
     t_out = wp.zeros((height, width), dtype=float, device=device)
-    for kernel in (primary_rays, GBuffer.kernel(built)):
+    for kernel in (primary_rays, make_gbuffer_kernel(built.features.kernel_kinds)):
         wp.load_module(kernel.module, device=device)
     wp.launch(primary_rays, dim=(height, width), inputs=[built.data, cam, t_out], device=device)  # warm-up
     cast_s = best_of(repeats, device, lambda: wp.launch(primary_rays, dim=(height, width), inputs=[built.data, cam, t_out], device=device))

@@ -271,6 +271,7 @@ class ReSTCV(ReSTIRPT):
     direct light through :class:`ReSTCVDI` (``direct=restir-di``, the paper's) or the path reservoirs (``nee``)."""
 
     DIRECT_METHOD = "restcv-di"
+    GBUFFER_MATERIAL = True  # α_ij from the primary hits' albedos (Eq. 9)
 
     def __init__(
         self, built: Any, width: int, height: int, *, alpha: str = "heuristic", difference_mis: str = "confidence",
@@ -344,6 +345,8 @@ class ReSTCVDI(ReSTIRDI):
 
     ``unbiased=false`` drops visibility from the targets at other pixels, and so from the differences: biased.
     """
+
+    GBUFFER_MATERIAL = True  # α_ij from the primary hits' albedos (Eq. 9)
 
     def __init__(
         self, built: Any, width: int, height: int, *, alpha: str = "heuristic", difference_mis: str = "confidence",

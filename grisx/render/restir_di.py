@@ -725,7 +725,7 @@ class ReSTIRDI(ScreenSpaceRenderer):
         self.cv_options = cv_options()  # the passes' CV options: unused by ReSTIR DI itself (ReSTCV's, restcv-di)
         dev = self.device = built.device
         shape = (self.height, self.width)
-        self.gbuffer = GBuffer(self.width, self.height, dev)
+        self.gbuffer = GBuffer(self.width, self.height, dev, material=self.GBUFFER_MATERIAL)
         # a pixel's reservoir, its light sample, and the estimate a ReSTCV variant carries with them
         triple = lambda: (  # noqa: E731
             wp.zeros(shape, dtype=Reservoir, device=dev), wp.zeros(shape, dtype=LightPoint, device=dev), wp.zeros(shape, dtype=wp.vec3, device=dev)

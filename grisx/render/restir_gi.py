@@ -1597,7 +1597,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
             self.di = METHODS["restir-di"].create(ctx)
             self.gbuffer = self.di.gbuffer
         else:
-            self.gbuffer = GBuffer(self.width, self.height, dev)
+            self.gbuffer = GBuffer(self.width, self.height, dev, material=self.GBUFFER_MATERIAL)
         pair = lambda: (wp.zeros(shape, dtype=Reservoir, device=dev), wp.zeros(shape, dtype=GISample, device=dev))  # noqa: E731
         self.initial = pair()  # the initial sample buffer (as one-sample reservoirs)
         self.temporal_buf = DoubleBuffer(pair)  # temporal reservoir buffer

@@ -431,6 +431,8 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
 class ReSTIRGPT(GradientFromPrimal):
     """ReSTIR G-PT over a built scene: Area ReSTIR's primal pass and paired-pixel reservoirs for dx, dy (module docstring)."""
 
+    GBUFFER_MATERIAL = True  # edge pairs differ in albedo (Sec. 4.3.2)
+
     def __init__(
         self, built: Any, width: int, height: int, *, positivize: bool = True, cross_sign: bool = False, pair_reuse: str = "adaptive",
         pair_temporal: bool = True, pair_search: int = 64, outer_jacobian: bool = True, **options: Any,

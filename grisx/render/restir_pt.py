@@ -649,7 +649,7 @@ class ReSTIRPT(ScreenSpaceRenderer):
             self.di = METHODS[self.DIRECT_METHOD].create(ctx)
             self.gbuffer = self.di.gbuffer
         else:
-            self.gbuffer = GBuffer(self.width, self.height, dev)
+            self.gbuffer = GBuffer(self.width, self.height, dev, material=self.GBUFFER_MATERIAL)
         self.domains = [wp.zeros(shape, dtype=Domain, device=dev) for _ in range(2)]  # current, previous
         self.buffers = [wp.zeros(shape, dtype=PathReservoir, device=dev) for _ in range(3)]  # 0: history, 1–2: scratch
         # the spatial pass's two stages share the neighbours drawn, m_c, and a variant's per-pixel state

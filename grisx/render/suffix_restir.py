@@ -1063,7 +1063,7 @@ class SuffixReSTIR(ScreenSpaceRenderer):
             self.di = METHODS["restir-di"].create(RenderContext(built, width, height, {"jitter": jitter}, self.seed + 7919, timer, "restir-di"))
             self.gbuffer = self.di.gbuffer
         else:
-            self.gbuffer = GBuffer(self.width, self.height, dev)
+            self.gbuffer = GBuffer(self.width, self.height, dev, material=self.GBUFFER_MATERIAL)
         self.domains = [wp.zeros(shape, dtype=Domain, device=dev) for _ in range(2)]  # current, previous
         self.buffers = [wp.zeros(shape, dtype=SupportReservoir, device=dev) for _ in range(3)]  # 0: history, 1–2: scratch
         # one row width per pass: conditional RIS and the MIS read every entry of a row

@@ -95,6 +95,9 @@ class ScreenSpaceRenderer:
     frames_rendered: int
     timer: Any
     nonfinite: wp.array
+    #: whether the renderer's passes read the G-buffer's albedo and roughness (ReSTCV's α, ReSTIR G-PT's edge pairs):
+    #: the others get a G-buffer without them (:class:`~grisx.scene.gbuffer.GBuffer`, ``material``)
+    GBUFFER_MATERIAL = False
 
     def _phase(self, name: str) -> Any:
         return contextlib.nullcontext() if self.timer is None else self.timer(name)
