@@ -321,14 +321,20 @@ def density_in_range(pdf: float) -> bool:
 
 
 @wp.func
+def target_of(f: wp.vec3) -> float:
+    """p̂ = luminance(m_t f) of a path (one segment or more) whose m_t f is ``f``: :func:`path_target`'s value."""
+    t = luminance(f)
+    if t > 0.0:  # false for NaN
+        return t
+    return 0.0
+
+
+@wp.func
 def path_target(x: PathSample) -> float:
     """p̂(x̄) = luminance(m_t f)(x̄): the resampling target of a path in its domain (0 for no path)."""
     if x.length < 1:
         return 0.0
-    t = luminance(x.f)
-    if t > 0.0:  # false for NaN
-        return t
-    return 0.0
+    return target_of(x.f)
 
 
 @wp.func
@@ -855,41 +861,41 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                                 mis = technique_mis(1, ls.delta, 0, ls.pdf, pdf_bsdf)  # Veach Eq. 9.13
                                 s_nee = segment_measure(ls.delta)
                                 fo = fo * s_nee
-                                cand_x = cur
-                                cand_x.length = i
-                                cand_x.end_nee = 1
-                                cand_x.f = wp.cw_mul(fthru, wp.cw_mul(fo, ls.radiance)) * mis  # m_t · f
-                                if wp.static(estimate_only):
-                                    pass  # the estimate needs m_t f and the density, not the reconnection data
-                                elif cur.rc_index == i:
-                                    cand_x.rc_wi = ls.wi
-                                    cand_x.suffix = ls.radiance  # m_t is re-evaluated at x_k by the shift
-                                    cand_x.end_light_pdf = ls.pdf
-                                    cand_x.end_delta = ls.delta
-                                elif cur.rc_index != 0:
-                                    cand_x.suffix = wp.cw_mul(suffix_thru, wp.cw_mul(fo, ls.radiance)) * mis
-                                elif rc_pair_ok(sp, rough, 1.0, ls.dist, i + 1):
-                                    kind = VERTEX_AREA_LIGHT
-                                    lp = ls.p
-                                    light_id = ls.tri
-                                    sfx = wp.vec3(1.0, 1.0, 1.0)
-                                    if ls.is_env != 0:
-                                        kind = VERTEX_ENV
-                                        lp = ls.wi
-                                    elif ls.delta != 0:
-                                        # a spot's intensity depends on the direction it is left in: keep which light, not its value
-                                        kind = VERTEX_POINT_LIGHT
-                                        light_id = ls.light - scene.lights.num_emitters
-                                    cand_x = _endpoint_light(cand_x, i + 1, kind, lp, ls.n, light_id, wp.dot(ls.n, -ls.wi), ls.dist, sfx, pdf)
-                                else:
-                                    cand_x.pdf_replay = pdf * ls.pdf * s_nee
-                                t = path_target(cand_x)
+                                f_cand = wp.cw_mul(fthru, wp.cw_mul(fo, ls.radiance)) * mis  # m_t · f
+                                t = target_of(f_cand)
                                 w = ris_weight(weight_scale, t, pdf * ls.pdf * s_nee)  # seed 000, Eq. 6 (m_t is inside t)
-                                estimate += decoupled_contribution(w, t, cand_x.f)  # w f/p̂ = m_t f/(N p)
+                                estimate += decoupled_contribution(w, t, f_cand)  # w f/p̂ = m_t f/(N p)
                                 if wp.static(not estimate_only):
                                     r = reservoir_update(r, w, t, 0.0, random_uniform(ukey, ucount))
                                     ucount += 1
                                     if r.selected:
+                                        # the candidate's record, built only where it is kept
+                                        cand_x = cur
+                                        cand_x.length = i
+                                        cand_x.end_nee = 1
+                                        cand_x.f = f_cand
+                                        if cur.rc_index == i:
+                                            cand_x.rc_wi = ls.wi
+                                            cand_x.suffix = ls.radiance  # m_t is re-evaluated at x_k by the shift
+                                            cand_x.end_light_pdf = ls.pdf
+                                            cand_x.end_delta = ls.delta
+                                        elif cur.rc_index != 0:
+                                            cand_x.suffix = wp.cw_mul(suffix_thru, wp.cw_mul(fo, ls.radiance)) * mis
+                                        elif rc_pair_ok(sp, rough, 1.0, ls.dist, i + 1):
+                                            kind = VERTEX_AREA_LIGHT
+                                            lp = ls.p
+                                            light_id = ls.tri
+                                            sfx = wp.vec3(1.0, 1.0, 1.0)
+                                            if ls.is_env != 0:
+                                                kind = VERTEX_ENV
+                                                lp = ls.wi
+                                            elif ls.delta != 0:
+                                                # a spot's intensity depends on the direction it is left in: keep which light, not its value
+                                                kind = VERTEX_POINT_LIGHT
+                                                light_id = ls.light - scene.lights.num_emitters
+                                            cand_x = _endpoint_light(cand_x, i + 1, kind, lp, ls.n, light_id, wp.dot(ls.n, -ls.wi), ls.dist, sfx, pdf)
+                                        else:
+                                            cand_x.pdf_replay = pdf * ls.pdf * s_nee
                                         if wp.static(kept_in_memory):
                                             kept[ky, kx].path = cand_x
                                         else:
@@ -932,32 +938,32 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                 # -- emitter reached by BSDF sampling: candidate x₁ … x_{i+1} --
                 if lit and wp.length_sq(le) > 0.0 and i >= sp.min_bounces:
                     mis = technique_mis(0, 0, bs.delta, lpdf, bs.pdf)
-                    cand_x = cur
-                    cand_x.length = i
-                    cand_x.end_nee = 0
-                    cand_x.f = wp.cw_mul(fthru, le) * mis  # m_t · f
-                    if wp.static(estimate_only):
-                        pass
-                    elif cur.rc_index == i:
-                        cand_x.suffix = le  # m_t is re-evaluated at x_k by the shift
-                        cand_x.end_light_pdf = lpdf
-                        cand_x.end_delta = 0
-                    elif cur.rc_index != 0:
-                        cand_x.suffix = wp.cw_mul(suffix_thru, le) * mis
-                    elif rc_pair_ok(sp, rough, 1.0, dist, i + 1):
-                        if si.valid == 0:
-                            cand_x = _endpoint_light(cand_x, i + 1, VERTEX_ENV, d, -d, -1, 1.0, dist, wp.vec3(1.0, 1.0, 1.0), pdf_before)
-                        else:
-                            cand_x = _endpoint_light(cand_x, i + 1, VERTEX_AREA_LIGHT, si.p, si.ng, si.tri, wp.dot(si.ng, v.p - si.p) / dist, dist, wp.vec3(1.0, 1.0, 1.0), pdf_before)
-                    else:
-                        cand_x.pdf_replay = pdf
-                    t = path_target(cand_x)
+                    f_cand = wp.cw_mul(fthru, le) * mis  # m_t · f
+                    t = target_of(f_cand)
                     w = ris_weight(weight_scale, t, pdf)
-                    estimate += decoupled_contribution(w, t, cand_x.f)
+                    estimate += decoupled_contribution(w, t, f_cand)
                     if wp.static(not estimate_only):
                         r = reservoir_update(r, w, t, 0.0, random_uniform(ukey, ucount))
                         ucount += 1
                         if r.selected:
+                            # the candidate's record, built only where it is kept
+                            cand_x = cur
+                            cand_x.length = i
+                            cand_x.end_nee = 0
+                            cand_x.f = f_cand
+                            if cur.rc_index == i:
+                                cand_x.suffix = le  # m_t is re-evaluated at x_k by the shift
+                                cand_x.end_light_pdf = lpdf
+                                cand_x.end_delta = 0
+                            elif cur.rc_index != 0:
+                                cand_x.suffix = wp.cw_mul(suffix_thru, le) * mis
+                            elif rc_pair_ok(sp, rough, 1.0, dist, i + 1):
+                                if si.valid == 0:
+                                    cand_x = _endpoint_light(cand_x, i + 1, VERTEX_ENV, d, -d, -1, 1.0, dist, wp.vec3(1.0, 1.0, 1.0), pdf_before)
+                                else:
+                                    cand_x = _endpoint_light(cand_x, i + 1, VERTEX_AREA_LIGHT, si.p, si.ng, si.tri, wp.dot(si.ng, v.p - si.p) / dist, dist, wp.vec3(1.0, 1.0, 1.0), pdf_before)
+                            else:
+                                cand_x.pdf_replay = pdf
                             if wp.static(kept_in_memory):
                                 kept[ky, kx].path = cand_x
                             else:
