@@ -36,7 +36,7 @@ from typing import Any
 
 import warp as wp
 
-from grisx.render.base.path_shift import PathReservoir, PathSample, PathShiftResult, path_target
+from grisx.render.base.path_shift import PathReservoir, PathSample, path_target
 from grisx.render.base.registry import METHODS, RenderMethod, create_renderer, register
 from grisx.render.base.screen import kernel_cache
 from grisx.render.restir_pt import PixelEstimateHooks, ReSTIRPT, SpatialStep, TemporalStep, build_restir_pt_kernels, shade_estimate
@@ -88,11 +88,6 @@ def decoupled_spatial_begin(o: CVOptions, can: PathReservoir) -> SpatialDecouple
 
 
 @wp.func
-def decoupled_spatial_keep(s: SpatialDecoupled, j: int, s_cq: PathShiftResult) -> SpatialDecoupled:
-    return s
-
-
-@wp.func
 def decoupled_spatial_add(o: CVOptions, s: SpatialDecoupled, g: GBufferData, st: SpatialStep) -> SpatialDecoupled:
     """Neighbour j's shifted path T_{q→i}(y_q) shades the pixel."""
     out = s
@@ -117,7 +112,6 @@ DECOUPLED_HOOKS = PixelEstimateHooks(
     owner=__name__,
     temporal=decoupled_temporal,
     spatial_begin=decoupled_spatial_begin,
-    spatial_keep=decoupled_spatial_keep,
     spatial_add=decoupled_spatial_add,
     spatial_end=decoupled_spatial_end,
     shade=shade_estimate,

@@ -83,7 +83,7 @@ import warp as wp
 
 from grisx.errors import InvalidParameterError
 from grisx.params import Param
-from grisx.render.base.path_shift import PathReservoir, PathShiftResult
+from grisx.render.base.path_shift import PathReservoir
 from grisx.render.base.registry import METHODS, RenderMethod, create_renderer, register, renderer_params
 from grisx.render.base.screen import kernel_cache
 from grisx.render.restir_di import ReSTIRDI, build_restir_di_kernels
@@ -111,20 +111,14 @@ __all__ = ["ReSTCV", "ReSTCVDI", "STCV", "create_restcv", "create_stcv", "make_r
 
 #: α choices of the renderer: theory's (Eq. 9's heuristic, 1) and the biased ablation ``sample``
 ALPHA_CHOICES = {**ALPHA_MODES, "sample": int(ALPHA_SAMPLE)}
-#: the most neighbours whose shifts a spatial pass keeps for Eq. 10 (the ``neighbors`` param's maximum)
-CV_NEIGHBORS_MAX = 16
-_KEPT_MAX = wp.constant(CV_NEIGHBORS_MAX)
-_ShiftedF = wp.types.matrix(shape=(CV_NEIGHBORS_MAX, 3), dtype=wp.float32)
-_ShiftedJ = wp.types.vector(length=CV_NEIGHBORS_MAX, dtype=wp.float32)
 
 
 @wp.struct
 class SpatialCV:
-    """A spatial pass's Eq. 8 sums and, per neighbour q, f_q(T_{i→q} y_i) and |∂T_{i→q}/∂y_i| (Eq. 10's first side)."""
+    """A spatial pass's Eq. 8 sums (each neighbour's f_q(T_{i→q} y_i) and |∂T_{i→q}/∂y_i|, Eq. 10's first side, come with
+    its :class:`~grisx.render.restir_pt.SpatialStep`)."""
 
     composite: CVComposite
-    f_to: _ShiftedF
-    jacobian_to: _ShiftedJ
 
 
 @wp.func
@@ -191,31 +185,13 @@ def spatial_begin(o: CVOptions, can: PathReservoir) -> SpatialCV:
 
 
 @wp.func
-def spatial_keep(s: SpatialCV, j: int, s_cq: PathShiftResult) -> SpatialCV:
-    """Keep T_{i→q}(y_i), the shift the canonical MIS just evaluated, for neighbour ``j``'s difference."""
-    out = s
-    if j < _KEPT_MAX:
-        f = out.f_to
-        f[j, 0] = s_cq.path.f[0]
-        f[j, 1] = s_cq.path.f[1]
-        f[j, 2] = s_cq.path.f[2]
-        out.f_to = f
-        jac = out.jacobian_to
-        jac[j] = s_cq.jacobian
-        out.jacobian_to = jac
-    return out
-
-
-@wp.func
 def spatial_add(o: CVOptions, s: SpatialCV, g: GBufferData, st: SpatialStep) -> SpatialCV:
     """Add q_j ⟨F_i⟩_{←j} of neighbour ``j`` (seed 002, Eq. 7–8) with T_{q→i}(y_q) from the merge loop."""
     out = s
-    j = st.j
-    if j < _KEPT_MAX and o.spatial != 0:
+    if o.spatial != 0:
         alpha = pair_alpha(o, g.albedo[st.y, st.x], g.albedo[st.nb.y, st.nb.x], st.can, st.other.estimate)
-        f_q_yi = wp.vec3(s.f_to[j, 0], s.f_to[j, 1], s.f_to[j, 2])
         conf_j = st.other.res.confidence
-        from_j = from_pixel(o, alpha, st.can, st.other, conf_j, f_q_yi, s.jacobian_to[j], st.s_qi.path.f, st.s_qi.jacobian)
+        from_j = from_pixel(o, alpha, st.can, st.other, conf_j, st.f_cq, st.jacobian_cq, st.s_qi.path.f, st.s_qi.jacobian)
         out.composite = cv_composite_add(s.composite, from_j, compositing_weight(conf_j))
     return out
 
@@ -239,7 +215,6 @@ RESTCV_HOOKS = PixelEstimateHooks(
     owner=__name__,
     temporal=restcv_temporal,
     spatial_begin=spatial_begin,
-    spatial_keep=spatial_keep,
     spatial_add=spatial_add,
     spatial_end=restcv_spatial_end,
     shade=shade_estimate,  # L_e(x₁) + ⟨F_i⟩ (seed 002, Listing 1 line 44)
@@ -277,8 +252,6 @@ class ReSTCV(ReSTIRPT):
         self, built: Any, width: int, height: int, *, alpha: str = "heuristic", difference_mis: str = "confidence",
         temporal_cv: bool = True, spatial_cv: bool = True, direct: str = "restir-di", **restir_pt: Any,
     ) -> None:
-        if restir_pt.get("neighbors", 3) > CV_NEIGHBORS_MAX:
-            raise InvalidParameterError(f"the control variates take at most {CV_NEIGHBORS_MAX} neighbours")
         options = _checked_cv_options(alpha, difference_mis, temporal_cv, spatial_cv)
         self.alpha = alpha
         self.difference_mis = difference_mis

@@ -204,7 +204,8 @@ class TemporalStep:
 @wp.struct
 class SpatialStep:
     """What the spatial pass evaluated for pixel (x, y) and its ``j``-th neighbour ``nb``: the canonical
-    reservoir, the neighbour's ``other``, T_{q→i}(y_q) = ``s_qi`` and its MIS weight."""
+    reservoir, the neighbour's ``other``, T_{q→i}(y_q) = ``s_qi`` and its MIS weight, and of T_{i→q}(y_c) (the canonical
+    stage's shift into the neighbour) its f and |∂T/∂y| (0 and 0 where it failed)."""
 
     x: int
     y: int
@@ -214,6 +215,8 @@ class SpatialStep:
     other: PathReservoir
     s_qi: PathShiftResult
     m_q: float
+    f_cq: wp.vec3
+    jacobian_cq: float
 
 
 @dataclasses.dataclass(frozen=True)
@@ -226,14 +229,15 @@ class PixelEstimateHooks:
 
     * ``temporal(o, g, g_prev, t: TemporalStep, res) -> PathReservoir``: what the temporal pass
       stores, given what it evaluated and GRIS's result ``res``;
-    * ``spatial_begin(o, can) -> state``, ``spatial_keep(state, j, s_cq) -> state`` (T_{i→q}(y_c),
-      from the canonical MIS loop), ``spatial_add(o, state, g, st: SpatialStep) -> state`` (each
-      neighbour, from the merge loop) and ``spatial_end(state, can, m_c, res) -> PathReservoir``:
-      what the spatial pass stores;
+    * ``spatial_begin(o, can) -> state``, ``spatial_add(o, state, g, st: SpatialStep) -> state`` (each
+      neighbour, from the merge loop, with what both stages evaluated for it) and
+      ``spatial_end(state, can, m_c, res) -> PathReservoir``: what the spatial pass stores;
     * ``shade(direct, pr) -> vec3``: the pixel value.
 
-    The spatial pass runs as two kernels (the canonical MIS loop, then the merge loop);
-    ``spatial_state`` is the Warp struct type of ``state``, kept per pixel between them.
+    The spatial pass runs as two kernels (the canonical MIS loop, then the merge loop); the state lives in the
+    merge loop alone, and what the canonical loop evaluated reaches it through per-neighbour buffers (a per-pixel
+    state kept between the kernels held the canonical shifts of up to 16 neighbours: 256 B a pixel, live beside
+    every shift of the merge). ``spatial_state`` is the Warp struct type of ``state``.
 
     ``owner`` names the Warp modules of the variant's kernels.
     """
@@ -241,7 +245,6 @@ class PixelEstimateHooks:
     owner: str
     temporal: Any
     spatial_begin: Any
-    spatial_keep: Any
     spatial_add: Any
     spatial_end: Any
     shade: Any
@@ -281,7 +284,6 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
     est = hooks  # the variant's code is compiled in only where it is not None (wp.static)
     est_temporal = None if hooks is None else hooks.temporal
     est_spatial_begin = None if hooks is None else hooks.spatial_begin
-    est_spatial_keep = None if hooks is None else hooks.spatial_keep
     est_spatial_add = None if hooks is None else hooks.spatial_add
     est_spatial_end = None if hooks is None else hooks.spatial_end
     est_shade = None if hooks is None else hooks.shade
@@ -434,7 +436,6 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
 
     # ---- spatial reuse, in two stages (one shift each): the canonical path's pairwise weight, then the merge ----
     @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
-    @arg_types(states=wp.array2d(dtype=state_t))
     def spatial_canonical_pass(
         scene: SceneData,
         seed: int,
@@ -452,7 +453,8 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
         slots: wp.array3d(dtype=wp.int32),
         count: wp.array2d(dtype=wp.int32),
         m_canonical: wp.array2d(dtype=float),
-        states: Any,
+        f_cq: wp.array3d(dtype=wp.vec3),
+        jacobian_cq: wp.array3d(dtype=float),
     ):
         y, x = wp.tid()
         width = domains.shape[1]
@@ -480,22 +482,18 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
         # the canonical path's pairwise weight m_c = Σ_q (pair q's canonical share)
         t_c = path_target(can.path)
         m_c = float(0.0)
-        if wp.static(est is not None):
-            state = est_spatial_begin(cvo, can)
         for j in range(k):
             nb = domain_pixel(codes[y, x, j], width)
             s_cq = shift(scene, domains[nb.y, nb.x], can.path, sp)
             t_cq = target_to(s_cq)  # p̂_{←q}(y_c), seed 001, Eq. 16
             if wp.static(est is not None):
-                state = est_spatial_keep(state, j, s_cq)
+                f_cq[j, y, x] = s_cq.path.f  # T_{i→q}(y_c) for a variant's estimate (0 where it failed)
+                jacobian_cq[j, y, x] = s_cq.jacobian
             m_c += pairwise_mis_canonical_term(inp[nb.y, nb.x].res.confidence, t_cq, c_c, t_c, k, total)
         m_canonical[y, x] = m_c
-        if wp.static(est is not None):
-            states[y, x] = state
         count[y, x] = k
 
     @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
-    @arg_types(states=wp.array2d(dtype=state_t))
     def spatial_merge_pass(
         scene: SceneData,
         seed: int,
@@ -510,7 +508,8 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
         slots: wp.array3d(dtype=wp.int32),
         count: wp.array2d(dtype=wp.int32),
         m_canonical: wp.array2d(dtype=float),
-        states: Any,
+        f_cq: wp.array3d(dtype=wp.vec3),
+        jacobian_cq: wp.array3d(dtype=float),
         out: wp.array2d(dtype=PathReservoir),
     ):
         y, x = wp.tid()
@@ -526,7 +525,7 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
         t_c = path_target(can.path)
         m_c = m_canonical[y, x]
         if wp.static(est is not None):
-            state = states[y, x]
+            state = est_spatial_begin(cvo, can)
         r = reservoir_empty()
         r = reservoir_update(r, resampling_weight(m_c, t_c, can.res.ucw, 1.0), t_c, c_c, random_uniform(ukey, 100))
         # the kept path goes to out[y, x].path as it is kept, not carried across the neighbours' shifts
@@ -542,7 +541,8 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
             t_qq = target_back(other.path, s)
             m_q = pairwise_mis_neighbor(other.res.confidence, t_qq, c_c, t_qi, k, total)
             if wp.static(est is not None):
-                state = est_spatial_add(cvo, state, g, SpatialStep(x=x, y=y, nb=nb, j=j, can=can, other=other, s_qi=s, m_q=m_q))
+                step = SpatialStep(x=x, y=y, nb=nb, j=j, can=can, other=other, s_qi=s, m_q=m_q, f_cq=f_cq[j, y, x], jacobian_cq=jacobian_cq[j, y, x])
+                state = est_spatial_add(cvo, state, g, step)
             r = reservoir_merge(r, other.res, m_q, t_qi, s.jacobian, random_uniform(ukey, 101 + slots[y, x, j]))  # seed 000, Eq. 9
             if r.selected:
                 out[y, x].path = s.path
@@ -652,7 +652,7 @@ class ReSTIRPT(ScreenSpaceRenderer):
             self.gbuffer = GBuffer(self.width, self.height, dev, material=self.GBUFFER_MATERIAL)
         self.domains = [wp.zeros(shape, dtype=Domain, device=dev) for _ in range(2)]  # current, previous
         self.buffers = [wp.zeros(shape, dtype=PathReservoir, device=dev) for _ in range(3)]  # 0: history, 1–2: scratch
-        # the spatial pass's two stages share the neighbours drawn, m_c, and a variant's per-pixel state
+        # the spatial pass's two stages share the neighbours drawn, m_c, and (for a variant) the canonical path's shifts
         self.spatial_domains = DomainList(self.height, self.width, self.neighbors, dev)
         self.m_canonical = wp.zeros(shape, dtype=float, device=dev)
         state_t = getattr(self.k, "spatial_state", None) or _NoSpatialState  # a subclass with passes of its own has none
@@ -660,7 +660,10 @@ class ReSTIRPT(ScreenSpaceRenderer):
         self.history_pixel = wp.zeros(shape, dtype=wp.int32, device=dev)
         self.target_cj = wp.zeros(shape, dtype=float, device=dev)
         self.shifted_canonical = wp.zeros(shape if state_t is not _NoSpatialState else (1, 1), dtype=PathShiftResult, device=dev)
-        self.spatial_states = wp.zeros(shape if state_t is not _NoSpatialState else (1, 1), dtype=state_t, device=dev)
+        # T_{i→q}(y_c)'s f and |J| per neighbour slot, from the canonical stage to a variant's merge
+        slots_shape = (self.spatial_domains.capacity, self.height, self.width) if state_t is not _NoSpatialState else (1, 1, 1)
+        self.f_cq = wp.zeros(slots_shape, dtype=wp.vec3, device=dev)
+        self.jacobian_cq = wp.zeros(slots_shape, dtype=float, device=dev)
         self.direct = wp.zeros(shape, dtype=wp.vec3, device=dev)
         self.image = wp.zeros(shape, dtype=wp.vec3, device=dev)
         self.nonfinite = wp.zeros(1, dtype=wp.int32, device=dev)
@@ -729,14 +732,14 @@ class ReSTIRPT(ScreenSpaceRenderer):
                     k["spatial_canonical"],
                     dim=dim,
                     inputs=[b.data, self.seed, int(frame), rnd, self.neighbors, self.radius, self.shift_params, self.cv_options, self.gbuffer.current, dom, cur],
-                    outputs=[other, nbs.codes, nbs.slots, nbs.count, self.m_canonical, self.spatial_states],
+                    outputs=[other, nbs.codes, nbs.slots, nbs.count, self.m_canonical, self.f_cq, self.jacobian_cq],
                     device=dev,
                 )
                 wp.launch(
                     k["spatial_merge"],
                     dim=dim,
                     inputs=[b.data, self.seed, int(frame), rnd, self.shift_params, self.cv_options, self.gbuffer.current, dom, cur,
-                            nbs.codes, nbs.slots, nbs.count, self.m_canonical, self.spatial_states],
+                            nbs.codes, nbs.slots, nbs.count, self.m_canonical, self.f_cq, self.jacobian_cq],
                     outputs=[other],
                     device=dev,
                 )

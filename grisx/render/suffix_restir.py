@@ -545,21 +545,22 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         z_can = sample_prefix(spec, dom_i, pixel_key_of(seed, frame, x, y, width, _STREAM_PREFIX))
         r = reservoir_empty()
         z = z_can
-        prev = SupportReservoir()
         have_prev = int(0)
         nb = temporal_neighbor(g, g_prev, x, y, SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH)
         if history_valid != 0 and dom_i.valid != 0:
             if nb.valid != 0:
-                prev = history[nb.y, nb.x]
-                if domains_prev[nb.y, nb.x].valid != 0 and prev.prefix_res.confidence > 0.0 and prev.prefix.dom.valid != 0:
+                if domains_prev[nb.y, nb.x].valid != 0 and history[nb.y, nb.x].prefix_res.confidence > 0.0 and history[nb.y, nb.x].prefix.dom.valid != 0:
                     have_prev = 1
         t_c = prefix_target(z_can)
         if have_prev != 0:
             # ---- temporal prefix reuse: GRIS, target f_p (Eq. 19), generalized balance MIS (Eq. 15) ----
+            # the old reservoir is read from memory where it is used: a 73-word record held across the two prefix
+            # shifts spilled (sm_90, 128 registers)
             dom_j = domains_prev[nb.y, nb.x]
-            c_j = confidence_capped(prev.prefix_res.confidence, history_cap)
+            c_j = confidence_capped(history[nb.y, nb.x].prefix_res.confidence, history_cap)
+            t_old = prefix_target(history[nb.y, nb.x].prefix)
             s_cj = shift_prefix(spec, dom_j, z_can)  # the canonical prefix in the old pixel
-            s_t = shift_prefix(spec, dom_i, prev.prefix)  # the old prefix in this pixel
+            s_t = shift_prefix(spec, dom_i, history[nb.y, nb.x].prefix)  # the old prefix in this pixel
             t_cj = float(0.0)
             t_ti = float(0.0)
             t_tj = float(0.0)
@@ -567,17 +568,17 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
                 t_cj = target_from(prefix_target(s_cj.z), s_cj.jacobian)  # seed 001, Eq. 16
             if s_t.valid:
                 t_ti = prefix_target(s_t.z)
-                t_tj = target_from(prefix_target(prev.prefix), 1.0 / s_t.jacobian)
+                t_tj = target_from(t_old, 1.0 / s_t.jacobian)
             if suffix_in_prefix_target != 0:
                 # the biased alternative: the prefixes' targets read the old suffix (Sec. S.1.1)
-                t_c = with_target_of_suffix(spec, t_c, z_can, prev)
-                t_ti = with_target_of_suffix(spec, t_ti, s_t.z, prev)
-                t_cj = with_target_of_suffix(spec, t_cj, s_cj.z, prev)
-                t_tj = with_target_of_suffix(spec, t_tj, prev.prefix, prev)
+                t_c = with_target_of_suffix(spec, t_c, z_can, history[nb.y, nb.x])
+                t_ti = with_target_of_suffix(spec, t_ti, s_t.z, history[nb.y, nb.x])
+                t_cj = with_target_of_suffix(spec, t_cj, s_cj.z, history[nb.y, nb.x])
+                t_tj = with_target_of_suffix(spec, t_tj, history[nb.y, nb.x].prefix, history[nb.y, nb.x])
             m_c = two_domain_balance(1.0, t_c, c_j, t_cj)
             m_t = two_domain_balance(c_j, t_tj, 1.0, t_ti)
             r = reservoir_update(r, resampling_weight(m_c, t_c, ucw_from_source_pdf(z_can.pdf), 1.0), t_c, 1.0, random_uniform(ukey, 0))
-            other = prev.prefix_res
+            other = history[nb.y, nb.x].prefix_res
             other.confidence = c_j
             r = reservoir_merge(r, other, m_t, t_ti, s_t.jacobian, random_uniform(ukey, 1))  # seed 000, Eq. 9
             if r.selected:
