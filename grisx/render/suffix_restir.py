@@ -520,82 +520,88 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     # supporting prefix and its temporal GRIS; the canonical suffix's walk; the temporal conditional RIS of suffixes.
     # ``temporal_src`` carries the one fact the last stage needs from the first: the history pixel whose suffix it
     # reuses (−1: none).
-    @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
-    def support_prefix_pass(
-        spec: SuffixSpec,
-        seed: int,
-        frame: int,
-        history_valid: int,
-        history_cap: float,
-        temporal_suffix: int,
-        suffix_in_prefix_target: int,
-        g: GBufferData,
-        g_prev: GBufferData,
-        domains: wp.array2d(dtype=Domain),
-        domains_prev: wp.array2d(dtype=Domain),
-        history: wp.array2d(dtype=SupportReservoir),
-        out: wp.array2d(dtype=SupportReservoir),
-        temporal_src: wp.array2d(dtype=int),
-    ):
-        y, x = wp.tid()
-        width = domains.shape[1]
-        dom_i = domains[y, x]
-        ukey = pixel_key_of(seed, frame, x, y, width, _STREAM_TEMPORAL)
-        # the canonical prefix x₁ → … → x_k (Alg. 1 line 4), W = 1/p
-        z_can = sample_prefix(spec, dom_i, pixel_key_of(seed, frame, x, y, width, _STREAM_PREFIX))
-        r = reservoir_empty()
-        z = z_can
-        have_prev = int(0)
-        nb = temporal_neighbor(g, g_prev, x, y, SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH)
-        if history_valid != 0 and dom_i.valid != 0:
-            if nb.valid != 0:
-                if domains_prev[nb.y, nb.x].valid != 0 and history[nb.y, nb.x].prefix_res.confidence > 0.0 and history[nb.y, nb.x].prefix.dom.valid != 0:
-                    have_prev = 1
-        t_c = prefix_target(z_can)
-        if have_prev != 0:
-            # ---- temporal prefix reuse: GRIS, target f_p (Eq. 19), generalized balance MIS (Eq. 15) ----
-            # the old reservoir is read from memory where it is used: a 73-word record held across the two prefix
-            # shifts spilled (sm_90, 128 registers)
-            dom_j = domains_prev[nb.y, nb.x]
-            c_j = confidence_capped(history[nb.y, nb.x].prefix_res.confidence, history_cap)
-            t_old = prefix_target(history[nb.y, nb.x].prefix)
-            s_cj = shift_prefix(spec, dom_j, z_can)  # the canonical prefix in the old pixel
-            s_t = shift_prefix(spec, dom_i, history[nb.y, nb.x].prefix)  # the old prefix in this pixel
-            t_cj = float(0.0)
-            t_ti = float(0.0)
-            t_tj = float(0.0)
-            if s_cj.valid:
-                t_cj = target_from(prefix_target(s_cj.z), s_cj.jacobian)  # seed 001, Eq. 16
-            if s_t.valid:
-                t_ti = prefix_target(s_t.z)
-                t_tj = target_from(t_old, 1.0 / s_t.jacobian)
-            if suffix_in_prefix_target != 0:
-                # the biased alternative: the prefixes' targets read the old suffix (Sec. S.1.1)
-                t_c = with_target_of_suffix(spec, t_c, z_can, history[nb.y, nb.x])
-                t_ti = with_target_of_suffix(spec, t_ti, s_t.z, history[nb.y, nb.x])
-                t_cj = with_target_of_suffix(spec, t_cj, s_cj.z, history[nb.y, nb.x])
-                t_tj = with_target_of_suffix(spec, t_tj, history[nb.y, nb.x].prefix, history[nb.y, nb.x])
-            m_c = two_domain_balance(1.0, t_c, c_j, t_cj)
-            m_t = two_domain_balance(c_j, t_tj, 1.0, t_ti)
-            r = reservoir_update(r, resampling_weight(m_c, t_c, ucw_from_source_pdf(z_can.pdf), 1.0), t_c, 1.0, random_uniform(ukey, 0))
-            other = history[nb.y, nb.x].prefix_res
-            other.confidence = c_j
-            r = reservoir_merge(r, other, m_t, t_ti, s_t.jacobian, random_uniform(ukey, 1))  # seed 000, Eq. 9
-            if r.selected:
-                z = s_t.z
-            r = reservoir_finalize(r)
-            if r.ucw <= 0.0:
-                z = z_can  # nothing kept: the supporting prefix is still the new one (its UCW is 0)
-        else:
-            r.ucw = ucw_from_source_pdf(z_can.pdf)
-            r.confidence = 1.0
-            r.target = t_c
-        out[y, x].prefix = z
-        out[y, x].prefix_res = r
-        src = int(-1)
-        if have_prev != 0 and temporal_suffix != 0 and z.dom.valid != 0:
-            src = nb.y * width + nb.x
-        temporal_src[y, x] = src
+    def make_support_prefix_pass(suffix_in_prefix_target: bool) -> Any:
+        # the biased ablation's prefix target (four suffix shifts) in a module of its own: compiled only when asked for,
+        # and absent from the default kernel
+        prefix_module = specialized_module(__name__ + ".prefix_target", kinds) if suffix_in_prefix_target else module
+
+        @wp.kernel(module=prefix_module, cuda_max_registers=SHIFT_REGISTERS)
+        def support_prefix_pass(
+            spec: SuffixSpec,
+            seed: int,
+            frame: int,
+            history_valid: int,
+            history_cap: float,
+            temporal_suffix: int,
+            g: GBufferData,
+            g_prev: GBufferData,
+            domains: wp.array2d(dtype=Domain),
+            domains_prev: wp.array2d(dtype=Domain),
+            history: wp.array2d(dtype=SupportReservoir),
+            out: wp.array2d(dtype=SupportReservoir),
+            temporal_src: wp.array2d(dtype=int),
+        ):
+            y, x = wp.tid()
+            width = domains.shape[1]
+            dom_i = domains[y, x]
+            ukey = pixel_key_of(seed, frame, x, y, width, _STREAM_TEMPORAL)
+            # the canonical prefix x₁ → … → x_k (Alg. 1 line 4), W = 1/p
+            z_can = sample_prefix(spec, dom_i, pixel_key_of(seed, frame, x, y, width, _STREAM_PREFIX))
+            r = reservoir_empty()
+            z = z_can
+            have_prev = int(0)
+            nb = temporal_neighbor(g, g_prev, x, y, SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH)
+            if history_valid != 0 and dom_i.valid != 0:
+                if nb.valid != 0:
+                    if domains_prev[nb.y, nb.x].valid != 0 and history[nb.y, nb.x].prefix_res.confidence > 0.0 and history[nb.y, nb.x].prefix.dom.valid != 0:
+                        have_prev = 1
+            t_c = prefix_target(z_can)
+            if have_prev != 0:
+                # ---- temporal prefix reuse: GRIS, target f_p (Eq. 19), generalized balance MIS (Eq. 15) ----
+                # the old reservoir is read from memory where it is used: a 73-word record held across the two prefix
+                # shifts spilled (sm_90, 128 registers)
+                dom_j = domains_prev[nb.y, nb.x]
+                c_j = confidence_capped(history[nb.y, nb.x].prefix_res.confidence, history_cap)
+                t_old = prefix_target(history[nb.y, nb.x].prefix)
+                s_cj = shift_prefix(spec, dom_j, z_can)  # the canonical prefix in the old pixel
+                s_t = shift_prefix(spec, dom_i, history[nb.y, nb.x].prefix)  # the old prefix in this pixel
+                t_cj = float(0.0)
+                t_ti = float(0.0)
+                t_tj = float(0.0)
+                if s_cj.valid:
+                    t_cj = target_from(prefix_target(s_cj.z), s_cj.jacobian)  # seed 001, Eq. 16
+                if s_t.valid:
+                    t_ti = prefix_target(s_t.z)
+                    t_tj = target_from(t_old, 1.0 / s_t.jacobian)
+                if wp.static(suffix_in_prefix_target):
+                    # the biased alternative: the prefixes' targets read the old suffix (Sec. S.1.1)
+                    t_c = with_target_of_suffix(spec, t_c, z_can, history[nb.y, nb.x])
+                    t_ti = with_target_of_suffix(spec, t_ti, s_t.z, history[nb.y, nb.x])
+                    t_cj = with_target_of_suffix(spec, t_cj, s_cj.z, history[nb.y, nb.x])
+                    t_tj = with_target_of_suffix(spec, t_tj, history[nb.y, nb.x].prefix, history[nb.y, nb.x])
+                m_c = two_domain_balance(1.0, t_c, c_j, t_cj)
+                m_t = two_domain_balance(c_j, t_tj, 1.0, t_ti)
+                r = reservoir_update(r, resampling_weight(m_c, t_c, ucw_from_source_pdf(z_can.pdf), 1.0), t_c, 1.0, random_uniform(ukey, 0))
+                other = history[nb.y, nb.x].prefix_res
+                other.confidence = c_j
+                r = reservoir_merge(r, other, m_t, t_ti, s_t.jacobian, random_uniform(ukey, 1))  # seed 000, Eq. 9
+                if r.selected:
+                    z = s_t.z
+                r = reservoir_finalize(r)
+                if r.ucw <= 0.0:
+                    z = z_can  # nothing kept: the supporting prefix is still the new one (its UCW is 0)
+            else:
+                r.ucw = ucw_from_source_pdf(z_can.pdf)
+                r.confidence = 1.0
+                r.target = t_c
+            out[y, x].prefix = z
+            out[y, x].prefix_res = r
+            src = int(-1)
+            if have_prev != 0 and temporal_suffix != 0 and z.dom.valid != 0:
+                src = nb.y * width + nb.x
+            temporal_src[y, x] = src
+
+        return support_prefix_pass
 
     @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
     def support_suffix_pass(spec: SuffixSpec, seed: int, frame: int, out: wp.array2d(dtype=SupportReservoir)):
@@ -928,7 +934,8 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
 
     return {
         "primary": primary_pass,
-        "support_prefix": support_prefix_pass,
+        "support_prefix": make_support_prefix_pass(False),
+        "support_prefix_suffix_target": make_support_prefix_pass(True),
         "support_suffix": support_suffix_pass,
         "support_temporal": support_temporal_pass,
         "spatial": spatial_pass,
@@ -1033,6 +1040,8 @@ class SuffixReSTIR(ScreenSpaceRenderer):
         self.alpha_cap = 0.0 if gather_alpha == "one" else (float(history_cap) if history_cap > 0.0 else 1.0e30)
         self.temporal, self.spatial = bool(temporal), bool(spatial)
         self.suffix_in_prefix_target = bool(suffix_in_prefix_target)
+        # the biased prefix target is a kernel of its own (make_suffix_restir_kernels)
+        self._support_prefix = "support_prefix_suffix_target" if self.suffix_in_prefix_target else "support_prefix"
         self.neighbors, self.radius, self.history_cap = int(neighbors), float(radius), float(history_cap)
         self.jitter = bool(jitter)
         self.seed = int(seed)
@@ -1090,7 +1099,8 @@ class SuffixReSTIR(ScreenSpaceRenderer):
         return self.gather_k > 0
 
     def kernels(self) -> list[Any]:
-        return list(self.k.values())
+        unused = "support_prefix" if self.suffix_in_prefix_target else "support_prefix_suffix_target"
+        return [kern for name, kern in self.k.items() if name != unused]
 
     def statistics(self) -> dict[str, Any]:
         """Render statistics (the driver's ``settings["statistics"]``): bytes of a pixel's reservoir (prefix + suffix) against ReSTIR PT's path reservoir."""
@@ -1118,11 +1128,11 @@ class SuffixReSTIR(ScreenSpaceRenderer):
             with self._phase("support"):
                 history_valid = self.temporal and self.frames_rendered > 0
                 wp.launch(
-                    k["support_prefix"],
+                    k[self._support_prefix],
                     dim=dim,
                     inputs=[
                         self.spec, self.seed, int(frame), int(history_valid), self.history_cap,
-                        int(self.temporal), int(self.suffix_in_prefix_target), self.gbuffer.current, self.gbuffer.previous, dom, dom_prev, history,
+                        int(self.temporal), self.gbuffer.current, self.gbuffer.previous, dom, dom_prev, history,
                     ],
                     outputs=[cur, self.temporal_src],
                     device=dev,
