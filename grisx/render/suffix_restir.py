@@ -353,7 +353,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     surface = make_surface(kinds)  # the shapes of these kinds only
     intersect, segment_occluded = surface.intersect, surface.segment_occluded
     path_shift = shifts.shift
-    stream = shifts.stream_candidates
+    stream_kept = shifts.stream_candidates_kept  # the suffix walk keeps its candidate in memory, not across its rays
     stream_prefix = shifts.stream_prefix  # the gather's walk: its prefix and the light within it, no reservoir
     vertex_material = shifts.vertex_material
     settle = shifts.settle
@@ -487,15 +487,22 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         return reconnect_prefix(spec.scene, x1, z)
 
     @wp.func
-    def trace_suffix(spec: SuffixSpec, z: Prefix, key: wp.uint32, ukey: wp.uint32) -> PathReservoir:
-        """A canonical suffix after z (Alg. 1 line 8): one path-tracer path from x_k, one candidate kept by RIS, confidence 1."""
+    def trace_suffix(
+        spec: SuffixSpec, z: Prefix, key: wp.uint32, ukey: wp.uint32, kept: wp.array2d(dtype=PathReservoir), ky: int, kx: int
+    ) -> PathReservoir:
+        """A canonical suffix after z (Alg. 1 line 8): one path-tracer path from x_k, one candidate kept by RIS, confidence 1.
+
+        The walk writes the candidate it keeps into ``kept[ky, kx]`` (the pixel's scratch record) as ReSTIR PT's initial
+        pass does, instead of carrying a 32-word path across its rays (where it spilled)."""
         pr = PathReservoir()
         pr.res = reservoir_empty()
         pr.path = path_sample_empty()
         pr.estimate = wp.vec3(0.0)
         if z.dom.valid == 0 or z.bounces == 0:
             return pr
-        pr = stream(spec.scene, z.dom, key, z.bounces, 1.0, spec.sp, pr, ukey)
+        kept[ky, kx].path = path_sample_empty()  # what the walk leaves there where it keeps nothing
+        pr = stream_kept(spec.scene, z.dom, key, z.bounces, 1.0, spec.sp, pr, ukey, kept, ky, kx)
+        pr.path = kept[ky, kx].path
         pr = settle(spec.scene, z.dom, pr, spec.sp)
         pr.res.confidence = 1.0
         return pr
@@ -604,11 +611,13 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         return support_prefix_pass
 
     @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
-    def support_suffix_pass(spec: SuffixSpec, seed: int, frame: int, out: wp.array2d(dtype=SupportReservoir)):
+    def support_suffix_pass(
+        spec: SuffixSpec, seed: int, frame: int, kept: wp.array2d(dtype=PathReservoir), out: wp.array2d(dtype=SupportReservoir)
+    ):
         """The canonical suffix after the supporting prefix (Alg. 1 line 8)."""
         y, x = wp.tid()
         skey = pixel_key_of(seed, frame, x, y, out.shape[1], _STREAM_SUPPORT_SUFFIX)
-        out[y, x].suffix = trace_suffix(spec, out[y, x].prefix, skey, random_subkey(skey, 1))
+        out[y, x].suffix = trace_suffix(spec, out[y, x].prefix, skey, random_subkey(skey, 1), kept, y, x)
 
     @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
     def support_temporal_pass(
@@ -846,7 +855,8 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
 
     @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
     def gather_suffix_pass(
-        spec: SuffixSpec, seed: int, frame: int, j: int, prefixes: int, own_suffixes: int, kept: int, canonical: int, width: int, rows: Rows
+        spec: SuffixSpec, seed: int, frame: int, j: int, prefixes: int, own_suffixes: int, kept: int, canonical: int, width: int, rows: Rows,
+        kept_path: wp.array2d(dtype=PathReservoir),
     ):
         """Prefix j's canonical suffix (Eq. 22's canonical input), traced where the window of Eq. 23 holds j: a kernel
         of its own, so that the walk does not hold the prefix pass's state (the row, the k-NN lists) where it spilled."""
@@ -858,7 +868,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         if z.dom.valid == 0 or z.bounces == 0:
             return
         skey = random_subkey(pixel_key_of(seed, frame, x, y, width, _STREAM_GATHER), _STREAM_GATHER_SUFFIX + j)
-        c = trace_suffix(spec, z, skey, random_subkey(skey, 1))
+        c = trace_suffix(spec, z, skey, random_subkey(skey, 1), kept_path, y, x)
         rows.x[t, 0] = c.path
         rows.res[t, 0] = c.res
         rows.conf[t, 0] = 1.0
@@ -915,6 +925,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         seed: int,
         frame: int,
         domains: wp.array2d(dtype=Domain),
+        kept: wp.array2d(dtype=PathReservoir),
         own_z: wp.array2d(dtype=Prefix),
         own_x: wp.array2d(dtype=PathSample),
         own_res: wp.array2d(dtype=Reservoir),
@@ -928,7 +939,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             z = sample_prefix(spec, domains[y, x], random_subkey(gkey, _STREAM_GATHER_PREFIX + j))
             own_z[t, j] = z  # stored before the suffix's walk: what the walk does not read is not held across it
             skey = random_subkey(gkey, _STREAM_GATHER_SUFFIX + j)
-            c = trace_suffix(spec, z, skey, random_subkey(skey, 1))
+            c = trace_suffix(spec, z, skey, random_subkey(skey, 1), kept, y, x)
             own_x[t, j] = c.path
             own_res[t, j] = c.res
 
@@ -1082,6 +1093,7 @@ class SuffixReSTIR(ScreenSpaceRenderer):
         self.own_z = wp.zeros((n, own), dtype=Prefix, device=dev)
         self.own_x = wp.zeros((n, own), dtype=PathSample, device=dev)
         self.own_res = wp.zeros((n, own), dtype=Reservoir, device=dev)
+        self.suffix_kept = wp.zeros(shape, dtype=PathReservoir, device=dev)  # each suffix walk's kept candidate (scratch)
         self.knn_idx = wp.zeros((n, max(self.gather_k, 1)), dtype=int, device=dev)
         self.knn_dist = wp.zeros((n, max(self.gather_k, 1)), dtype=float, device=dev)
         self.points = wp.zeros(n, dtype=wp.vec3, device=dev)
@@ -1137,7 +1149,7 @@ class SuffixReSTIR(ScreenSpaceRenderer):
                     outputs=[cur, self.temporal_src],
                     device=dev,
                 )
-                wp.launch(k["support_suffix"], dim=dim, inputs=[self.spec, self.seed, int(frame)], outputs=[cur], device=dev)
+                wp.launch(k["support_suffix"], dim=dim, inputs=[self.spec, self.seed, int(frame), self.suffix_kept], outputs=[cur], device=dev)
                 if history_valid:
                     wp.launch(
                         k["support_temporal"],
@@ -1161,7 +1173,7 @@ class SuffixReSTIR(ScreenSpaceRenderer):
                 self.grid.build(self.points, 2.0 * self.grid_radius)  # cells of 2 radii: see hash_grid_dims
         if self.suffixes > 0:
             with self._phase("own_suffixes"):
-                wp.launch(k["own"], dim=dim, inputs=[self.spec, self.seed, int(frame), dom], outputs=[self.own_z, self.own_x, self.own_res], device=dev)
+                wp.launch(k["own"], dim=dim, inputs=[self.spec, self.seed, int(frame), dom, self.suffix_kept], outputs=[self.own_z, self.own_x, self.own_res], device=dev)
         direct = self.direct  # emission seen at x₁; with ReSTIR DI, emission and direct light
         if self.di is not None:
             direct = self.di.direct_light(frame)
@@ -1181,7 +1193,8 @@ class SuffixReSTIR(ScreenSpaceRenderer):
                 wp.launch(
                     k["gather_suffix"],
                     dim=dim,
-                    inputs=[self.spec, self.seed, int(frame), j, self.prefixes, self.suffixes, self.kept, int(self.canonical), self.width, self.rows["gather"]],
+                    inputs=[self.spec, self.seed, int(frame), j, self.prefixes, self.suffixes, self.kept, int(self.canonical), self.width, self.rows["gather"],
+                            self.suffix_kept],
                     device=dev,
                 )
                 wp.launch(
