@@ -643,12 +643,12 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         row_set(rows, t, 0, cur.prefix, cur.suffix.path, cur.suffix.res, 1.0)
         # old suffixes weigh more: their confidence (capped) is their domain weight
         row_set(rows, t, 1, old.prefix, old.suffix.path, old.suffix.res, confidence_capped(old.suffix.res.confidence, history_cap))
-        cr = CRIS.conditional_ris(spec, cur.prefix, 0, rows.z[t], rows.x[t], rows.res[t], rows.conf[t], rows.targets[t], ukey, 2)
-        suffix = cur.suffix
-        suffix.res = cr.reservoir
-        suffix.res.confidence = confidence_capped(cr.reservoir.confidence, history_cap)
-        suffix.path = cr.y
-        out[y, x].suffix = suffix
+        # the two reservoirs are read back where they are needed, not held across the row's shifts (73 words each)
+        cr = CRIS.conditional_ris(spec, out[y, x].prefix, 0, rows.z[t], rows.x[t], rows.res[t], rows.conf[t], rows.targets[t], ukey, 2)
+        res = cr.reservoir
+        res.confidence = confidence_capped(cr.reservoir.confidence, history_cap)
+        out[y, x].suffix.res = res
+        out[y, x].suffix.path = cr.y
 
     # ---- spatial suffix reuse ----
     @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
@@ -687,12 +687,13 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
                     found += 1
         if found == 0:
             return
-        cr = CRIS.conditional_ris(spec, own.prefix, 0, rows.z[t], rows.x[t], rows.res[t], rows.conf[t], rows.targets[t], ukey, 2 * neighbors)
-        res = own
-        res.suffix.res = cr.reservoir
-        res.suffix.res.confidence = confidence_capped(cr.reservoir.confidence, history_cap)
-        res.suffix.path = cr.y
-        out[y, x] = res
+        # out[y, x] holds the pixel's reservoir already: only its suffix changes, and nothing of it is held across the row's
+        # shifts (73 words)
+        cr = CRIS.conditional_ris(spec, inp[y, x].prefix, 0, rows.z[t], rows.x[t], rows.res[t], rows.conf[t], rows.targets[t], ukey, 2 * neighbors)
+        res = cr.reservoir
+        res.confidence = confidence_capped(cr.reservoir.confidence, history_cap)
+        out[y, x].suffix.res = res
+        out[y, x].suffix.path = cr.y
 
     # ---- k-NN grid ----
     @wp.kernel(module=module)
