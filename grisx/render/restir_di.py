@@ -441,12 +441,11 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
                 continue
             p_light = s.pdf_area  # area density on triangles, solid angle on the environment, pmf for point lights
             p_bsdf = float(0.0)  # the competing technique's density: none without BSDF candidates (the default)
-            if n_bsdf == 0:
-                pass
-            elif lp.kind == LIGHT_TRIANGLE:
-                p_bsdf = bsdf.pdf(m, wo_l, to_local(frame_x, ev.wi)) * ev.cos_light / (ev.dist * ev.dist)
-            elif lp.kind == LIGHT_ENV:
-                p_bsdf = bsdf.pdf(m, wo_l, to_local(frame_x, ev.wi))
+            if n_bsdf > 0:
+                if lp.kind == LIGHT_TRIANGLE:
+                    p_bsdf = bsdf.pdf(m, wo_l, to_local(frame_x, ev.wi)) * ev.cos_light / (ev.dist * ev.dist)
+                elif lp.kind == LIGHT_ENV:
+                    p_bsdf = bsdf.pdf(m, wo_l, to_local(frame_x, ev.wi))
             total = balance_term(c_light, p_light) + balance_term(c_bsdf, p_bsdf)
             w = ris_weight(balance_mis(1.0, p_light, total), ev.target, p_light)  # seed 000, Eq. 6; seed 001, Eq. 15
             r = reservoir_update(r, w, ev.target, 0.0, random_uniform(key, c + 3))

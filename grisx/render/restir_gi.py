@@ -390,6 +390,15 @@ class GIShift:
 
 
 @wp.func
+def gi_shift_none() -> GIShift:
+    """No shift evaluated: target 0, |J| = 1 (what a merge gets for a reservoir of weight 0, which adds its confidence alone)."""
+    out = GIShift()
+    out.target = 0.0
+    out.jacobian = 1.0
+    return out
+
+
+@wp.func
 def sample_uniform_hemisphere(u: wp.vec2) -> wp.vec3:
     """Uniform direction on the hemisphere z > 0 (local frame)."""
     z = u[0]
@@ -1064,8 +1073,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         out = reservoir_empty()
         # a reservoir of weight W = 0 adds its confidence alone, whatever the MIS weight and target it is given: the
         # rays that would evaluate them are not traced (the same images, bit for bit)
-        sh = GIShift()
-        sh.jacobian = 1.0
+        sh = gi_shift_none()
         if r_p.ucw > 0.0:
             sh = reconnect(scene, si_p, wo_p, si, wo, s_prev[tn.y, tn.x], target_mode, moved, use_jacobian, max_jacobian, 1)
         m_h = r_p.confidence  # support counting streams c_i and applies 1/Z to the kept sample below
@@ -1469,8 +1477,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
             code = domains[y, x, j]
             n = domain_of(sf, code, temporal_cap, spatial_cap, res_t, s_t, res_s_prev, s_s_prev)
             across = int(domain_flags(code) != 0)
-            sh = GIShift()  # a reservoir of weight W = 0 adds its confidence alone (as in the temporal pass): no ray
-            sh.jacobian = 1.0
+            sh = gi_shift_none()  # a reservoir of weight W = 0 adds its confidence alone (as in the temporal pass): no ray
             if n.res.ucw > 0.0:
                 sh = reconnect(scene, n.si, n.wo, si, wo, n.sample, target_mode, shift_tests_visibility(scene, code, n.si, si), use_jacobian,
                                max_jacobian, across)
