@@ -317,24 +317,31 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             p.res = reservoir_finalize(p.res)  # W = Σ w / p̂(y, k), Eq. 18
             out[slot, orient, y, x] = p
 
-    # ---- temporal reuse / spatial reuse: one merge of a source pair into each of this pair's reservoirs ----
+    # ---- temporal reuse / spatial reuse: one merge of a source pair into each of this pair's reservoirs, in two stages ----
+    # Each stage runs one outer shift a reservoir (two inlined hybrid shifts): the pair's own sample carried back to the
+    # source pair, then the source pair's samples carried here. One kernel running both sat at the register cap and
+    # spilled (sm_90: 255 registers, ~1 KB stack).
     @wp.kernel(module=module)
-    def pair_merge_pass(
+    def pair_source_pass(
         scene: SceneData, cam: CameraData, cam_src: CameraData, seed: int, frame: int, sp: ShiftParams,
-        positivize: int, cross_sign: int, use_outer_jacobian: int, symmetric: int, temporal: int, history_cap: float,
+        positivize: int, use_outer_jacobian: int, symmetric: int, temporal: int,
         reuse: int, search: int, radius: float, g: GBufferData, g_src: GBufferData,
-        own: wp.array4d(dtype=PairReservoir), src: wp.array4d(dtype=PairReservoir), out: wp.array4d(dtype=PairReservoir),
+        own: wp.array4d(dtype=PairReservoir), out: wp.array4d(dtype=PairReservoir),
+        source: wp.array3d(dtype=wp.vec2i), to_source: wp.array3d(dtype=wp.vec2), back: wp.array4d(dtype=wp.vec3),
     ):
+        """The source pair (from the G-buffers alone), and each own sample's p̂ there through T*⁻¹ (seed 001, Eq. 16):
+        ``back[slot]`` = (luminance of ω*G there, |∂T*⁻¹|, valid)."""
         orient, y, x = wp.tid()
         h = own.shape[2]
         w = own.shape[3]
         out[0, orient, y, x] = own[0, orient, y, x]
         out[1, orient, y, x] = own[1, orient, y, x]
+        source[orient, y, x] = wp.vec2i(-1, -1)
         if not _pair_on_film(x, y, orient, w, h):
             return
         e = _axis(orient)
         ukey = pixel_key_of(seed, frame, x, y, w, _STREAM_PAIR_TEMPORAL + orient + 2 * (1 - temporal))
-        # ---- the source pair (from the G-buffers alone) and the film translation u_dst = u_src + to_dst ----
+        # ---- the source pair and the film translation u_dst = u_src + to_dst ----
         nx = int(-1)
         ny = int(-1)
         to_dst = wp.vec2(0.0, 0.0)
@@ -364,9 +371,37 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
                             ny = nb.y
         if nx < 0:
             return
-        slots = int(2)  # dynamic bounds here: Warp unrolls a constant range, and each ``outer`` inlines two shifts
-        # out[slot] holds the pair's own reservoir (copied above); the kept candidate is written there when it is kept,
-        # not carried across the shifts (a 50-word record live beside two inlined shifts spilled at the register cap)
+        source[orient, y, x] = wp.vec2i(nx, ny)
+        to_source[orient, y, x] = to_dst
+        slots = int(2)  # a dynamic bound: Warp unrolls a constant range, and ``outer`` inlines two shifts
+        for slot in range(slots):
+            if slot == 0 or positivize != 0:
+                # the pair's own sample carried to the source pair by T*⁻¹
+                b = outer(scene, cam_src, nx, ny, orient, own[slot, orient, y, x].film, -to_dst, own[slot, orient, y, x].k,
+                          own[slot, orient, y, x].path, sp, use_outer_jacobian, symmetric)
+                back[slot, orient, y, x] = wp.vec3(luminance(b.value), b.jacobian, float(b.valid))
+
+    @wp.kernel(module=module)
+    def pair_merge_pass(
+        scene: SceneData, cam: CameraData, seed: int, frame: int, sp: ShiftParams,
+        positivize: int, cross_sign: int, use_outer_jacobian: int, symmetric: int, temporal: int, history_cap: float,
+        own: wp.array4d(dtype=PairReservoir), src: wp.array4d(dtype=PairReservoir),
+        source: wp.array3d(dtype=wp.vec2i), to_source: wp.array3d(dtype=wp.vec2), back: wp.array4d(dtype=wp.vec3),
+        out: wp.array4d(dtype=PairReservoir),
+    ):
+        """The generalized balance heuristic over the pair's own reservoir and the source pair's (seed 001, Eq. 15–16),
+        the source samples carried here by T*; ``out`` holds the own reservoir (:func:`pair_source_pass`)."""
+        orient, y, x = wp.tid()
+        nxy = source[orient, y, x]
+        if nxy[0] < 0:
+            return
+        nx = nxy[0]
+        ny = nxy[1]
+        to_dst = to_source[orient, y, x]
+        ukey = pixel_key_of(seed, frame, x, y, own.shape[3], _STREAM_PAIR_TEMPORAL + orient + 2 * (1 - temporal))
+        slots = int(2)  # dynamic bounds here: Warp unrolls a constant range, and ``outer`` inlines two shifts
+        # out[slot] holds the pair's own reservoir; the kept candidate is written there when it is kept, not carried
+        # across the shifts (a 50-word record live beside the inlined shifts)
         for slot in range(slots):
             if slot == 0 or positivize != 0:
                 sign = pair_slot_sign(positivize, slot)
@@ -378,12 +413,11 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
                 if temporal != 0:
                     c_same = confidence_capped(c_same, history_cap)
                     c_other = confidence_capped(c_other, history_cap)
-                # the pair's own sample: its p̂ here, and carried to the source pair by T*⁻¹ (seed 001, Eq. 16)
-                back = outer(scene, cam_src, nx, ny, orient, own[slot, orient, y, x].film, -to_dst, own[slot, orient, y, x].k,
-                             own[slot, orient, y, x].path, sp, use_outer_jacobian, symmetric)
+                # the pair's own sample: its p̂ here, and at the source pair (pair_source_pass)
+                bk = back[slot, orient, y, x]
                 b = pair_balance_empty()
                 b = pair_balance_add(b, sign, 1, c_own, 0.0, t_own, 1.0, True, 0)
-                b = pair_balance_add(b, sign, n_src, c_same, c_other, luminance(back.value), back.jacobian, back.valid, -1)
+                b = pair_balance_add(b, sign, n_src, c_same, c_other, bk[0], bk[1], bk[2] != 0.0, -1)
                 r = reservoir_empty()
                 r = pair_update(r, sign, t_own, pair_balance_mis(b, c_own), own[slot, orient, y, x].res.ucw, 1.0, c_own, random_uniform(ukey, 0))
                 # the source pair's reservoirs of this sign (and of the other, across signs) through T*
@@ -425,7 +459,7 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         else:
             dy[y, x] = dy[y, x] - d
 
-    return {"initial": pair_initial_pass, "merge": pair_merge_pass, "gradient": pair_gradient_pass}
+    return {"initial": pair_initial_pass, "source": pair_source_pass, "merge": pair_merge_pass, "gradient": pair_gradient_pass}
 
 
 class ReSTIRGPT(GradientFromPrimal):
@@ -454,6 +488,10 @@ class ReSTIRGPT(GradientFromPrimal):
         shape = (2, 2, self.height, self.width)  # (slot: r+ or |.|, r-), (orientation: x, y), H, W
         self.pairs = [wp.zeros(shape, dtype=PairReservoir, device=built.device) for _ in range(3)]  # 0: history, 1–2: scratch
         self.canonical_kept = wp.zeros((self.height, self.width), dtype=PathReservoir, device=built.device)
+        # between the merge's two stages: each pair's source pair, film translation, and own samples' p̂ there
+        self.pair_source = wp.zeros((2, self.height, self.width), dtype=wp.vec2i, device=built.device)
+        self.pair_to_source = wp.zeros((2, self.height, self.width), dtype=wp.vec2, device=built.device)
+        self.pair_back = wp.zeros(shape, dtype=wp.vec3, device=built.device)
         self.pair_frames = 0
 
     def kernels(self) -> list[Any]:
@@ -465,6 +503,18 @@ class ReSTIRGPT(GradientFromPrimal):
 
     def after_canonical(self, reservoirs: wp.array) -> None:
         wp.copy(self.canonical_kept, reservoirs)  # the gradient pass's initial candidates (before any reuse)
+
+    def merge_pairs(self, frame: int, cam: Any, cam_src: Any, g: Any, g_src: Any, own: wp.array, src: wp.array, out: wp.array, *, temporal: bool) -> None:
+        """One temporal or spatial merge of a source pair into every pair's reservoirs: source stage, then merge stage."""
+        b = self.built
+        dim = (2, self.height, self.width)
+        between = [self.pair_source, self.pair_to_source, self.pair_back]
+        wp.launch(self.pk["source"], dim=dim, inputs=[b.data, cam, cam_src, self.seed, int(frame), self.shift_params, int(self.positivize), int(self.outer_jacobian),
+                                                     int(self.symmetric), int(temporal), self.pair_reuse, self.pair_search, self.radius, g, g_src, own],
+                  outputs=[out, *between], device=b.device)
+        wp.launch(self.pk["merge"], dim=dim, inputs=[b.data, cam, self.seed, int(frame), self.shift_params, int(self.positivize), int(self.cross_sign),
+                                                    int(self.outer_jacobian), int(self.symmetric), int(temporal), self.history_cap, own, src, *between],
+                  outputs=[out], device=b.device)
 
     def render_frame(self, frame: int) -> wp.array:
         """Primal pass, paired-pixel candidates, temporal and spatial pair reuse, gradients, reconstruction."""
@@ -481,19 +531,16 @@ class ReSTIRGPT(GradientFromPrimal):
         with self._phase("pair_initial"):
             wp.launch(self.pk["initial"], dim=dim, inputs=[b.data, cam, self.seed, int(frame), self.shift_params, int(self.positivize), int(self.symmetric), self.films[3], self.canonical_kept, self.direct],
                       outputs=[pairs, self.gradient.halves, self.nonfinite], device=dev)
-        common = [int(self.positivize), int(self.cross_sign), int(self.outer_jacobian), int(self.symmetric)]
         g, g_prev = self.gbuffer.current, self.gbuffer.previous
         # ---- temporal reuse ----
         if self.pair_temporal and self.pair_frames > 0:
             with self._phase("pair_temporal"):
-                wp.launch(self.pk["merge"], dim=dim, inputs=[b.data, cam, cam_prev, self.seed, int(frame), self.shift_params, *common, 1, self.history_cap,
-                                                            self.pair_reuse, self.pair_search, self.radius, g, g_prev, pairs, history], outputs=[other], device=dev)
+                self.merge_pairs(frame, cam, cam_prev, g, g_prev, pairs, history, other, temporal=True)
             pairs, other = other, pairs
         # ---- spatial reuse ----
         if self.pair_reuse != 0:
             with self._phase("pair_spatial"):
-                wp.launch(self.pk["merge"], dim=dim, inputs=[b.data, cam, cam, self.seed, int(frame), self.shift_params, *common, 0, self.history_cap,
-                                                            self.pair_reuse, self.pair_search, self.radius, g, g, pairs, pairs], outputs=[other], device=dev)
+                self.merge_pairs(frame, cam, cam, g, g, pairs, pairs, other, temporal=False)
             pairs, other = other, pairs
         self.pairs = [pairs, history, other]
         self.pair_frames += 1
