@@ -115,7 +115,7 @@ from grisx.render.base.reuse import (
     spatial_neighbor,
     temporal_neighbor,
 )
-from grisx.scene.scene import SceneData, SurfaceInteraction, motion_touches, spawn_origin, make_surface
+from grisx.scene.scene import SceneData, SurfaceInteraction, make_surface, motion_touches, shadow_ray_along, shadow_ray_between, spawn_origin
 from grisx.scene.bsdf import MATERIAL_DIFFUSE
 from grisx.scene.material import Material
 from grisx.theory.control_variate import (
@@ -246,8 +246,7 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
     delta_light_arrival = lights.delta_light_arrival
     surface_material = surface.surface_material
     intersect = surface.intersect
-    occluded = surface.occluded
-    segment_occluded = surface.segment_occluded
+    blocked = surface.blocked
 
     @wp.func
     def light_eval_at(scene: SceneData, si: SurfaceInteraction, m: Material, frame: Frame, wo: wp.vec3, lp: LightPoint) -> LightEval:
@@ -308,9 +307,11 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
 
     @wp.func
     def light_visible(scene: SceneData, si: SurfaceInteraction, ev: LightEval, lp: LightPoint) -> bool:
+        # the segment built first and traced at one place: one inlined traversal (ShadowRay)
+        shadow = shadow_ray_along(scene, spawn_origin(scene, si.p, si.ng, ev.wi), ev.wi, ev.dist)
         if lp.kind == LIGHT_TRIANGLE:
-            return not segment_occluded(scene, si.p, si.ng, lp.p, lp.n)
-        return not occluded(scene, spawn_origin(scene, si.p, si.ng, ev.wi), ev.wi, ev.dist)
+            shadow = shadow_ray_between(scene, si.p, si.ng, lp.p, lp.n)
+        return not blocked(scene, shadow)
 
     @wp.func
     def eval_at(scene: SceneData, si: SurfaceInteraction, m: Material, frame: Frame, wo: wp.vec3, lp: LightPoint, visibility: int) -> LightEval:

@@ -95,8 +95,10 @@ from grisx.scene.lights import make_lights
 from grisx.scene.scene import (
     SceneData,
     SurfaceInteraction,
-    spawn_origin,
     make_surface,
+    shadow_ray_along,
+    shadow_ray_between,
+    spawn_origin,
 )
 from grisx.theory.gris import luminance
 from grisx.theory.manifold import ManifoldLinearization, ManifoldSampler, make_manifold_sampler, seed_space
@@ -358,8 +360,7 @@ def _make_caustics(kinds: frozenset[int]) -> CausticFuncs:
     emitter_radiance, environment_eval = lights.emitter_radiance, lights.environment_eval
     surface_material = surface.surface_material
     intersect = surface.intersect
-    occluded = surface.occluded
-    segment_occluded = surface.segment_occluded
+    blocked = surface.blocked
     shading_normal_derivative = surface.shading_normal_derivative
     # only a normal or bump map turns a normal whose derivative the shot does not carry: without one, ∂C/∂u is
     # always the differentials', and the four extra shots of the differences are not compiled in at all
@@ -535,14 +536,14 @@ def _make_caustics(kinds: frozenset[int]) -> CausticFuncs:
             le = environment_eval(spec.scene.lights, xn)  # x_n = ω_n: visible if the ray escapes
             if wp.length_sq(le) <= 0.0:
                 return zero
-            if occluded(spec.scene, spawn_origin(spec.scene, ch.last, ch.last_ng, xn), xn, 1.0e30):
-                return zero
+            shadow = shadow_ray_along(spec.scene, spawn_origin(spec.scene, ch.last, ch.last_ng, xn), xn, 1.0e30)
         else:
             le = emitter_radiance(spec.scene.lights, spec.light_tri[view], xn, nn, -ch.d_out)
             if wp.length_sq(le) <= 0.0:
                 return zero
-            if segment_occluded(spec.scene, ch.last, ch.last_ng, xn, nn):
-                return zero
+            shadow = shadow_ray_between(spec.scene, ch.last, ch.last_ng, xn, nn)
+        if blocked(spec.scene, shadow):  # one inlined traversal for either segment (ShadowRay)
+            return zero
         x1 = spec.x1_si[view]
         m = surface_material(spec.scene, x1)
         frame = frame_from_normal(x1.ns)

@@ -113,6 +113,10 @@ __all__ = [
     "occluded",
     "segment_occluded",
     "light_occluded",
+    "ShadowRay",
+    "shadow_ray_along",
+    "shadow_ray_between",
+    "shadow_ray_to_light",
     "finite_or_dropped",
     "surface_material",
     "surface_material_at",
@@ -271,6 +275,21 @@ class SurfaceInteraction:
     front: int  # 1 when the ray arrived on the side ng points to
 
 
+@wp.struct
+class ShadowRay:
+    """A segment to test for blockers: ``o + t·d`` (d unit), 0 < t < ``t_max``; ``valid`` = 0 for an empty segment.
+
+    Visibility tests build this record first and trace it at one place (``blocked``): the traversal is inlined at
+    every call site, so a kernel that picks among several kinds of segment and then traces one holds one copy of
+    the BVH code instead of one per kind (sm_90: ~7 KB of SASS each, benchmarks/README, "kernels.py").
+    """
+
+    o: wp.vec3
+    d: wp.vec3
+    t_max: float
+    valid: int
+
+
 @wp.func
 def motion_touches(scene: SceneData, lo: wp.vec3, hi: wp.vec3) -> bool:
     """Whether the box [``lo``, ``hi``] meets anything that moved between the frames ``scene`` was taken across.
@@ -366,6 +385,58 @@ def perturb_normal_derivative(n: wp.vec3, dn: wp.vec3, p: wp.vec3, dp: wp.vec3, 
     n_p = m / length
     dm = dn - dg_t
     return (dm - n_p * wp.dot(n_p, dm)) / length
+
+
+@wp.func
+def shadow_ray_along(scene: SceneData, o: wp.vec3, d: wp.vec3, dist: float) -> ShadowRay:
+    """The segment o → o + dist·d (d unit, o already lifted off its surface); the end point's surface is excluded."""
+    r = ShadowRay()
+    r.o = o
+    r.d = d
+    r.t_max = dist * (1.0 - 1.0e-4) - scene.ray_epsilon
+    r.valid = 1
+    return r
+
+
+@wp.func
+def shadow_ray_between(scene: SceneData, p0: wp.vec3, n0: wp.vec3, p1: wp.vec3, n1: wp.vec3) -> ShadowRay:
+    """The segment between surface points p0 and p1 (geometric normals n0, n1).
+
+    Both ends are lifted off their surfaces toward each other (pbrt-v4's
+    ``SpawnRayTo``). Lifting only the origin moves the point where the ray
+    meets p1's plane by ε/cos θ₁, which at grazing angles lands *before* p1,
+    so p1's own triangle would read as an occluder. A zero ``n1`` (a point
+    light) leaves p1 where it is.
+    """
+    d = p1 - p0
+    o = spawn_origin(scene, p0, n0, d)
+    t = spawn_origin(scene, p1, n1, -d)
+    e = t - o
+    dist = wp.length(e)
+    r = ShadowRay()
+    r.valid = 0
+    if dist <= 0.0:
+        return r
+    r.o = o
+    r.d = e / dist
+    r.t_max = dist
+    r.valid = 1
+    return r
+
+
+@wp.func
+def shadow_ray_to_light(scene: SceneData, p: wp.vec3, ng: wp.vec3, ls: LightSample) -> ShadowRay:
+    """The shadow ray of next-event sample ``ls`` from surface point ``p`` (geometric normal ``ng``).
+
+    The environment is a direction (a ray to infinity); emitters are surface
+    points (:func:`shadow_ray_between`); point lights are points off every surface.
+    """
+    if ls.is_env != 0:
+        return shadow_ray_along(scene, spawn_origin(scene, p, ng, ls.wi), ls.wi, ls.dist)
+    n1 = ls.n
+    if ls.delta != 0:
+        n1 = wp.vec3(0.0, 0.0, 0.0)
+    return shadow_ray_between(scene, p, ng, ls.p, n1)
 
 
 @functools.cache
@@ -504,56 +575,35 @@ def _make_ray_queries(shapes: bool, bump: bool) -> tuple[Any, ...]:
         return wp.vec4(dn[0], dn[1], dn[2], 1.0)
 
     @wp.func
-    def occluded(scene: SceneData, o: wp.vec3, d: wp.vec3, dist: float) -> bool:
-        """Whether anything blocks the segment o → o + dist·d (d unit); the end point's surface is excluded."""
-        t_max = dist * (1.0 - 1.0e-4) - scene.ray_epsilon
-        if wp.mesh_query_ray_anyhit(scene.mesh, o, d, t_max):
+    def blocked(scene: SceneData, r: ShadowRay) -> bool:
+        """Whether anything meets shadow ray ``r`` (:class:`ShadowRay`): the one BVH traversal of the visibility tests."""
+        if r.valid == 0:
+            return False
+        if wp.mesh_query_ray_anyhit(scene.mesh, r.o, r.d, r.t_max):
             return True
         if wp.static(shapes):
             if scene.shapes.count > 0:
-                return shapes_occluded(scene.shapes, o, d, t_max)
+                return shapes_occluded(scene.shapes, r.o, r.d, r.t_max)
         return False
+
+    @wp.func
+    def occluded(scene: SceneData, o: wp.vec3, d: wp.vec3, dist: float) -> bool:
+        """Whether anything blocks the segment o → o + dist·d (d unit); the end point's surface is excluded."""
+        return blocked(scene, shadow_ray_along(scene, o, d, dist))
 
     @wp.func
     def segment_occluded(scene: SceneData, p0: wp.vec3, n0: wp.vec3, p1: wp.vec3, n1: wp.vec3) -> bool:
-        """Whether anything blocks the segment between surface points p0 and p1 (geometric normals n0, n1).
-
-        Both ends are lifted off their surfaces toward each other (pbrt-v4's
-        ``SpawnRayTo``). Lifting only the origin moves the point where the ray
-        meets p1's plane by ε/cos θ₁, which at grazing angles lands *before* p1,
-        so p1's own triangle would read as an occluder. A zero ``n1`` (a point
-        light) leaves p1 where it is.
-        """
-        d = p1 - p0
-        o = spawn_origin(scene, p0, n0, d)
-        t = spawn_origin(scene, p1, n1, -d)
-        e = t - o
-        dist = wp.length(e)
-        if dist <= 0.0:
-            return False
-        if wp.mesh_query_ray_anyhit(scene.mesh, o, e / dist, dist):
-            return True
-        if wp.static(shapes):
-            if scene.shapes.count > 0:
-                return shapes_occluded(scene.shapes, o, e / dist, dist)
-        return False
+        """Whether anything blocks the segment between surface points p0 and p1 (geometric normals n0, n1):
+        :func:`shadow_ray_between`."""
+        return blocked(scene, shadow_ray_between(scene, p0, n0, p1, n1))
 
     @wp.func
     def light_occluded(scene: SceneData, p: wp.vec3, ng: wp.vec3, ls: LightSample) -> bool:
-        """Whether next-event sample ``ls`` is hidden from surface point ``p`` (geometric normal ``ng``).
+        """Whether next-event sample ``ls`` is hidden from surface point ``p`` (geometric normal ``ng``):
+        :func:`shadow_ray_to_light`."""
+        return blocked(scene, shadow_ray_to_light(scene, p, ng, ls))
 
-        The environment is a direction (a ray to infinity); emitters are surface
-        points (:func:`segment_occluded`); point lights are points off every surface.
-        """
-        if ls.is_env != 0:
-            return occluded(scene, spawn_origin(scene, p, ng, ls.wi), ls.wi, ls.dist)
-        n1 = ls.n
-        if ls.delta != 0:
-            n1 = wp.vec3(0.0, 0.0, 0.0)
-        return segment_occluded(scene, p, ng, ls.p, n1)
-
-
-    return intersect, occluded, segment_occluded, light_occluded, shading_normal_derivative
+    return intersect, occluded, segment_occluded, light_occluded, shading_normal_derivative, blocked
 
 
 @wp.func
@@ -740,6 +790,7 @@ class SurfaceFuncs(NamedTuple):
     segment_occluded: Any
     light_occluded: Any
     shading_normal_derivative: Any
+    blocked: Any
 
 
 @functools.cache
@@ -815,7 +866,8 @@ def _make_surface(kinds: frozenset[int]) -> SurfaceFuncs:
 
 def make_surface(kinds: Iterable[int]) -> SurfaceFuncs:
     """``surface_material`` / ``surface_material_at`` and the ray queries (``intersect``, ``occluded``,
-    ``segment_occluded``, ``light_occluded``, ``shading_normal_derivative``) for the kinds ``kinds`` (the material kinds
+    ``segment_occluded``, ``light_occluded``, ``shading_normal_derivative``, and ``blocked``, which traces a
+    :class:`ShadowRay`) for the kinds ``kinds`` (the material kinds
     with their wrapper and feature pseudo-kinds: normal/bump maps, anisotropy, scalar and reflectance textures, a
     procedural bump, and ``SCENE_ANALYTIC_SHAPES``), cached per set. A renderer's kernels take them from here with their BSDF dispatch
     (``make_bsdf``); a scene whose kinds lack a pseudo-kind has no such material, or no analytic shape."""

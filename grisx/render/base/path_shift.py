@@ -117,6 +117,8 @@ from grisx.scene.material import SCENE_MOVING_OBJECTS, Material
 from grisx.scene.lights import DeltaArrival, light_pdf_emitter, luminance, make_lights
 from grisx.scene.scene import (
     SceneData,
+    shadow_ray_along,
+    shadow_ray_between,
     SurfaceInteraction,
     motion_on_segment,
     spawn_origin,
@@ -512,9 +514,8 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
     delta_light_arrival = lights.delta_light_arrival
     vertex_material = surface.surface_material_at
     intersect = surface.intersect
-    occluded = surface.occluded
-    segment_occluded = surface.segment_occluded
     light_occluded = surface.light_occluded
+    blocked = surface.blocked
 
     @wp.func
     def emitter_hit(scene: SceneData, p: wp.vec3, d: wp.vec3, si: SurfaceInteraction) -> EmitterHit:
@@ -596,15 +597,16 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                 if wp.length_sq(fo) <= 0.0:
                     return res
                 pdf_bsdf = bsdf.pdf(m, wo_l, to_local(frame, d))  # for m_t when x_k is the end vertex (before the shadow ray: m dies here)
+                # the segment x'_{k−1} → x_k built first, traced at one place: one inlined traversal (ShadowRay)
                 if x.rc_kind == VERTEX_ENV:
-                    if occluded(scene, spawn_origin(scene, v.p, v.ng, d), d, dist):
-                        return res
+                    shadow = shadow_ray_along(scene, spawn_origin(scene, v.p, v.ng, d), d, dist)
                 else:
                     n_k = x.rc_ng  # both ends lifted off their surfaces; a point light is no surface
                     if x.rc_kind == VERTEX_POINT_LIGHT:
                         n_k = wp.vec3(0.0, 0.0, 0.0)
-                    if segment_occluded(scene, v.p, v.ng, rc_p, n_k):
-                        return res
+                    shadow = shadow_ray_between(scene, v.p, v.ng, rc_p, n_k)
+                if blocked(scene, shadow):
+                    return res
                 if x.rc_kind != VERTEX_POINT_LIGHT:
                     fo = fo * MEASURE_SCALE  # the segment x'_{k−1} → x_k is a direction (a point light's is a delta)
                 f = wp.cw_mul(f, fo)
