@@ -6,8 +6,9 @@ a BSDF stack from several places grows into a megakernel (``/work/shared/DESIGN.
 execution: lean stages, not megakernels"; issue 35). Three numbers of the sm_90 code say whether
 a kernel has: **registers** per thread (255 is the hardware cap; more live values than that go to
 local memory), the **stack frame** (bytes of local memory per thread: spilled registers and
-arrays indexed at run time) and the **spill stores/loads** (bytes per thread the register
-allocator moved out and back in). They come from ``ptxas -v -arch=sm_90`` on the PTX that Warp's
+arrays indexed at run time), the **spill stores/loads** (bytes per thread the register
+allocator moved out and back in) and the **SASS bytes** (the kernel's machine code, which the
+instruction cache must hold). They come from ``ptxas -v -arch=sm_90`` on the PTX that Warp's
 NVRTC generates for each module: no GPU is needed, only ``ptxas``. Warp 1.19 ships NVRTC 13.4,
 whose PTX says ``.version 9.4``; an older ``ptxas`` (CUDA 13.0 reads 9.0) is given the same text
 with the version it reads (recorded under ``ptx_version``). Checked against the cubin NVRTC itself
@@ -86,19 +87,37 @@ def ptxas_version(ptxas: str) -> str:
     return (re.findall(r"release [^\n]*", out) or ["?"])[0]
 
 
+def sass_sizes(cubin: Path) -> dict[str, int]:
+    """Bytes of SASS per entry function: the sizes of the cubin's ``.text.<entry>`` sections (``readelf``).
+
+    The instruction cache is what a megakernel overflows: Nsight Compute put ~40% of the shift
+    stages' stalls on instruction fetch (benchmarks/README.md), so the code's size is a resource
+    like the registers.
+    """
+    readelf = shutil.which("readelf")
+    if readelf is None:
+        return {}
+    out = subprocess.run([readelf, "-S", "-W", str(cubin)], capture_output=True, text=True).stdout
+    sizes = {}
+    for m in re.finditer(r"\]\s+\.text\.(\S+)\s+PROGBITS\s+\S+\s+\S+\s+([0-9a-f]+)", out):
+        sizes[m[1]] = int(m[2], 16)
+    return sizes
+
+
 def run_ptxas(ptx: str, ptxas: str, arch: int) -> tuple[dict[str, dict[str, float]], str]:
-    """Per entry function: registers, stack frame, spill store/load bytes and ptxas ms; and the PTX version fed."""
+    """Per entry function: registers, stack frame, spill store/load bytes, SASS bytes and ptxas ms; and the PTX version fed."""
     version = re.search(r"^\.version (\S+)", ptx, re.M).group(1)
     fed = version
     with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp, "m.ptx")
+        path, cubin = Path(tmp, "m.ptx"), Path(tmp, "m.cubin")
         while True:
             path.write_text(ptx.replace(f".version {version}\n", f".version {fed}\n", 1))
-            proc = subprocess.run([ptxas, "-v", f"-arch=sm_{arch}", str(path), "-o", os.devnull], capture_output=True, text=True)
+            proc = subprocess.run([ptxas, "-v", f"-arch=sm_{arch}", str(path), "-o", str(cubin)], capture_output=True, text=True)
             older = re.search(r"Unsupported \.version \S+; current version is '(\S+)'", proc.stderr)
             if not older or fed != version:
                 break
             fed = older.group(1)  # the newest PTX ISA this ptxas reads
+        sass = sass_sizes(cubin) if proc.returncode == 0 else {}
     if proc.returncode != 0:
         raise RuntimeError(f"ptxas failed: {proc.stderr.strip()[-500:]}")
     kernels: dict[str, dict[str, float]] = {}
@@ -116,6 +135,8 @@ def run_ptxas(ptx: str, ptxas: str, arch: int) -> tuple[dict[str, dict[str, floa
         elif m := re.search(r"Compile time = ([\d.]+) ms", line):
             entry["ptxas_ms"] = float(m[1])
             entry = None
+    for name, size in sass.items():
+        kernels.get(re.sub(r"_cuda_kernel_forward$", "", name), {})["sass_bytes"] = size
     return kernels, fed if fed == version else f"{version} fed as {fed}"
 
 
@@ -329,12 +350,12 @@ def markdown(result: dict[str, Any]) -> str:
                          + (f" error: {r['error'][:80]}" if "error" in r else ""))
         return "\n".join(lines)
     every = list(result["methods"])
-    lines = ["| kernel | module | regs | stack B | spill st/ld B | ptxas ms | methods | ms/frame |", "|---" * 8 + "|"]
+    lines = ["| kernel | module | regs | stack B | spill st/ld B | SASS KB | ptxas ms | methods | ms/frame |", "|---" * 9 + "|"]
     for r in kernel_rows(result):
         regs = f"**{r['regs']}** (cap)" if r.get("regs", 0) >= REGISTER_CAP else r.get("regs", "?")
         ms = "–" if not r["ms"] else f"{min(r['ms']):.2f}" + (f"–{max(r['ms']):.2f}" if len(r["ms"]) > 1 else "")  # a range over the methods timed
         lines.append(f"| {r['kernel']} | {r['module']} | {regs} | {r.get('stack', '?')} | {r.get('spill_st', '?')}/{r.get('spill_ld', '?')} | "
-                     f"{round(r['ptxas_ms']) if 'ptxas_ms' in r else '?'} | {method_list(r['methods'], every)} | {ms} |")
+                     f"{round(r['sass_bytes'] / 1024) if 'sass_bytes' in r else '?'} | {round(r['ptxas_ms']) if 'ptxas_ms' in r else '?'} | {method_list(r['methods'], every)} | {ms} |")
     timed = {label: r for label, r in result["methods"].items() if "frame_ms" in r}
     if timed:
         lines += ["", "| method | ms/frame | ms/frame of each phase |", "|---|---|---|"]
