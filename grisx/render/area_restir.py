@@ -25,7 +25,9 @@ integrates the pixel's footprint (antialiasing and defocus). Per frame:
     leaves pixel i, and under sub-pixel motion a box filter loses |δx| + |δy| of the history a frame: that compounds.) MIS is the generalized
     balance heuristic over the two domains (seed 001, Eq. 15–16), the canonical sample's
     p̂_{←p} evaluated through the inverse translation on the previous frame's camera; history
-    confidence capped at ``history_cap``.
+    confidence capped at ``history_cap``. Under a still camera in a scene where nothing moves, a pixel with
+    δ = 0 is carried onto itself: its two domains are one, and T is the identity (:func:`film_shift_as_is`)
+    instead of a replay to the same path.
 ``# ---- spatial reuse ----``
     ``spatial_rounds`` rounds of ``neighbors`` (2, the paper's) random pixels within ``radius`` that
     pass the G-buffer similarity test, pairwise MIS against the canonical reservoir. A neighbour's
@@ -92,7 +94,8 @@ from grisx.render.base.reuse import (
 )
 from grisx.render.base.screen import kernel_cache, pixel_key_of
 from grisx.render.restir_pt import ReSTIRPT, confidence_total, finalize_kept, make_restir_pt_kernels
-from grisx.scene.camera import CameraData
+from grisx.scene.camera import CameraData, camera_data_equal
+from grisx.scene.material import SCENE_MOVING_OBJECTS
 from grisx.scene.gbuffer import GBufferData
 from grisx.scene.scene import SceneData
 from grisx.theory.gris import resampling_weight
@@ -116,6 +119,27 @@ def _shift_none() -> PathShiftResult:
     s.jacobian = 0.0
     s.valid = False
     return s
+
+
+@wp.func
+def film_shift_as_is(fs: FilmSample, pr: PathReservoir) -> PathShiftResult:
+    """T between a domain and itself (a pixel carried onto itself by a zero motion vector, under a still camera, in a
+    scene where nothing moves): the identity, |∂T/∂y| = 1. A shift map may be chosen per pair of domains as long as
+    T and T⁻¹ agree, and here the hybrid shift would replay the path to the same result at the cost of a path trace.
+    Undefined where :func:`film_shift` is before it shifts (no film sample, an empty path)."""
+    if fs.valid == 0 or pr.path.length < 1:
+        return _shift_none()
+    s = PathShiftResult()
+    s.path = pr.path
+    s.jacobian = 1.0
+    s.valid = True
+    return s
+
+
+@wp.func
+def _onto_itself(still: int, x: int, y: int, nx: int, ny: int, motion: wp.vec2) -> bool:
+    """Whether the temporal film translation carries pixel (x, y) onto itself (``still``: camera and scene still)."""
+    return still != 0 and nx == x and ny == y and motion[0] == 0.0 and motion[1] == 0.0
 
 
 @kernel_cache
@@ -157,7 +181,7 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     # ---- temporal reuse, in two stages (one film shift each): the canonical sample into the history's pixel, then the merge ----
     @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
     def temporal_canonical_pass(
-        scene_prev: SceneData, cam: CameraData, cam_prev: CameraData, sp: ShiftParams,
+        scene_prev: SceneData, cam: CameraData, cam_prev: CameraData, sp: ShiftParams, still: int,
         g: GBufferData, g_prev: GBufferData,
         canonical: wp.array2d(dtype=PathReservoir), film_can: wp.array2d(dtype=FilmSample), history: wp.array2d(dtype=PathReservoir),
         out: wp.array2d(dtype=PathReservoir), film_out: wp.array2d(dtype=FilmSample),
@@ -177,13 +201,16 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             return
         # canonical sample: p̂_{←p}(y_c) through the inverse translation, on the previous camera and in the
         # previous frame's scene (each domain in its own frame)
-        t_cj = target_to(film_shift_across(scene_prev, cam_prev, nb.x, nb.y, film_translate_wrapped(fs_c, temporal_film_offset(x, y, nb.x, nb.y, g.motion[y, x]), cam), can, sp))
+        s_cj = film_shift_as_is(fs_c, can)  # onto itself: the identity
+        if not _onto_itself(still, x, y, nb.x, nb.y, g.motion[y, x]):
+            s_cj = film_shift_across(scene_prev, cam_prev, nb.x, nb.y, film_translate_wrapped(fs_c, temporal_film_offset(x, y, nb.x, nb.y, g.motion[y, x]), cam), can, sp)
+        t_cj = target_to(s_cj)
         target_cj[y, x] = t_cj
         history_pixel[y, x] = domain_code(nb.x, nb.y, g.hit.shape[1], 0)
 
     @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
     def temporal_merge_pass(
-        scene: SceneData, cam: CameraData, seed: int, frame: int, sp: ShiftParams, history_cap: float,
+        scene: SceneData, cam: CameraData, seed: int, frame: int, sp: ShiftParams, history_cap: float, still: int,
         g: GBufferData,
         canonical: wp.array2d(dtype=PathReservoir), film_can: wp.array2d(dtype=FilmSample),
         history: wp.array2d(dtype=PathReservoir), film_hist: wp.array2d(dtype=FilmSample),
@@ -204,7 +231,9 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         m_c = two_domain_balance(c_i, t_c, c_j, target_cj[y, x])  # seed 001, Eq. 15
         # history sample translated into pixel i (fractional motion vector), its path shifted from the new x₁
         fs_t = film_translate_wrapped(film_hist[nb.y, nb.x], -temporal_film_offset(x, y, nb.x, nb.y, g.motion[y, x]), cam)
-        s_t = film_shift_across(scene, cam, x, y, fs_t, prev, sp)
+        s_t = film_shift_as_is(fs_t, prev)  # onto itself: the identity
+        if not _onto_itself(still, x, y, nb.x, nb.y, g.motion[y, x]):
+            s_t = film_shift_across(scene, cam, x, y, fs_t, prev, sp)
         t_ti = path_target(s_t.path)
         t_tj = target_back(prev.path, s_t)
         m_t = two_domain_balance(c_j, t_tj, c_i, t_ti)
@@ -367,14 +396,16 @@ class AreaReSTIR(ReSTIRPT):
         if self.temporal and self.frames_rendered > 0:
             with self._phase("temporal"):
                 scene_from_prev, scene_prev = b.across_frames()  # each domain in its own frame's scene
+                # a pixel carried onto itself under a still camera in a still scene: its two domains are one (film_shift_as_is)
+                still = int(camera_data_equal(cam, cam_prev) and SCENE_MOVING_OBJECTS not in b.features.kernel_kinds)
                 wp.launch(
                     k["temporal_canonical"], dim=dim,
-                    inputs=[scene_prev, cam, cam_prev, self.shift_params, g, g_prev, cur, film_cur, history],
+                    inputs=[scene_prev, cam, cam_prev, self.shift_params, still, g, g_prev, cur, film_cur, history],
                     outputs=[other, film_a, self.history_pixel, self.target_cj], device=dev,
                 )
                 wp.launch(
                     k["temporal_merge"], dim=dim,
-                    inputs=[scene_from_prev, cam, self.seed, int(frame), self.shift_params, self.history_cap, g, cur, film_cur, history, film_hist,
+                    inputs=[scene_from_prev, cam, self.seed, int(frame), self.shift_params, self.history_cap, still, g, cur, film_cur, history, film_hist,
                             self.history_pixel, self.target_cj],
                     outputs=[other, film_a], device=dev,
                 )

@@ -31,7 +31,11 @@ pair's difference is ⟨Δ_ij⟩ = ω*G(y, k) · W (Eq. 17), dx[i] = −Δ_ij. P
     of the previous frame by pixel i's fractional motion vector δ; the previous pair's samples come
     back through the **outer shift** T*(y, k) = (τ(y), k) (Eq. 21): the base path moves to the
     corresponding pixel of this pair (the film offset translated by δ, the path shifted from the new
-    primary vertex), k is kept and |∂T*/∂(y, k)| = |∂τ/∂y| (Eq. 22, ``outer_shift_of``).
+    primary vertex), k is kept and |∂T*/∂(y, k)| = |∂τ/∂y| (Eq. 22, ``outer_shift_of``). Where the pair is carried
+    onto itself (δ = 0 under a still camera) the two domains are one and T* is the identity
+    (:func:`pair_as_is`): no shift for this frame's samples, nor for the history's where nothing in the scene
+    moves. The merge runs as two stages, one outer shift each: the source pair and T*⁻¹ of the pair's own
+    samples (their MIS weights), then T* of the source's samples and the merge.
 ``# ---- spatial reuse ----``
     one neighbour pair (the paper's setting) of the same orientation: ``pair_reuse=dense`` a random
     pair within ``radius`` whose pixel i passes the G-buffer similarity test; ``adaptive`` (Sec. 4.3.2,
@@ -84,7 +88,8 @@ from grisx.render.base.registry import RenderMethod, create_renderer, register, 
 from grisx.render.base.reuse import SIMILARITY_DEPTH, SIMILARITY_NORMAL_COS, pixels_similar, spatial_neighbor, temporal_neighbor
 from grisx.render.base.screen import kernel_cache, pixel_key_of
 from grisx.render.gpt import GradientFromPrimal, gradient_params
-from grisx.scene.camera import CameraData
+from grisx.scene.camera import CameraData, camera_data_equal
+from grisx.scene.material import SCENE_MOVING_OBJECTS
 from grisx.scene.gbuffer import GBufferData
 from grisx.scene.scene import SceneData, finite_or_dropped
 from grisx.theory.gradient import (
@@ -182,6 +187,35 @@ def _pairs_alike(g: GBufferData, x: int, y: int, nx: int, ny: int, e: wp.vec2i) 
     da = g.albedo[y, x] - g.albedo[ny, nx]
     db = g.albedo[y + e[1], x + e[0]] - g.albedo[ny + e[1], nx + e[0]]
     return wp.length(da) <= _EDGE_ALBEDO and wp.length(db) <= _EDGE_ALBEDO
+
+
+@wp.func
+def pair_as_is(r: PairReservoir) -> PairCandidate:
+    """T*(y, k) when the source pair's domain *is* the destination's (the same pair, film translation 0, a still
+    camera, and for a sample of an earlier frame a scene where nothing moves): the identity, |∂T*| = 1, ω*G unchanged.
+
+    Every shift map may be chosen per pair of domains as long as T and T⁻¹ agree; between a domain and itself the
+    identity is the natural one, and the hybrid shift would replay the path to the same result at the cost of two
+    path traces (the base and the inner shift). Invalid where :func:`outer` fails before shifting (no film sample,
+    an empty path)."""
+    c = PairCandidate()
+    c.path = r.path
+    c.film = r.film
+    c.k = r.k
+    c.value = wp.vec3(0.0)
+    c.jacobian = 0.0
+    c.valid = False
+    if r.film.valid != 0 and r.path.length >= 1:
+        c.value = r.value
+        c.jacobian = 1.0
+        c.valid = True
+    return c
+
+
+@wp.func
+def _pair_onto_itself(still: int, x: int, y: int, nx: int, ny: int, to_dst: wp.vec2) -> bool:
+    """Whether a temporal source pair is this very pair (``still``: the caller's conditions on camera and scene)."""
+    return still != 0 and nx == x and ny == y and to_dst[0] == 0.0 and to_dst[1] == 0.0
 
 
 @kernel_cache
@@ -324,7 +358,7 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     @wp.kernel(module=module)
     def pair_source_pass(
         scene: SceneData, cam: CameraData, cam_src: CameraData, seed: int, frame: int, sp: ShiftParams,
-        positivize: int, use_outer_jacobian: int, symmetric: int, temporal: int,
+        positivize: int, use_outer_jacobian: int, symmetric: int, temporal: int, still: int,
         reuse: int, search: int, radius: float, g: GBufferData, g_src: GBufferData,
         own: wp.array4d(dtype=PairReservoir), out: wp.array4d(dtype=PairReservoir),
         source: wp.array3d(dtype=wp.vec2i), to_source: wp.array3d(dtype=wp.vec2), back: wp.array4d(dtype=wp.vec3),
@@ -373,18 +407,21 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             return
         source[orient, y, x] = wp.vec2i(nx, ny)
         to_source[orient, y, x] = to_dst
+        onto_itself = _pair_onto_itself(still, x, y, nx, ny, to_dst)
         slots = int(2)  # a dynamic bound: Warp unrolls a constant range, and ``outer`` inlines two shifts
         for slot in range(slots):
             if slot == 0 or positivize != 0:
-                # the pair's own sample carried to the source pair by T*⁻¹
-                b = outer(scene, cam_src, nx, ny, orient, own[slot, orient, y, x].film, -to_dst, own[slot, orient, y, x].k,
-                          own[slot, orient, y, x].path, sp, use_outer_jacobian, symmetric)
+                # the pair's own sample carried to the source pair by T*⁻¹ (the identity onto itself)
+                b = pair_as_is(own[slot, orient, y, x])
+                if not onto_itself:
+                    b = outer(scene, cam_src, nx, ny, orient, own[slot, orient, y, x].film, -to_dst, own[slot, orient, y, x].k,
+                              own[slot, orient, y, x].path, sp, use_outer_jacobian, symmetric)
                 back[slot, orient, y, x] = wp.vec3(luminance(b.value), b.jacobian, float(b.valid))
 
     @wp.kernel(module=module)
     def pair_merge_pass(
         scene: SceneData, cam: CameraData, seed: int, frame: int, sp: ShiftParams,
-        positivize: int, cross_sign: int, use_outer_jacobian: int, symmetric: int, temporal: int, history_cap: float,
+        positivize: int, cross_sign: int, use_outer_jacobian: int, symmetric: int, temporal: int, still: int, history_cap: float,
         own: wp.array4d(dtype=PairReservoir), src: wp.array4d(dtype=PairReservoir),
         source: wp.array3d(dtype=wp.vec2i), to_source: wp.array3d(dtype=wp.vec2), back: wp.array4d(dtype=wp.vec3),
         out: wp.array4d(dtype=PairReservoir),
@@ -399,6 +436,7 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         ny = nxy[1]
         to_dst = to_source[orient, y, x]
         ukey = pixel_key_of(seed, frame, x, y, own.shape[3], _STREAM_PAIR_TEMPORAL + orient + 2 * (1 - temporal))
+        onto_itself = _pair_onto_itself(still, x, y, nx, ny, to_dst)
         slots = int(2)  # dynamic bounds here: Warp unrolls a constant range, and ``outer`` inlines two shifts
         # out[slot] holds the pair's own reservoir; the kept candidate is written there when it is kept, not carried
         # across the shifts (a 50-word record live beside the inlined shifts)
@@ -426,8 +464,10 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
                     c_e = c_same
                     if input_e == 1:
                         c_e = c_other
-                    cand = outer(scene, cam, x, y, orient, src[theirs, orient, ny, nx].film, to_dst, src[theirs, orient, ny, nx].k,
-                                 src[theirs, orient, ny, nx].path, sp, use_outer_jacobian, symmetric)
+                    cand = pair_as_is(src[theirs, orient, ny, nx])  # T* onto itself: the identity
+                    if not onto_itself:
+                        cand = outer(scene, cam, x, y, orient, src[theirs, orient, ny, nx].film, to_dst, src[theirs, orient, ny, nx].k,
+                                     src[theirs, orient, ny, nx].path, sp, use_outer_jacobian, symmetric)
                     inv_j = float(0.0)
                     if cand.valid:
                         inv_j = 1.0 / cand.jacobian
@@ -509,11 +549,15 @@ class ReSTIRGPT(GradientFromPrimal):
         b = self.built
         dim = (2, self.height, self.width)
         between = [self.pair_source, self.pair_to_source, self.pair_back]
+        # a temporal source pair onto itself (zero motion) is this pair's own domain under a still camera: T*⁻¹ of this
+        # frame's samples is the identity; T* of the history's too where nothing in the scene moves (pair_as_is)
+        still = temporal and camera_data_equal(cam, cam_src)
+        still_scene = still and SCENE_MOVING_OBJECTS not in b.features.kernel_kinds
         wp.launch(self.pk["source"], dim=dim, inputs=[b.data, cam, cam_src, self.seed, int(frame), self.shift_params, int(self.positivize), int(self.outer_jacobian),
-                                                     int(self.symmetric), int(temporal), self.pair_reuse, self.pair_search, self.radius, g, g_src, own],
+                                                     int(self.symmetric), int(temporal), int(still), self.pair_reuse, self.pair_search, self.radius, g, g_src, own],
                   outputs=[out, *between], device=b.device)
         wp.launch(self.pk["merge"], dim=dim, inputs=[b.data, cam, self.seed, int(frame), self.shift_params, int(self.positivize), int(self.cross_sign),
-                                                    int(self.outer_jacobian), int(self.symmetric), int(temporal), self.history_cap, own, src, *between],
+                                                    int(self.outer_jacobian), int(self.symmetric), int(temporal), int(still_scene), self.history_cap, own, src, *between],
                   outputs=[out], device=b.device)
 
     def render_frame(self, frame: int) -> wp.array:

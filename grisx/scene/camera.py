@@ -49,6 +49,7 @@ __all__ = [
     "Camera",
     "CameraPath",
     "CameraData",
+    "camera_data_equal",
     "CameraRay",
     "PixelProjection",
     "lookat",
@@ -217,6 +218,11 @@ class CameraData:
     far_clip: float
     filter_stddev: float  # the film's reconstruction filter: 0 = box, else Mitsuba's gaussian (pixels)
     filter_tent: float  # or, when > 0, Mitsuba's tent of this radius (pixels)
+
+
+def camera_data_equal(a: CameraData, b: CameraData) -> bool:
+    """Whether two camera records are the same camera, field by field (a still camera between two frames)."""
+    return all(np.array_equal(np.asarray(getattr(a, name)), np.asarray(getattr(b, name))) for name in CameraData.vars)
 
 
 @wp.struct
