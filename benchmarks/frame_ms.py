@@ -29,6 +29,7 @@ def main() -> None:
     ap.add_argument("--res", default="1920x1080")
     ap.add_argument("--device", default="cuda")
     ap.add_argument("--opt-level", type=int, default=None, help="warp.config.optimization_level (default: Warp's, -O3 on CUDA)")
+    ap.add_argument("--camera", default="static", help="static, or path (the scene's camera path; moving)")
     ap.add_argument("--param", action="append", default=[], help="KEY=VALUE, repeatable")
     ap.add_argument("--tag", default="", help="a label written into the row (the tree, say)")
     ap.add_argument("--out", required=True, help="JSON-lines file to append the row to")
@@ -45,13 +46,13 @@ def main() -> None:
     res = tuple(int(v) for v in a.res.split("x"))
     spp = 1 if a.method == "pt" else None
     t_import = time.perf_counter()
-    render(a.scene, a.method, res=res, frames=1, spp=spp, seed=1, device=a.device, params=params)
+    render(a.scene, a.method, res=res, frames=1, spp=spp, seed=1, device=a.device, params=params, camera=a.camera)
     wp.synchronize()
-    row = {"tag": a.tag, "opt_level": a.opt_level, "scene": a.scene, "method": a.method, "params": params, "res": a.res,
+    row = {"tag": a.tag, "opt_level": a.opt_level, "scene": a.scene, "method": a.method, "params": params, "res": a.res, "camera": a.camera,
            "import_s": t_import - t_start, "first_frame_s": time.perf_counter() - t_import,
            "device": wp.get_device(a.device).name}
     if a.frames > 1:
-        r = render(a.scene, a.method, res=res, frames=a.frames, spp=spp, seed=1, device=a.device, params=params)
+        r = render(a.scene, a.method, res=res, frames=a.frames, spp=spp, seed=1, device=a.device, params=params, camera=a.camera)
         ms = np.asarray(r.frame_seconds[1:]) * 1e3
         row.update(frame_ms=float(np.median(ms)), q25=float(np.percentile(ms, 25)), q75=float(np.percentile(ms, 75)),
                    passes={k: float(v) * 1e3 / a.frames for k, v in (r.pass_seconds or {}).items()})
