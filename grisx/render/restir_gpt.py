@@ -34,8 +34,9 @@ pair's difference is ⟨Δ_ij⟩ = ω*G(y, k) · W (Eq. 17), dx[i] = −Δ_ij. P
     primary vertex), k is kept and |∂T*/∂(y, k)| = |∂τ/∂y| (Eq. 22, ``outer_shift_of``). Where the pair is carried
     onto itself (δ = 0 under a still camera) the two domains are one and T* is the identity
     (:func:`pair_as_is`): no shift for this frame's samples, nor for the history's where nothing in the scene
-    moves. The merge runs as two stages, one outer shift each: the source pair and T*⁻¹ of the pair's own
-    samples (their MIS weights), then T* of the source's samples and the merge.
+    moves. The merge runs in stages of one hybrid shift each (the outer shift is two in series: the base
+    path into the pair, then the inner shift that evaluates ω*G there): the source pair; T*⁻¹ of the pair's own
+    samples, base then inner (their MIS weights); T* of the source's samples, base then inner; the merge.
 ``# ---- spatial reuse ----``
     one neighbour pair (the paper's setting) of the same orientation: ``pair_reuse=dense`` a random
     pair within ``radius`` whose pixel i passes the G-buffer similarity test; ``adaptive`` (Sec. 4.3.2,
@@ -251,13 +252,13 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         return pair_value_in(scene, area_domain(scene, cam, o[0], o[1], fs).dom, k, path, sp, symmetric)
 
     @wp.func
-    def outer(
+    def outer_base(
         scene: SceneData, cam: CameraData, x: int, y: int, orient: int, fs_src: FilmSample, to_dst: wp.vec2, k: int,
-        path: PathSample, sp: ShiftParams, use_jacobian: int, symmetric: int,
+        path: PathSample, sp: ShiftParams, use_jacobian: int,
     ) -> PairCandidate:
         """T*(y, k) = (τ(y), k) into pair (x, y, orient) (Eq. 21–22): τ translates the film offset by ``to_dst`` (wrapped into
         the pixel's support, :func:`~grisx.render.base.area.film_translate_wrapped`) and shifts the path from the primary
-        vertex of the corresponding pixel; ω*G evaluated there."""
+        vertex of the corresponding pixel. ω*G there (the inner shift) is left to :func:`pair_value_at` (its own stage)."""
         c = PairCandidate()
         c.k = k
         # wrapped into the pixel's support (a temporal to_dst that carries the film sample out of the pixel would
@@ -286,7 +287,6 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         c.path = shifted.path
         c.jacobian = t.jacobian
         c.valid = True
-        c.value = pair_value_at(scene, cam, x, y, orient, c.film, k, shifted.path, sp, symmetric)
         return c
 
     @wp.func
@@ -351,20 +351,21 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             p.res = reservoir_finalize(p.res)  # W = Σ w / p̂(y, k), Eq. 18
             out[slot, orient, y, x] = p
 
-    # ---- temporal reuse / spatial reuse: one merge of a source pair into each of this pair's reservoirs, in two stages ----
-    # Each stage runs one outer shift a reservoir (two inlined hybrid shifts): the pair's own sample carried back to the
-    # source pair, then the source pair's samples carried here. One kernel running both sat at the register cap and
-    # spilled (sm_90: 255 registers, ~1 KB stack).
+    # ---- temporal reuse / spatial reuse: one merge of a source pair into each of this pair's reservoirs, in stages ----
+    # The outer shift is two hybrid shifts in series (the base path into the pair, then the inner shift that gives ω*G);
+    # the merge needs it twice a reservoir (the pair's own sample back to the source pair, the source's samples here).
+    # Each runs in a stage of its own, one inlined shift a kernel: the source pair; the base shifts of the own samples;
+    # their inner shifts (their p̂ at the source pair); the same two for the source's samples; then the merge, which
+    # shifts nothing. One kernel running all four shifts sat at the register cap and spilled (sm_90: 255 registers,
+    # 1 KB stack); two stages of two shifts each still did.
     @wp.kernel(module=module)
     def pair_source_pass(
-        scene: SceneData, cam: CameraData, cam_src: CameraData, seed: int, frame: int, sp: ShiftParams,
-        positivize: int, use_outer_jacobian: int, symmetric: int, temporal: int, still: int,
-        reuse: int, search: int, radius: float, g: GBufferData, g_src: GBufferData,
+        seed: int, frame: int, temporal: int, reuse: int, search: int, radius: float, g: GBufferData, g_src: GBufferData,
         own: wp.array4d(dtype=PairReservoir), out: wp.array4d(dtype=PairReservoir),
-        source: wp.array3d(dtype=wp.vec2i), to_source: wp.array3d(dtype=wp.vec2), back: wp.array4d(dtype=wp.vec3),
+        source: wp.array3d(dtype=wp.vec2i), to_source: wp.array3d(dtype=wp.vec2),
     ):
-        """The source pair (from the G-buffers alone), and each own sample's p̂ there through T*⁻¹ (seed 001, Eq. 16):
-        ``back[slot]`` = (luminance of ω*G there, |∂T*⁻¹|, valid)."""
+        """The source pair of each pair, from the G-buffers alone, and the film translation u_dst = u_src + to_dst;
+        ``out`` starts as the pair's own reservoirs."""
         orient, y, x = wp.tid()
         h = own.shape[2]
         w = own.shape[3]
@@ -375,7 +376,6 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             return
         e = _axis(orient)
         ukey = pixel_key_of(seed, frame, x, y, w, _STREAM_PAIR_TEMPORAL + orient + 2 * (1 - temporal))
-        # ---- the source pair and the film translation u_dst = u_src + to_dst ----
         nx = int(-1)
         ny = int(-1)
         to_dst = wp.vec2(0.0, 0.0)
@@ -407,40 +407,86 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             return
         source[orient, y, x] = wp.vec2i(nx, ny)
         to_source[orient, y, x] = to_dst
-        onto_itself = _pair_onto_itself(still, x, y, nx, ny, to_dst)
-        slots = int(2)  # a dynamic bound: Warp unrolls a constant range, and ``outer`` inlines two shifts
-        for slot in range(slots):
-            if slot == 0 or positivize != 0:
-                # the pair's own sample carried to the source pair by T*⁻¹ (the identity onto itself)
-                b = pair_as_is(own[slot, orient, y, x])
-                if not onto_itself:
-                    b = outer(scene, cam_src, nx, ny, orient, own[slot, orient, y, x].film, -to_dst, own[slot, orient, y, x].k,
-                              own[slot, orient, y, x].path, sp, use_outer_jacobian, symmetric)
-                back[slot, orient, y, x] = wp.vec3(luminance(b.value), b.jacobian, float(b.valid))
+
+    @wp.kernel(module=module)
+    def pair_base_pass(
+        scene: SceneData, cam_dst: CameraData, sp: ShiftParams, toward_source: int, positivize: int, use_outer_jacobian: int, still: int,
+        own: wp.array4d(dtype=PairReservoir), src: wp.array4d(dtype=PairReservoir),
+        source: wp.array3d(dtype=wp.vec2i), to_source: wp.array3d(dtype=wp.vec2),
+        carried: wp.array4d(dtype=PairCandidate), inner_due: wp.array4d(dtype=wp.int32),
+    ):
+        """The base path of one reservoir carried by the outer shift: ``toward_source`` = 1, the pair's own sample of slot
+        ``s`` into the source pair (T*⁻¹, on the source's camera); 0, the source pair's sample of slot ``s`` into this pair
+        (T*). ``inner_due`` = 1 where the inner shift (ω*G there) is still to be evaluated."""
+        s, orient, y, x = wp.tid()
+        inner_due[s, orient, y, x] = 0
+        nxy = source[orient, y, x]
+        if nxy[0] < 0 or not (s == 0 or positivize != 0):
+            return
+        nx = nxy[0]
+        ny = nxy[1]
+        to_dst = to_source[orient, y, x]
+        # the reservoir and its destination chosen first, shifted at one place (one inlined shift)
+        r = src[s, orient, ny, nx]
+        px = x
+        py = y
+        t = to_dst
+        if toward_source != 0:
+            r = own[s, orient, y, x]
+            px = nx
+            py = ny
+            t = -to_dst
+        if _pair_onto_itself(still, x, y, nx, ny, to_dst):
+            carried[s, orient, y, x] = pair_as_is(r)  # the identity onto itself, ω*G included
+            return
+        c = outer_base(scene, cam_dst, px, py, orient, r.film, t, r.k, r.path, sp, use_outer_jacobian)
+        carried[s, orient, y, x] = c
+        if c.valid:
+            inner_due[s, orient, y, x] = 1
+
+    @wp.kernel(module=module)
+    def pair_inner_pass(
+        scene: SceneData, cam_dst: CameraData, sp: ShiftParams, toward_source: int, symmetric: int,
+        source: wp.array3d(dtype=wp.vec2i), carried: wp.array4d(dtype=PairCandidate), inner_due: wp.array4d(dtype=wp.int32),
+    ):
+        """ω*G of each carried base path at its destination pair (the inner shift, Eq. 14–16), in place."""
+        s, orient, y, x = wp.tid()
+        if inner_due[s, orient, y, x] == 0:
+            return
+        px = x
+        py = y
+        if toward_source != 0:
+            nxy = source[orient, y, x]
+            px = nxy[0]
+            py = nxy[1]
+        carried[s, orient, y, x].value = pair_value_at(scene, cam_dst, px, py, orient, carried[s, orient, y, x].film, carried[s, orient, y, x].k,
+                                                       carried[s, orient, y, x].path, sp, symmetric)
+
+    @wp.kernel(module=module)
+    def pair_back_pass(source: wp.array3d(dtype=wp.vec2i), carried: wp.array4d(dtype=PairCandidate), back: wp.array4d(dtype=wp.vec3)):
+        """What the merge keeps of the own samples carried to the source pair: (luminance of ω*G there, |∂T*⁻¹|, valid)."""
+        s, orient, y, x = wp.tid()
+        if source[orient, y, x][0] < 0:
+            return
+        back[s, orient, y, x] = wp.vec3(luminance(carried[s, orient, y, x].value), carried[s, orient, y, x].jacobian, float(carried[s, orient, y, x].valid))
 
     @wp.kernel(module=module)
     def pair_merge_pass(
-        scene: SceneData, cam: CameraData, seed: int, frame: int, sp: ShiftParams,
-        positivize: int, cross_sign: int, use_outer_jacobian: int, symmetric: int, temporal: int, still: int, history_cap: float,
+        seed: int, frame: int, positivize: int, cross_sign: int, temporal: int, history_cap: float,
         own: wp.array4d(dtype=PairReservoir), src: wp.array4d(dtype=PairReservoir),
-        source: wp.array3d(dtype=wp.vec2i), to_source: wp.array3d(dtype=wp.vec2), back: wp.array4d(dtype=wp.vec3),
+        source: wp.array3d(dtype=wp.vec2i), back: wp.array4d(dtype=wp.vec3), carried: wp.array4d(dtype=PairCandidate),
         out: wp.array4d(dtype=PairReservoir),
     ):
         """The generalized balance heuristic over the pair's own reservoir and the source pair's (seed 001, Eq. 15–16),
-        the source samples carried here by T*; ``out`` holds the own reservoir (:func:`pair_source_pass`)."""
+        every shift done by the stages before; ``out`` holds the own reservoir (:func:`pair_source_pass`)."""
         orient, y, x = wp.tid()
         nxy = source[orient, y, x]
         if nxy[0] < 0:
             return
         nx = nxy[0]
         ny = nxy[1]
-        to_dst = to_source[orient, y, x]
         ukey = pixel_key_of(seed, frame, x, y, own.shape[3], _STREAM_PAIR_TEMPORAL + orient + 2 * (1 - temporal))
-        onto_itself = _pair_onto_itself(still, x, y, nx, ny, to_dst)
-        slots = int(2)  # dynamic bounds here: Warp unrolls a constant range, and ``outer`` inlines two shifts
-        # out[slot] holds the pair's own reservoir; the kept candidate is written there when it is kept, not carried
-        # across the shifts (a 50-word record live beside the inlined shifts)
-        for slot in range(slots):
+        for slot in range(2):
             if slot == 0 or positivize != 0:
                 sign = pair_slot_sign(positivize, slot)
                 c_own = own[slot, orient, y, x].res.confidence
@@ -451,34 +497,33 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
                 if temporal != 0:
                     c_same = confidence_capped(c_same, history_cap)
                     c_other = confidence_capped(c_other, history_cap)
-                # the pair's own sample: its p̂ here, and at the source pair (pair_source_pass)
+                # the pair's own sample: its p̂ here, and at the source pair (pair_back_pass)
                 bk = back[slot, orient, y, x]
                 b = pair_balance_empty()
                 b = pair_balance_add(b, sign, 1, c_own, 0.0, t_own, 1.0, True, 0)
                 b = pair_balance_add(b, sign, n_src, c_same, c_other, bk[0], bk[1], bk[2] != 0.0, -1)
                 r = reservoir_empty()
                 r = pair_update(r, sign, t_own, pair_balance_mis(b, c_own), own[slot, orient, y, x].res.ucw, 1.0, c_own, random_uniform(ukey, 0))
-                # the source pair's reservoirs of this sign (and of the other, across signs) through T*
+                # the source pair's reservoirs of this sign (and of the other, across signs), carried here by T*
                 for input_e in range(n_src):  # 1 or 2 (pair_source_inputs)
                     theirs = pair_input_slot(slot, input_e)
                     c_e = c_same
                     if input_e == 1:
                         c_e = c_other
-                    cand = pair_as_is(src[theirs, orient, ny, nx])  # T* onto itself: the identity
-                    if not onto_itself:
-                        cand = outer(scene, cam, x, y, orient, src[theirs, orient, ny, nx].film, to_dst, src[theirs, orient, ny, nx].k,
-                                     src[theirs, orient, ny, nx].path, sp, use_outer_jacobian, symmetric)
+                    t_cand = luminance(carried[theirs, orient, y, x].value)
+                    valid = carried[theirs, orient, y, x].valid
+                    jac = carried[theirs, orient, y, x].jacobian
                     inv_j = float(0.0)
-                    if cand.valid:
-                        inv_j = 1.0 / cand.jacobian
+                    if valid:
+                        inv_j = 1.0 / jac
                     b = pair_balance_empty()
-                    b = pair_balance_add(b, sign, 1, c_own, 0.0, luminance(cand.value), 1.0, cand.valid, -1)
-                    b = pair_balance_add(b, sign, n_src, c_same, c_other, luminance(src[theirs, orient, ny, nx].value), inv_j, cand.valid, input_e)
+                    b = pair_balance_add(b, sign, 1, c_own, 0.0, t_cand, 1.0, valid, -1)
+                    b = pair_balance_add(b, sign, n_src, c_same, c_other, luminance(src[theirs, orient, ny, nx].value), inv_j, valid, input_e)
                     mis = pair_balance_mis(b, c_e)
-                    r = pair_update(r, sign, luminance(cand.value), mis, src[theirs, orient, ny, nx].res.ucw, cand.jacobian, c_e,
+                    r = pair_update(r, sign, t_cand, mis, src[theirs, orient, ny, nx].res.ucw, jac, c_e,
                                     random_uniform(ukey, 1 + input_e))  # Eq. 20
                     if r.selected:
-                        keep_in(out, slot, orient, y, x, cand)
+                        keep_in(out, slot, orient, y, x, carried[theirs, orient, y, x])
                 out[slot, orient, y, x].res = reservoir_finalize(r)
 
     # ---- gradients and reconstruction ----
@@ -499,7 +544,8 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         else:
             dy[y, x] = dy[y, x] - d
 
-    return {"initial": pair_initial_pass, "source": pair_source_pass, "merge": pair_merge_pass, "gradient": pair_gradient_pass}
+    return {"initial": pair_initial_pass, "source": pair_source_pass, "base": pair_base_pass, "inner": pair_inner_pass, "back": pair_back_pass,
+            "merge": pair_merge_pass, "gradient": pair_gradient_pass}
 
 
 class ReSTIRGPT(GradientFromPrimal):
@@ -532,6 +578,8 @@ class ReSTIRGPT(GradientFromPrimal):
         self.pair_source = wp.zeros((2, self.height, self.width), dtype=wp.vec2i, device=built.device)
         self.pair_to_source = wp.zeros((2, self.height, self.width), dtype=wp.vec2, device=built.device)
         self.pair_back = wp.zeros(shape, dtype=wp.vec3, device=built.device)
+        self.pair_carried = wp.zeros(shape, dtype=PairCandidate, device=built.device)  # one outer shift's results, stage to stage
+        self.pair_inner_due = wp.zeros(shape, dtype=wp.int32, device=built.device)
         self.pair_frames = 0
 
     def kernels(self) -> list[Any]:
@@ -545,20 +593,29 @@ class ReSTIRGPT(GradientFromPrimal):
         wp.copy(self.canonical_kept, reservoirs)  # the gradient pass's initial candidates (before any reuse)
 
     def merge_pairs(self, frame: int, cam: Any, cam_src: Any, g: Any, g_src: Any, own: wp.array, src: wp.array, out: wp.array, *, temporal: bool) -> None:
-        """One temporal or spatial merge of a source pair into every pair's reservoirs: source stage, then merge stage."""
+        """One temporal or spatial merge of a source pair into every pair's reservoirs, stage by stage (the kernels')."""
         b = self.built
-        dim = (2, self.height, self.width)
-        between = [self.pair_source, self.pair_to_source, self.pair_back]
+        dev = b.device
+        pairs = (2, self.height, self.width)
+        each = (2, 2, self.height, self.width)  # (slot, orientation, H, W)
         # a temporal source pair onto itself (zero motion) is this pair's own domain under a still camera: T*⁻¹ of this
         # frame's samples is the identity; T* of the history's too where nothing in the scene moves (pair_as_is)
         still = temporal and camera_data_equal(cam, cam_src)
         still_scene = still and SCENE_MOVING_OBJECTS not in b.features.kernel_kinds
-        wp.launch(self.pk["source"], dim=dim, inputs=[b.data, cam, cam_src, self.seed, int(frame), self.shift_params, int(self.positivize), int(self.outer_jacobian),
-                                                     int(self.symmetric), int(temporal), int(still), self.pair_reuse, self.pair_search, self.radius, g, g_src, own],
-                  outputs=[out, *between], device=b.device)
-        wp.launch(self.pk["merge"], dim=dim, inputs=[b.data, cam, self.seed, int(frame), self.shift_params, int(self.positivize), int(self.cross_sign),
-                                                    int(self.outer_jacobian), int(self.symmetric), int(temporal), int(still_scene), self.history_cap, own, src, *between],
-                  outputs=[out], device=b.device)
+        flags = [int(self.positivize), int(self.outer_jacobian)]
+        wp.launch(self.pk["source"], dim=pairs, inputs=[self.seed, int(frame), int(temporal), self.pair_reuse, self.pair_search, self.radius, g, g_src, own],
+                  outputs=[out, self.pair_source, self.pair_to_source], device=dev)
+        # the pair's own samples to the source pair (T*⁻¹): base, inner, what the merge keeps of them
+        wp.launch(self.pk["base"], dim=each, inputs=[b.data, cam_src, self.shift_params, 1, *flags, int(still), own, src, self.pair_source, self.pair_to_source],
+                  outputs=[self.pair_carried, self.pair_inner_due], device=dev)
+        wp.launch(self.pk["inner"], dim=each, inputs=[b.data, cam_src, self.shift_params, 1, int(self.symmetric), self.pair_source], outputs=[self.pair_carried, self.pair_inner_due], device=dev)
+        wp.launch(self.pk["back"], dim=each, inputs=[self.pair_source, self.pair_carried], outputs=[self.pair_back], device=dev)
+        # the source's samples here (T*), then the merge
+        wp.launch(self.pk["base"], dim=each, inputs=[b.data, cam, self.shift_params, 0, *flags, int(still_scene), own, src, self.pair_source, self.pair_to_source],
+                  outputs=[self.pair_carried, self.pair_inner_due], device=dev)
+        wp.launch(self.pk["inner"], dim=each, inputs=[b.data, cam, self.shift_params, 0, int(self.symmetric), self.pair_source], outputs=[self.pair_carried, self.pair_inner_due], device=dev)
+        wp.launch(self.pk["merge"], dim=pairs, inputs=[self.seed, int(frame), int(self.positivize), int(self.cross_sign), int(temporal), self.history_cap, own, src,
+                                                      self.pair_source, self.pair_back, self.pair_carried], outputs=[out], device=dev)
 
     def render_frame(self, frame: int) -> wp.array:
         """Primal pass, paired-pixel candidates, temporal and spatial pair reuse, gradients, reconstruction."""
