@@ -574,7 +574,7 @@ class ReSTIRGPT(GradientFromPrimal):
         shape = (2, 2, self.height, self.width)  # (slot: r+ or |.|, r-), (orientation: x, y), H, W
         self.pairs = [wp.zeros(shape, dtype=PairReservoir, device=built.device) for _ in range(3)]  # 0: history, 1–2: scratch
         self.canonical_kept = wp.zeros((self.height, self.width), dtype=PathReservoir, device=built.device)
-        # between the merge's two stages: each pair's source pair, film translation, and own samples' p̂ there
+        # between the merge's stages: each pair's source pair and film translation, the own samples' p̂ there
         self.pair_source = wp.zeros((2, self.height, self.width), dtype=wp.vec2i, device=built.device)
         self.pair_to_source = wp.zeros((2, self.height, self.width), dtype=wp.vec2, device=built.device)
         self.pair_back = wp.zeros(shape, dtype=wp.vec3, device=built.device)
