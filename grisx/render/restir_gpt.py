@@ -32,9 +32,8 @@ pair's difference is ⟨Δ_ij⟩ = ω*G(y, k) · W (Eq. 17), dx[i] = −Δ_ij. P
     back through the **outer shift** T*(y, k) = (τ(y), k) (Eq. 21): the base path moves to the
     corresponding pixel of this pair (the film offset translated by δ, the path shifted from the new
     primary vertex), k is kept and |∂T*/∂(y, k)| = |∂τ/∂y| (Eq. 22, ``outer_shift_of``). Where the pair is carried
-    onto itself (δ = 0 under a still camera) the two domains are one and T* is the identity
-    (:func:`pair_as_is`): no shift for this frame's samples, nor for the history's where nothing in the scene
-    moves. The merge runs in stages of one hybrid shift each (the outer shift is two in series: the base
+    onto itself (δ = 0 under a still camera, in a scene where nothing moves) the two domains are one and
+    T* is the identity (:func:`pair_as_is`): no shift either way. The merge runs in stages of one hybrid shift each (the outer shift is two in series: the base
     path into the pair, then the inner shift that evaluates ω*G there): the source pair; T*⁻¹ of the pair's own
     samples, base then inner (their MIS weights); T* of the source's samples, base then inner; the merge.
 ``# ---- spatial reuse ----``
@@ -63,10 +62,11 @@ Neighbour pairs are chosen from the G-buffer alone (its own camera samples), nev
 reservoirs' samples. ``jacobian=false`` drops every shift's Jacobian, ``outer_jacobian=false`` the
 outer shift's alone, and ``symmetric=false`` resamples the one-sided Eq. 2 on pixel i's half of X
 alone (the pair target without the other pixel's MIS-weighted term, Eq. 12–13): all three are
-known-biased siblings the tests catch. Differences from the
-paper: one spatial round of one neighbour pair, ``pair_search`` tries (the paper: 256), the
-initial candidates are the primal pass's (not separately traced paths), and previous-frame domains
-are traced through the current geometry (exact for static scenes).
+known-biased siblings the tests catch. Previous-frame domains are traced through the previous
+frame's geometry, and a temporal shift fails where the suffix it reuses met something that moved
+(:func:`pair_scenes`); evaluating them in this frame's geometry is a fourth sibling, caught under
+moving objects. Differences from the paper: one spatial round of one neighbour pair, ``pair_search``
+tries (the paper: 256), and the initial candidates are the primal pass's (not separately traced paths).
 
 References: seed 000 (Wang et al., Gradient-domain ReSTIR Path Tracing), Sec. 4.2–4.4, Eq. 14–26;
 seed 001, Eq. 15–16; W. Chang et al., "Parameter-space ReSTIR", SIGGRAPH 2023; S. Zhang et al.,
@@ -193,7 +193,7 @@ def _pairs_alike(g: GBufferData, x: int, y: int, nx: int, ny: int, e: wp.vec2i) 
 @wp.func
 def pair_as_is(r: PairReservoir) -> PairCandidate:
     """T*(y, k) when the source pair's domain *is* the destination's (the same pair, film translation 0, a still
-    camera, and for a sample of an earlier frame a scene where nothing moves): the identity, |∂T*| = 1, ω*G unchanged.
+    camera, a scene where nothing moves): the identity, |∂T*| = 1, ω*G unchanged.
 
     Every shift map may be chosen per pair of domains as long as T and T⁻¹ agree; between a domain and itself the
     identity is the natural one, and the hybrid shift would replay the path to the same result at the cost of two
@@ -222,7 +222,9 @@ def _pair_onto_itself(still: int, x: int, y: int, nx: int, ny: int, to_dst: wp.v
 @kernel_cache
 def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     """The paired-pixel passes of ReSTIR G-PT compiled for the material kinds ``kinds`` (cached)."""
-    shift = make_path_shift(kinds).shift
+    shifts = make_path_shift(kinds)
+    shift = shifts.shift
+    suffix_moved = shifts.suffix_moved
     area_domain = make_area_domain(kinds)
     module = specialized_module(__name__, kinds)
 
@@ -254,11 +256,13 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     @wp.func
     def outer_base(
         scene: SceneData, cam: CameraData, x: int, y: int, orient: int, fs_src: FilmSample, to_dst: wp.vec2, k: int,
-        path: PathSample, sp: ShiftParams, use_jacobian: int,
+        path: PathSample, sp: ShiftParams, use_jacobian: int, across: int,
     ) -> PairCandidate:
         """T*(y, k) = (τ(y), k) into pair (x, y, orient) (Eq. 21–22): τ translates the film offset by ``to_dst`` (wrapped into
         the pixel's support, :func:`~grisx.render.base.area.film_translate_wrapped`) and shifts the path from the primary
-        vertex of the corresponding pixel. ω*G there (the inner shift) is left to :func:`pair_value_at` (its own stage)."""
+        vertex of the corresponding pixel. ω*G there (the inner shift) is left to :func:`pair_value_at` (its own stage).
+        ``across`` = 1 between frames (``scene`` the destination frame's, :meth:`~grisx.scene.scene.BuiltScene.across_frames`):
+        undefined where the suffix that a reconnection reuses met something that moved (``shift_across``)."""
         c = PairCandidate()
         c.k = k
         # wrapped into the pixel's support (a temporal to_dst that carries the film sample out of the pixel would
@@ -271,6 +275,9 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         c.valid = False
         if c.film.valid == 0 or path.length < 1:
             return c
+        if across != 0:
+            if suffix_moved(scene, path):
+                return c
         e = _axis(orient)
         bx = x
         by = y
@@ -410,14 +417,15 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
 
     @wp.kernel(module=module)
     def pair_base_pass(
-        scene: SceneData, cam_dst: CameraData, sp: ShiftParams, toward_source: int, positivize: int, use_outer_jacobian: int, still: int,
+        scene: SceneData, cam_dst: CameraData, sp: ShiftParams, toward_source: int, positivize: int, use_outer_jacobian: int, across: int, still: int,
         own: wp.array4d(dtype=PairReservoir), src: wp.array4d(dtype=PairReservoir),
         source: wp.array3d(dtype=wp.vec2i), to_source: wp.array3d(dtype=wp.vec2),
         carried: wp.array4d(dtype=PairCandidate), inner_due: wp.array4d(dtype=wp.int32),
     ):
         """The base path of one reservoir carried by the outer shift: ``toward_source`` = 1, the pair's own sample of slot
         ``s`` into the source pair (T*⁻¹, on the source's camera); 0, the source pair's sample of slot ``s`` into this pair
-        (T*). ``inner_due`` = 1 where the inner shift (ω*G there) is still to be evaluated."""
+        (T*). ``scene`` and ``cam_dst`` are the destination frame's; ``across`` = 1 for a temporal merge. ``inner_due`` = 1
+        where the inner shift (ω*G there) is still to be evaluated."""
         s, orient, y, x = wp.tid()
         inner_due[s, orient, y, x] = 0
         nxy = source[orient, y, x]
@@ -439,7 +447,7 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         if _pair_onto_itself(still, x, y, nx, ny, to_dst):
             carried[s, orient, y, x] = pair_as_is(r)  # the identity onto itself, ω*G included
             return
-        c = outer_base(scene, cam_dst, px, py, orient, r.film, t, r.k, r.path, sp, use_outer_jacobian)
+        c = outer_base(scene, cam_dst, px, py, orient, r.film, t, r.k, r.path, sp, use_outer_jacobian, across)
         carried[s, orient, y, x] = c
         if c.valid:
             inner_due[s, orient, y, x] = 1
@@ -548,6 +556,15 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             "merge": pair_merge_pass, "gradient": pair_gradient_pass}
 
 
+def pair_scenes(built: Any, temporal: bool) -> tuple[Any, Any]:
+    """The scenes of a merge's two ends, (this pair's, the source pair's): each domain in its own frame's geometry, a
+    temporal source in the previous frame's, and each knowing what moved in between
+    (:meth:`~grisx.scene.scene.BuiltScene.across_frames`), so that a temporal shift fails where the suffix it reuses
+    met something that moved. (Evaluating the previous frame's domains in this frame's scene, as the paper does, is
+    the known-biased sibling of ``tests/render/test_gradient_domain.py``.)"""
+    return built.across_frames() if temporal else (built.data, built.data)
+
+
 class ReSTIRGPT(GradientFromPrimal):
     """ReSTIR G-PT over a built scene: Area ReSTIR's primal pass and paired-pixel reservoirs for dx, dy (module docstring)."""
 
@@ -598,22 +615,22 @@ class ReSTIRGPT(GradientFromPrimal):
         dev = b.device
         pairs = (2, self.height, self.width)
         each = (2, 2, self.height, self.width)  # (slot, orientation, H, W)
-        # a temporal source pair onto itself (zero motion) is this pair's own domain under a still camera: T*⁻¹ of this
-        # frame's samples is the identity; T* of the history's too where nothing in the scene moves (pair_as_is)
-        still = temporal and camera_data_equal(cam, cam_src)
-        still_scene = still and SCENE_MOVING_OBJECTS not in b.features.kernel_kinds
-        flags = [int(self.positivize), int(self.outer_jacobian)]
+        scene_here, scene_src = pair_scenes(b, temporal)
+        # a temporal source pair onto itself (zero motion), under a still camera in a scene where nothing moves, is this
+        # pair's own domain: T* and T*⁻¹ are the identity there (pair_as_is)
+        still = int(temporal and camera_data_equal(cam, cam_src) and SCENE_MOVING_OBJECTS not in b.features.kernel_kinds)
+        flags = [int(self.positivize), int(self.outer_jacobian), int(temporal)]
         wp.launch(self.pk["source"], dim=pairs, inputs=[self.seed, int(frame), int(temporal), self.pair_reuse, self.pair_search, self.radius, g, g_src, own],
                   outputs=[out, self.pair_source, self.pair_to_source], device=dev)
         # the pair's own samples to the source pair (T*⁻¹): base, inner, what the merge keeps of them
-        wp.launch(self.pk["base"], dim=each, inputs=[b.data, cam_src, self.shift_params, 1, *flags, int(still), own, src, self.pair_source, self.pair_to_source],
+        wp.launch(self.pk["base"], dim=each, inputs=[scene_src, cam_src, self.shift_params, 1, *flags, still, own, src, self.pair_source, self.pair_to_source],
                   outputs=[self.pair_carried, self.pair_inner_due], device=dev)
-        wp.launch(self.pk["inner"], dim=each, inputs=[b.data, cam_src, self.shift_params, 1, int(self.symmetric), self.pair_source], outputs=[self.pair_carried, self.pair_inner_due], device=dev)
+        wp.launch(self.pk["inner"], dim=each, inputs=[scene_src, cam_src, self.shift_params, 1, int(self.symmetric), self.pair_source], outputs=[self.pair_carried, self.pair_inner_due], device=dev)
         wp.launch(self.pk["back"], dim=each, inputs=[self.pair_source, self.pair_carried], outputs=[self.pair_back], device=dev)
         # the source's samples here (T*), then the merge
-        wp.launch(self.pk["base"], dim=each, inputs=[b.data, cam, self.shift_params, 0, *flags, int(still_scene), own, src, self.pair_source, self.pair_to_source],
+        wp.launch(self.pk["base"], dim=each, inputs=[scene_here, cam, self.shift_params, 0, *flags, still, own, src, self.pair_source, self.pair_to_source],
                   outputs=[self.pair_carried, self.pair_inner_due], device=dev)
-        wp.launch(self.pk["inner"], dim=each, inputs=[b.data, cam, self.shift_params, 0, int(self.symmetric), self.pair_source], outputs=[self.pair_carried, self.pair_inner_due], device=dev)
+        wp.launch(self.pk["inner"], dim=each, inputs=[scene_here, cam, self.shift_params, 0, int(self.symmetric), self.pair_source], outputs=[self.pair_carried, self.pair_inner_due], device=dev)
         wp.launch(self.pk["merge"], dim=pairs, inputs=[self.seed, int(frame), int(self.positivize), int(self.cross_sign), int(temporal), self.history_cap, own, src,
                                                       self.pair_source, self.pair_back, self.pair_carried], outputs=[out], device=dev)
 

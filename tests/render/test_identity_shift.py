@@ -5,11 +5,10 @@ pairs and their Area ReSTIR primal pass) carry a pixel with zero motion onto its
 and this frame's are one, and the temporal shift is the identity (``film_shift_as_is``, ``pair_as_is``)
 instead of a replay of the path to the same result. This file renders each case twice at one seed, once
 as shipped and once with the shortcut turned off (the renderers' ``camera_data_equal`` made to answer
-"moved"), and requires the images to agree to float rounding. ReSTIR G-PT takes T*⁻¹ of this frame's samples as
-the identity also where objects move (both domains are evaluated in this frame's scene); the history's T* and
-Area ReSTIR's shifts, which see the previous frame's scene, only where nothing moves. The sibling drops that
-condition (the two boxes of ``reuse_checks``' ``cornell-box-fast-objects`` slide under a still camera): the
-history's stale paths are then reused as they were, and the same comparison fails.
+"moved"), and requires the images to agree to float rounding. The shortcut applies only where nothing in the
+scene moves: a temporal shift sees the previous frame's geometry at one end. The sibling drops that condition
+(the two boxes of ``reuse_checks``' ``cornell-box-fast-objects`` slide under a still camera): the history's stale
+paths are then reused as they were, and the same comparison fails.
 """
 
 from __future__ import annotations
