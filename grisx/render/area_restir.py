@@ -70,7 +70,7 @@ import warp as wp
 from grisx.device import SHIFT_REGISTERS, specialized_module
 from grisx.errors import InvalidParameterError
 from grisx.params import Param
-from grisx.render.base.area import FILM_STREAM, FilmSample, film_sample, film_translate_wrapped, make_area_domain, temporal_film_offset
+from grisx.render.base.area import FILM_STREAM, FilmSample, film_onto_itself, film_sample, film_translate_wrapped, make_area_domain, temporal_film_offset
 from grisx.render.base.path_shift import (
     Domain,
     PathReservoir,
@@ -136,12 +136,6 @@ def film_shift_as_is(fs: FilmSample, pr: PathReservoir) -> PathShiftResult:
     return s
 
 
-@wp.func
-def _onto_itself(still: int, x: int, y: int, nx: int, ny: int, motion: wp.vec2) -> bool:
-    """Whether the temporal film translation carries pixel (x, y) onto itself (``still``: camera and scene still)."""
-    return still != 0 and nx == x and ny == y and motion[0] == 0.0 and motion[1] == 0.0
-
-
 @kernel_cache
 def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     """The passes of Area ReSTIR compiled for the material kinds ``kinds`` (cached)."""
@@ -201,9 +195,10 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             return
         # canonical sample: p̂_{←p}(y_c) through the inverse translation, on the previous camera and in the
         # previous frame's scene (each domain in its own frame)
+        to_prev = temporal_film_offset(x, y, nb.x, nb.y, g.motion[y, x])
         s_cj = film_shift_as_is(fs_c, can)  # onto itself: the identity
-        if not _onto_itself(still, x, y, nb.x, nb.y, g.motion[y, x]):
-            s_cj = film_shift_across(scene_prev, cam_prev, nb.x, nb.y, film_translate_wrapped(fs_c, temporal_film_offset(x, y, nb.x, nb.y, g.motion[y, x]), cam), can, sp)
+        if not film_onto_itself(still, x, y, nb.x, nb.y, to_prev):
+            s_cj = film_shift_across(scene_prev, cam_prev, nb.x, nb.y, film_translate_wrapped(fs_c, to_prev, cam), can, sp)
         t_cj = target_to(s_cj)
         target_cj[y, x] = t_cj
         history_pixel[y, x] = domain_code(nb.x, nb.y, g.hit.shape[1], 0)
@@ -230,9 +225,10 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         t_c = path_target(can.path)
         m_c = two_domain_balance(c_i, t_c, c_j, target_cj[y, x])  # seed 001, Eq. 15
         # history sample translated into pixel i (fractional motion vector), its path shifted from the new x₁
-        fs_t = film_translate_wrapped(film_hist[nb.y, nb.x], -temporal_film_offset(x, y, nb.x, nb.y, g.motion[y, x]), cam)
+        to_here = -temporal_film_offset(x, y, nb.x, nb.y, g.motion[y, x])
+        fs_t = film_translate_wrapped(film_hist[nb.y, nb.x], to_here, cam)
         s_t = film_shift_as_is(fs_t, prev)  # onto itself: the identity
-        if not _onto_itself(still, x, y, nb.x, nb.y, g.motion[y, x]):
+        if not film_onto_itself(still, x, y, nb.x, nb.y, to_here):
             s_t = film_shift_across(scene, cam, x, y, fs_t, prev, sp)
         t_ti = path_target(s_t.path)
         t_tj = target_back(prev.path, s_t)

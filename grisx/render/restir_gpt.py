@@ -82,7 +82,7 @@ import warp as wp
 from grisx.device import specialized_module
 from grisx.errors import InvalidParameterError
 from grisx.params import Param
-from grisx.render.base.area import FilmSample, film_translate_wrapped, make_area_domain, temporal_film_offset
+from grisx.render.base.area import FilmSample, film_onto_itself, film_translate_wrapped, make_area_domain, temporal_film_offset
 from grisx.render.base.gradient import DIFFERENCES_NONE
 from grisx.render.base.path_shift import Domain, PathReservoir, PathSample, ShiftParams, make_path_shift, path_sample_empty, path_target
 from grisx.render.base.registry import RenderMethod, create_renderer, register, renderer_params
@@ -211,12 +211,6 @@ def pair_as_is(r: PairReservoir) -> PairCandidate:
         c.jacobian = 1.0
         c.valid = True
     return c
-
-
-@wp.func
-def _pair_onto_itself(still: int, x: int, y: int, nx: int, ny: int, to_dst: wp.vec2) -> bool:
-    """Whether a temporal source pair is this very pair (``still``: the caller's conditions on camera and scene)."""
-    return still != 0 and nx == x and ny == y and to_dst[0] == 0.0 and to_dst[1] == 0.0
 
 
 @kernel_cache
@@ -444,7 +438,7 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             px = nx
             py = ny
             t = -to_dst
-        if _pair_onto_itself(still, x, y, nx, ny, to_dst):
+        if film_onto_itself(still, x, y, nx, ny, to_dst):
             carried[s, orient, y, x] = pair_as_is(r)  # the identity onto itself, ω*G included
             return
         c = outer_base(scene, cam_dst, px, py, orient, r.film, t, r.k, r.path, sp, use_outer_jacobian, across)

@@ -55,7 +55,7 @@ from grisx.theory.random import random_uniform
 
 wp.set_module_options({"enable_backward": False})
 
-__all__ = ["FilmSample", "AreaDomain", "film_sample", "make_area_domain", "film_translate", "film_translate_wrapped", "temporal_film_offset", "FILM_STREAM"]
+__all__ = ["FilmSample", "AreaDomain", "film_sample", "make_area_domain", "film_translate", "film_translate_wrapped", "temporal_film_offset", "film_onto_itself", "FILM_STREAM"]
 
 #: the film sample's random stream of a pixel (pixel_key_of), apart from ReSTIR PT's 1–10 and 64+
 FILM_STREAM = 48
@@ -132,6 +132,15 @@ def temporal_film_offset(x: int, y: int, prev_x: int, prev_y: int, motion: wp.ve
     minus current film position); its negative carries a previous sample of p into i. The one convention of
     every temporal film shift (Area ReSTIR, ReSTIR G-PT's pixel pairs)."""
     return wp.vec2(float(x - prev_x), float(y - prev_y)) + motion
+
+
+@wp.func
+def film_onto_itself(still: int, x: int, y: int, prev_x: int, prev_y: int, translation: wp.vec2) -> bool:
+    """Whether a temporal film translation (:func:`temporal_film_offset` or its negative) carries pixel (x, y) onto
+    itself, the same pixel and a zero offset, where ``still`` says that the camera and the scene did not move: the
+    two domains are then one, and the temporal shift between them is the identity (Area ReSTIR's
+    ``film_shift_as_is``, ReSTIR G-PT's ``pair_as_is``)."""
+    return still != 0 and prev_x == x and prev_y == y and translation[0] == 0.0 and translation[1] == 0.0
 
 
 @wp.func
