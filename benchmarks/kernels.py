@@ -19,7 +19,8 @@ with Warp's module loader wrapped: every module the render loads is compiled to 
 loaded. Modules are specialised to the scene's material kinds (``render.restcv.kinds_0_1``), so
 the numbers belong to ``--scene`` (default ``glossy-room``: diffuse and rough conductor).
 
-With ``--device cuda`` each method is also timed at ``--res`` (default 1920x1080), static camera:
+With ``--device cuda`` each method is also timed at ``--res`` (default 1920x1080), static camera
+(``--camera path``: the scene's moving camera, under which no temporal shift is the identity):
 a warm-up render, then ``--frames`` frames after a first one that is not counted (no history yet).
 *Kernel* milliseconds come from ``wp.launch`` wrapped with a device synchronisation on each side
 (a few microseconds per launch added); *phase* milliseconds from the driver's pass timer
@@ -181,7 +182,7 @@ def render_kwargs(method: str, params: dict[str, Any], args: argparse.Namespace,
     from grisx.render.driver import METHODS
 
     return {"scene": args.scene, "method": method, "params": params, "device": args.device, "seed": 1,
-            "camera": "static", "spp": 1 if METHODS[method].uses_spp else None, **kw}
+            "camera": args.camera, "spp": 1 if METHODS[method].uses_spp else None, **kw}
 
 
 @contextlib.contextmanager
@@ -372,6 +373,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--methods", default=None, help="comma-separated labels (default: all of " + ", ".join(v[0] for v in VARIANTS) + ")")
     ap.add_argument("--res", type=int, nargs=2, default=(1920, 1080), metavar=("W", "H"), help="timing resolution (CUDA)")
     ap.add_argument("--frames", type=int, default=None, help="timed frames after the first (default 32 on CUDA, 0 = no timing on CPU)")
+    ap.add_argument("--camera", default="static", choices=("static", "path"),
+                    help="timing camera: still, or the scene's moving path (the temporal shifts of a still camera can be the identity)")
     ap.add_argument("--arch", type=int, default=90, help="CUDA compute capability of the resource numbers (90: H100/H200)")
     ap.add_argument("--ptxas", default=shutil.which("ptxas"), help="ptxas binary (default: on PATH; without it no resources)")
     ap.add_argument("--compile", action="store_true", help="cold and warm first-use compile time instead of resources")
@@ -403,7 +406,7 @@ def main(argv: list[str] | None = None) -> int:
     path = args.out / f"{kind}_{'cuda' if dev.is_cuda else 'cpu'}.json"
     result = {"benchmark": kind, **environment(args, dev), "methods": {}}
     if kind == "kernels":
-        result.update(res=list(args.res), frames=args.frames, camera="static")
+        result.update(res=list(args.res), frames=args.frames, camera=args.camera)
     if path.exists():  # a run split over several calls fills one file
         earlier = json.loads(path.read_text())
         if earlier.get("scene") == args.scene:

@@ -298,6 +298,15 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         out[slot, orient, y, x].k = c.k
         out[slot, orient, y, x].value = c.value
 
+    @wp.func
+    def carried_here(
+        as_is: int, src: wp.array4d(dtype=PairReservoir), carried: wp.array4d(dtype=PairCandidate), s: int, orient: int, y: int, x: int, nx: int, ny: int,
+    ) -> PairCandidate:
+        """T* of the source pair's reservoir ``s`` into pair (x, y): the shift stages' result, or the identity."""
+        if as_is != 0:
+            return pair_as_is(src[s, orient, ny, nx])
+        return carried[s, orient, y, x]
+
     # ---- initial paired-pixel candidates ----
     @wp.kernel(module=module)
     def pair_initial_pass(
@@ -358,14 +367,17 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     # Each runs in a stage of its own, one inlined shift a kernel: the source pair; the base shifts of the own samples;
     # their inner shifts (their p̂ at the source pair); the same two for the source's samples; then the merge, which
     # shifts nothing. One kernel running all four shifts sat at the register cap and spilled (sm_90: 255 registers,
-    # 1 KB stack); two stages of two shifts each still did.
+    # 1 KB stack); two stages of two shifts each still did. A source pair that is this pair's own domain (``as_is``)
+    # is left to the light stages (back and merge): the identity is a copy, and a copy in a shift stage's 200-odd
+    # registers a thread ran at a quarter of the light stages' occupancy (H200, still camera: 40 ms a merge).
     @wp.kernel(module=module)
     def pair_source_pass(
-        seed: int, frame: int, temporal: int, reuse: int, search: int, radius: float, g: GBufferData, g_src: GBufferData,
+        seed: int, frame: int, temporal: int, still: int, reuse: int, search: int, radius: float, g: GBufferData, g_src: GBufferData,
         own: wp.array4d(dtype=PairReservoir), out: wp.array4d(dtype=PairReservoir),
-        source: wp.array3d(dtype=wp.vec2i), to_source: wp.array3d(dtype=wp.vec2),
+        source: wp.array3d(dtype=wp.vec2i), to_source: wp.array3d(dtype=wp.vec2), as_is: wp.array3d(dtype=wp.int32),
     ):
-        """The source pair of each pair, from the G-buffers alone, and the film translation u_dst = u_src + to_dst;
+        """The source pair of each pair, from the G-buffers alone, the film translation u_dst = u_src + to_dst, and
+        whether the source pair is this pair's own domain (``as_is``: T* and T*⁻¹ the identity, :func:`pair_as_is`);
         ``out`` starts as the pair's own reservoirs."""
         orient, y, x = wp.tid()
         h = own.shape[2]
@@ -373,6 +385,7 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         out[0, orient, y, x] = own[0, orient, y, x]
         out[1, orient, y, x] = own[1, orient, y, x]
         source[orient, y, x] = wp.vec2i(-1, -1)
+        as_is[orient, y, x] = 0
         if not _pair_on_film(x, y, orient, w, h):
             return
         e = _axis(orient)
@@ -408,22 +421,24 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             return
         source[orient, y, x] = wp.vec2i(nx, ny)
         to_source[orient, y, x] = to_dst
+        if film_onto_itself(still, x, y, nx, ny, to_dst):
+            as_is[orient, y, x] = 1
 
     @wp.kernel(module=module)
     def pair_base_pass(
-        scene: SceneData, cam_dst: CameraData, sp: ShiftParams, toward_source: int, positivize: int, use_outer_jacobian: int, across: int, still: int,
+        scene: SceneData, cam_dst: CameraData, sp: ShiftParams, toward_source: int, positivize: int, use_outer_jacobian: int, across: int,
         own: wp.array4d(dtype=PairReservoir), src: wp.array4d(dtype=PairReservoir),
-        source: wp.array3d(dtype=wp.vec2i), to_source: wp.array3d(dtype=wp.vec2),
+        source: wp.array3d(dtype=wp.vec2i), to_source: wp.array3d(dtype=wp.vec2), as_is: wp.array3d(dtype=wp.int32),
         carried: wp.array4d(dtype=PairCandidate), inner_due: wp.array4d(dtype=wp.int32),
     ):
         """The base path of one reservoir carried by the outer shift: ``toward_source`` = 1, the pair's own sample of slot
         ``s`` into the source pair (T*⁻¹, on the source's camera); 0, the source pair's sample of slot ``s`` into this pair
         (T*). ``scene`` and ``cam_dst`` are the destination frame's; ``across`` = 1 for a temporal merge. ``inner_due`` = 1
-        where the inner shift (ω*G there) is still to be evaluated."""
+        where the inner shift (ω*G there) is still to be evaluated. Nothing to do for a source pair ``as_is``."""
         s, orient, y, x = wp.tid()
         inner_due[s, orient, y, x] = 0
         nxy = source[orient, y, x]
-        if nxy[0] < 0 or not (s == 0 or positivize != 0):
+        if nxy[0] < 0 or as_is[orient, y, x] != 0 or not (s == 0 or positivize != 0):
             return
         nx = nxy[0]
         ny = nxy[1]
@@ -438,9 +453,6 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             px = nx
             py = ny
             t = -to_dst
-        if film_onto_itself(still, x, y, nx, ny, to_dst):
-            carried[s, orient, y, x] = pair_as_is(r)  # the identity onto itself, ω*G included
-            return
         c = outer_base(scene, cam_dst, px, py, orient, r.film, t, r.k, r.path, sp, use_outer_jacobian, across)
         carried[s, orient, y, x] = c
         if c.valid:
@@ -465,19 +477,26 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
                                                        carried[s, orient, y, x].path, sp, symmetric)
 
     @wp.kernel(module=module)
-    def pair_back_pass(source: wp.array3d(dtype=wp.vec2i), carried: wp.array4d(dtype=PairCandidate), back: wp.array4d(dtype=wp.vec3)):
+    def pair_back_pass(
+        own: wp.array4d(dtype=PairReservoir), source: wp.array3d(dtype=wp.vec2i), as_is: wp.array3d(dtype=wp.int32),
+        carried: wp.array4d(dtype=PairCandidate), back: wp.array4d(dtype=wp.vec3),
+    ):
         """What the merge keeps of the own samples carried to the source pair: (luminance of ω*G there, |∂T*⁻¹|, valid)."""
         s, orient, y, x = wp.tid()
         if source[orient, y, x][0] < 0:
             return
-        back[s, orient, y, x] = wp.vec3(luminance(carried[s, orient, y, x].value), carried[s, orient, y, x].jacobian, float(carried[s, orient, y, x].valid))
+        if as_is[orient, y, x] != 0:
+            c = pair_as_is(own[s, orient, y, x])  # T*⁻¹ onto itself: the identity, ω*G included
+            back[s, orient, y, x] = wp.vec3(luminance(c.value), c.jacobian, float(c.valid))
+        else:
+            back[s, orient, y, x] = wp.vec3(luminance(carried[s, orient, y, x].value), carried[s, orient, y, x].jacobian, float(carried[s, orient, y, x].valid))
 
     @wp.kernel(module=module)
     def pair_merge_pass(
         seed: int, frame: int, positivize: int, cross_sign: int, temporal: int, history_cap: float,
         own: wp.array4d(dtype=PairReservoir), src: wp.array4d(dtype=PairReservoir),
-        source: wp.array3d(dtype=wp.vec2i), back: wp.array4d(dtype=wp.vec3), carried: wp.array4d(dtype=PairCandidate),
-        out: wp.array4d(dtype=PairReservoir),
+        source: wp.array3d(dtype=wp.vec2i), as_is: wp.array3d(dtype=wp.int32), back: wp.array4d(dtype=wp.vec3),
+        carried: wp.array4d(dtype=PairCandidate), out: wp.array4d(dtype=PairReservoir),
     ):
         """The generalized balance heuristic over the pair's own reservoir and the source pair's (seed 001, Eq. 15–16),
         every shift done by the stages before; ``out`` holds the own reservoir (:func:`pair_source_pass`)."""
@@ -512,9 +531,10 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
                     c_e = c_same
                     if input_e == 1:
                         c_e = c_other
-                    t_cand = luminance(carried[theirs, orient, y, x].value)
-                    valid = carried[theirs, orient, y, x].valid
-                    jac = carried[theirs, orient, y, x].jacobian
+                    cand = carried_here(as_is[orient, y, x], src, carried, theirs, orient, y, x, nx, ny)
+                    t_cand = luminance(cand.value)
+                    valid = cand.valid
+                    jac = cand.jacobian
                     inv_j = float(0.0)
                     if valid:
                         inv_j = 1.0 / jac
@@ -525,7 +545,7 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
                     r = pair_update(r, sign, t_cand, mis, src[theirs, orient, ny, nx].res.ucw, jac, c_e,
                                     random_uniform(ukey, 1 + input_e))  # Eq. 20
                     if r.selected:
-                        keep_in(out, slot, orient, y, x, carried[theirs, orient, y, x])
+                        keep_in(out, slot, orient, y, x, cand)
                 out[slot, orient, y, x].res = reservoir_finalize(r)
 
     # ---- gradients and reconstruction ----
@@ -588,6 +608,7 @@ class ReSTIRGPT(GradientFromPrimal):
         # between the merge's stages: each pair's source pair and film translation, the own samples' p̂ there
         self.pair_source = wp.zeros((2, self.height, self.width), dtype=wp.vec2i, device=built.device)
         self.pair_to_source = wp.zeros((2, self.height, self.width), dtype=wp.vec2, device=built.device)
+        self.pair_as_is = wp.zeros((2, self.height, self.width), dtype=wp.int32, device=built.device)  # the source pair is this pair's domain
         self.pair_back = wp.zeros(shape, dtype=wp.vec3, device=built.device)
         self.pair_carried = wp.zeros(shape, dtype=PairCandidate, device=built.device)  # one outer shift's results, stage to stage
         self.pair_inner_due = wp.zeros(shape, dtype=wp.int32, device=built.device)
@@ -614,19 +635,20 @@ class ReSTIRGPT(GradientFromPrimal):
         # pair's own domain: T* and T*⁻¹ are the identity there (pair_as_is)
         still = int(temporal and camera_data_equal(cam, cam_src) and SCENE_MOVING_OBJECTS not in b.features.kernel_kinds)
         flags = [int(self.positivize), int(self.outer_jacobian), int(temporal)]
-        wp.launch(self.pk["source"], dim=pairs, inputs=[self.seed, int(frame), int(temporal), self.pair_reuse, self.pair_search, self.radius, g, g_src, own],
-                  outputs=[out, self.pair_source, self.pair_to_source], device=dev)
+        src_of = [self.pair_source, self.pair_to_source, self.pair_as_is]
+        wp.launch(self.pk["source"], dim=pairs, inputs=[self.seed, int(frame), int(temporal), still, self.pair_reuse, self.pair_search, self.radius, g, g_src, own],
+                  outputs=[out, *src_of], device=dev)
         # the pair's own samples to the source pair (T*⁻¹): base, inner, what the merge keeps of them
-        wp.launch(self.pk["base"], dim=each, inputs=[scene_src, cam_src, self.shift_params, 1, *flags, still, own, src, self.pair_source, self.pair_to_source],
+        wp.launch(self.pk["base"], dim=each, inputs=[scene_src, cam_src, self.shift_params, 1, *flags, own, src, *src_of],
                   outputs=[self.pair_carried, self.pair_inner_due], device=dev)
         wp.launch(self.pk["inner"], dim=each, inputs=[scene_src, cam_src, self.shift_params, 1, int(self.symmetric), self.pair_source], outputs=[self.pair_carried, self.pair_inner_due], device=dev)
-        wp.launch(self.pk["back"], dim=each, inputs=[self.pair_source, self.pair_carried], outputs=[self.pair_back], device=dev)
+        wp.launch(self.pk["back"], dim=each, inputs=[own, self.pair_source, self.pair_as_is, self.pair_carried], outputs=[self.pair_back], device=dev)
         # the source's samples here (T*), then the merge
-        wp.launch(self.pk["base"], dim=each, inputs=[scene_here, cam, self.shift_params, 0, *flags, still, own, src, self.pair_source, self.pair_to_source],
+        wp.launch(self.pk["base"], dim=each, inputs=[scene_here, cam, self.shift_params, 0, *flags, own, src, *src_of],
                   outputs=[self.pair_carried, self.pair_inner_due], device=dev)
         wp.launch(self.pk["inner"], dim=each, inputs=[scene_here, cam, self.shift_params, 0, int(self.symmetric), self.pair_source], outputs=[self.pair_carried, self.pair_inner_due], device=dev)
         wp.launch(self.pk["merge"], dim=pairs, inputs=[self.seed, int(frame), int(self.positivize), int(self.cross_sign), int(temporal), self.history_cap, own, src,
-                                                      self.pair_source, self.pair_back, self.pair_carried], outputs=[out], device=dev)
+                                                      self.pair_source, self.pair_as_is, self.pair_back, self.pair_carried], outputs=[out], device=dev)
 
     def render_frame(self, frame: int) -> wp.array:
         """Primal pass, paired-pixel candidates, temporal and spatial pair reuse, gradients, reconstruction."""
