@@ -136,7 +136,9 @@ PATH_REGISTERS = 80
 #: (path samples) spills heavily below 128: at 128 ReSTIR PT's frame on door-ajar 44.0 -> 34.6 ms
 #: (H100, 1080p), at 80 40.7. Area ReSTIR runs ReSTIR PT's walk and its own stages under it too, chosen
 #: per stage (its spatial stages on an H200: door-ajar 11.4 -> 8.2 ms, glossy-room the same); capping
-#: all its passes at once had lost on glossy-room (115 -> 135 ms).
+#: all its passes at once had lost on glossy-room (115 -> 135 ms). ReSTIR G-PT's shift stages (base, inner) and
+#: its initial pair pass, uncapped at 200-223 registers without spills, run faster at 128 with spills (H200,
+#: 1080p, moving camera: glossy-room 237.5 -> 217.0 ms, door-ajar 133.4 -> 125.2).
 SHIFT_REGISTERS = 128
 
 

@@ -79,7 +79,7 @@ from typing import Any
 
 import warp as wp
 
-from grisx.device import specialized_module
+from grisx.device import SHIFT_REGISTERS, specialized_module
 from grisx.errors import InvalidParameterError
 from grisx.params import Param
 from grisx.render.base.area import FilmSample, film_onto_itself, film_translate_wrapped, make_area_domain, temporal_film_offset
@@ -308,7 +308,7 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         return carried[s, orient, y, x]
 
     # ---- initial paired-pixel candidates ----
-    @wp.kernel(module=module)
+    @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
     def pair_initial_pass(
         scene: SceneData, cam: CameraData, seed: int, frame: int, sp: ShiftParams, positivize: int, symmetric: int,
         film: wp.array2d(dtype=FilmSample), canonical: wp.array2d(dtype=PathReservoir), direct: wp.array2d(dtype=wp.vec3),
@@ -370,6 +370,7 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     # 1 KB stack); two stages of two shifts each still did. A source pair that is this pair's own domain (``as_is``)
     # is left to the light stages (back and merge): the identity is a copy, and a copy in a shift stage's 200-odd
     # registers a thread ran at a quarter of the light stages' occupancy (H200, still camera: 40 ms a merge).
+    # The shift stages run under SHIFT_REGISTERS: two blocks an SM with spills beat one without (grisx.device).
     @wp.kernel(module=module)
     def pair_source_pass(
         seed: int, frame: int, temporal: int, still: int, reuse: int, search: int, radius: float, g: GBufferData, g_src: GBufferData,
@@ -424,7 +425,7 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         if film_onto_itself(still, x, y, nx, ny, to_dst):
             as_is[orient, y, x] = 1
 
-    @wp.kernel(module=module)
+    @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
     def pair_base_pass(
         scene: SceneData, cam_dst: CameraData, sp: ShiftParams, toward_source: int, positivize: int, use_outer_jacobian: int, across: int,
         own: wp.array4d(dtype=PairReservoir), src: wp.array4d(dtype=PairReservoir),
@@ -458,7 +459,7 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         if c.valid:
             inner_due[s, orient, y, x] = 1
 
-    @wp.kernel(module=module)
+    @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
     def pair_inner_pass(
         scene: SceneData, cam_dst: CameraData, sp: ShiftParams, toward_source: int, symmetric: int,
         source: wp.array3d(dtype=wp.vec2i), carried: wp.array4d(dtype=PairCandidate), inner_due: wp.array4d(dtype=wp.int32),
