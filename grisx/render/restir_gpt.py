@@ -85,6 +85,7 @@ from grisx.params import Param
 from grisx.render.base.area import FilmSample, film_onto_itself, film_translate_wrapped, make_area_domain, temporal_film_offset
 from grisx.render.base.gradient import DIFFERENCES_NONE
 from grisx.render.base.path_shift import Domain, PathReservoir, PathSample, ShiftParams, make_path_shift, path_sample_empty, path_target
+from grisx.render.base.queue import WorkQueue, enqueue
 from grisx.render.base.registry import RenderMethod, create_renderer, register, renderer_params
 from grisx.render.base.reuse import SIMILARITY_DEPTH, SIMILARITY_NORMAL_COS, pixels_similar, spatial_neighbor, temporal_neighbor
 from grisx.render.base.screen import kernel_cache, pixel_key_of
@@ -157,6 +158,14 @@ def _axis(orient: int) -> wp.vec2i:
     if orient == 0:
         return wp.vec2i(1, 0)
     return wp.vec2i(0, 1)
+
+
+@wp.func
+def _queued_pair(i: int, height: int, width: int) -> wp.vec3i:
+    """(orientation, y, x) of the flat index ``i`` of a (2, height, width) pair array (a :class:`WorkQueue` item)."""
+    plane = height * width
+    r = i % plane
+    return wp.vec3i(i // plane, r // width, r % width)
 
 
 @wp.func
@@ -376,10 +385,11 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         seed: int, frame: int, temporal: int, still: int, reuse: int, search: int, radius: float, g: GBufferData, g_src: GBufferData,
         own: wp.array4d(dtype=PairReservoir), out: wp.array4d(dtype=PairReservoir),
         source: wp.array3d(dtype=wp.vec2i), to_source: wp.array3d(dtype=wp.vec2), as_is: wp.array3d(dtype=wp.int32),
+        due: wp.array3d(dtype=wp.int32),
     ):
         """The source pair of each pair, from the G-buffers alone, the film translation u_dst = u_src + to_dst, and
-        whether the source pair is this pair's own domain (``as_is``: T* and T*⁻¹ the identity, :func:`pair_as_is`);
-        ``out`` starts as the pair's own reservoirs."""
+        whether the source pair is this pair's own domain (``as_is``: T* and T*⁻¹ the identity, :func:`pair_as_is`) or
+        is to be shifted from (``due``: the shift stages' work queue); ``out`` starts as the pair's own reservoirs."""
         orient, y, x = wp.tid()
         h = own.shape[2]
         w = own.shape[3]
@@ -387,6 +397,7 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         out[1, orient, y, x] = own[1, orient, y, x]
         source[orient, y, x] = wp.vec2i(-1, -1)
         as_is[orient, y, x] = 0
+        due[orient, y, x] = 0
         if not _pair_on_film(x, y, orient, w, h):
             return
         e = _axis(orient)
@@ -424,23 +435,27 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         to_source[orient, y, x] = to_dst
         if film_onto_itself(still, x, y, nx, ny, to_dst):
             as_is[orient, y, x] = 1
+        else:
+            due[orient, y, x] = 1
 
     @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
     def pair_base_pass(
         scene: SceneData, cam_dst: CameraData, sp: ShiftParams, toward_source: int, positivize: int, use_outer_jacobian: int, across: int,
         own: wp.array4d(dtype=PairReservoir), src: wp.array4d(dtype=PairReservoir),
-        source: wp.array3d(dtype=wp.vec2i), to_source: wp.array3d(dtype=wp.vec2), as_is: wp.array3d(dtype=wp.int32),
+        source: wp.array3d(dtype=wp.vec2i), to_source: wp.array3d(dtype=wp.vec2), queue: wp.array(dtype=wp.int32),
         carried: wp.array4d(dtype=PairCandidate), inner_due: wp.array4d(dtype=wp.int32),
     ):
         """The base path of one reservoir carried by the outer shift: ``toward_source`` = 1, the pair's own sample of slot
         ``s`` into the source pair (T*⁻¹, on the source's camera); 0, the source pair's sample of slot ``s`` into this pair
         (T*). ``scene`` and ``cam_dst`` are the destination frame's; ``across`` = 1 for a temporal merge. ``inner_due`` = 1
-        where the inner shift (ω*G there) is still to be evaluated. Nothing to do for a source pair ``as_is``."""
-        s, orient, y, x = wp.tid()
+        where the inner shift (ω*G there) is still to be evaluated. Runs over slot × ``queue`` (the pairs ``due``)."""
+        s, q = wp.tid()
+        p = _queued_pair(queue[q], source.shape[1], source.shape[2])
+        orient = p[0]
+        y = p[1]
+        x = p[2]
         inner_due[s, orient, y, x] = 0
         nxy = source[orient, y, x]
-        if nxy[0] < 0 or as_is[orient, y, x] != 0 or not (s == 0 or positivize != 0):
-            return
         nx = nxy[0]
         ny = nxy[1]
         to_dst = to_source[orient, y, x]
@@ -462,10 +477,15 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
     def pair_inner_pass(
         scene: SceneData, cam_dst: CameraData, sp: ShiftParams, toward_source: int, symmetric: int,
-        source: wp.array3d(dtype=wp.vec2i), carried: wp.array4d(dtype=PairCandidate), inner_due: wp.array4d(dtype=wp.int32),
+        source: wp.array3d(dtype=wp.vec2i), queue: wp.array(dtype=wp.int32), carried: wp.array4d(dtype=PairCandidate), inner_due: wp.array4d(dtype=wp.int32),
     ):
-        """ω*G of each carried base path at its destination pair (the inner shift, Eq. 14–16), in place."""
-        s, orient, y, x = wp.tid()
+        """ω*G of each carried base path at its destination pair (the inner shift, Eq. 14–16), in place; over slot ×
+        ``queue``, as :func:`pair_base_pass`."""
+        s, q = wp.tid()
+        p = _queued_pair(queue[q], source.shape[1], source.shape[2])
+        orient = p[0]
+        y = p[1]
+        x = p[2]
         if inner_due[s, orient, y, x] == 0:
             return
         px = x
@@ -610,13 +630,15 @@ class ReSTIRGPT(GradientFromPrimal):
         self.pair_source = wp.zeros((2, self.height, self.width), dtype=wp.vec2i, device=built.device)
         self.pair_to_source = wp.zeros((2, self.height, self.width), dtype=wp.vec2, device=built.device)
         self.pair_as_is = wp.zeros((2, self.height, self.width), dtype=wp.int32, device=built.device)  # the source pair is this pair's domain
+        self.pair_due = wp.zeros((2, self.height, self.width), dtype=wp.int32, device=built.device)  # a source pair to shift from
+        self.pair_queue = WorkQueue(self.pair_due, built.device)
         self.pair_back = wp.zeros(shape, dtype=wp.vec3, device=built.device)
         self.pair_carried = wp.zeros(shape, dtype=PairCandidate, device=built.device)  # one outer shift's results, stage to stage
         self.pair_inner_due = wp.zeros(shape, dtype=wp.int32, device=built.device)
         self.pair_frames = 0
 
     def kernels(self) -> list[Any]:
-        return [*super().kernels(), *self.pk.values()]
+        return [*super().kernels(), *self.pk.values(), enqueue]
 
     def reset(self, seed: int | None = None) -> None:
         super().reset(seed)
@@ -636,18 +658,26 @@ class ReSTIRGPT(GradientFromPrimal):
         # pair's own domain: T* and T*⁻¹ are the identity there (pair_as_is)
         still = int(temporal and camera_data_equal(cam, cam_src) and SCENE_MOVING_OBJECTS not in b.features.kernel_kinds)
         flags = [int(self.positivize), int(self.outer_jacobian), int(temporal)]
-        src_of = [self.pair_source, self.pair_to_source, self.pair_as_is]
         wp.launch(self.pk["source"], dim=pairs, inputs=[self.seed, int(frame), int(temporal), still, self.pair_reuse, self.pair_search, self.radius, g, g_src, own],
-                  outputs=[out, *src_of], device=dev)
+                  outputs=[out, self.pair_source, self.pair_to_source, self.pair_as_is, self.pair_due], device=dev)
+        # the shift stages run over the pairs due alone (a still camera's temporal merge: a few hundred of 2·H·W;
+        # an adaptive spatial merge: the edge pairs that found an edge-aligned neighbour)
+        due = self.pair_queue.build()
+        slots = 2 if self.positivize else 1
+        on_queue = [self.pair_source, self.pair_to_source, self.pair_queue.items]
         # the pair's own samples to the source pair (T*⁻¹): base, inner, what the merge keeps of them
-        wp.launch(self.pk["base"], dim=each, inputs=[scene_src, cam_src, self.shift_params, 1, *flags, own, src, *src_of],
-                  outputs=[self.pair_carried, self.pair_inner_due], device=dev)
-        wp.launch(self.pk["inner"], dim=each, inputs=[scene_src, cam_src, self.shift_params, 1, int(self.symmetric), self.pair_source], outputs=[self.pair_carried, self.pair_inner_due], device=dev)
+        if due > 0:
+            wp.launch(self.pk["base"], dim=(slots, due), inputs=[scene_src, cam_src, self.shift_params, 1, *flags, own, src, *on_queue],
+                      outputs=[self.pair_carried, self.pair_inner_due], device=dev)
+            wp.launch(self.pk["inner"], dim=(slots, due), inputs=[scene_src, cam_src, self.shift_params, 1, int(self.symmetric), self.pair_source, self.pair_queue.items],
+                      outputs=[self.pair_carried, self.pair_inner_due], device=dev)
         wp.launch(self.pk["back"], dim=each, inputs=[own, self.pair_source, self.pair_as_is, self.pair_carried], outputs=[self.pair_back], device=dev)
         # the source's samples here (T*), then the merge
-        wp.launch(self.pk["base"], dim=each, inputs=[scene_here, cam, self.shift_params, 0, *flags, own, src, *src_of],
-                  outputs=[self.pair_carried, self.pair_inner_due], device=dev)
-        wp.launch(self.pk["inner"], dim=each, inputs=[scene_here, cam, self.shift_params, 0, int(self.symmetric), self.pair_source], outputs=[self.pair_carried, self.pair_inner_due], device=dev)
+        if due > 0:
+            wp.launch(self.pk["base"], dim=(slots, due), inputs=[scene_here, cam, self.shift_params, 0, *flags, own, src, *on_queue],
+                      outputs=[self.pair_carried, self.pair_inner_due], device=dev)
+            wp.launch(self.pk["inner"], dim=(slots, due), inputs=[scene_here, cam, self.shift_params, 0, int(self.symmetric), self.pair_source, self.pair_queue.items],
+                      outputs=[self.pair_carried, self.pair_inner_due], device=dev)
         wp.launch(self.pk["merge"], dim=pairs, inputs=[self.seed, int(frame), int(self.positivize), int(self.cross_sign), int(temporal), self.history_cap, own, src,
                                                       self.pair_source, self.pair_as_is, self.pair_back, self.pair_carried], outputs=[out], device=dev)
 

@@ -1,0 +1,47 @@
+"""The work queue (``grisx.render.base.queue``): the flagged indices, in order, and their count.
+
+The shift stages of ReSTIR G-PT run over it, so an item lost, repeated or out of place would change images;
+the renderer-level check is ``test_identity_shift.py`` and the bit-identity runs in ``benchmarks/README.md``.
+Here the queue is compared with numpy's ``flatnonzero`` on flag patterns that reach its edges: none set, all
+set, only the first or the last item, a random half, and a 3-D flag array read flat (the renderer's shape).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import warp as wp
+
+from grisx.render.base.queue import WorkQueue
+
+
+def _patterns() -> list[tuple[str, np.ndarray]]:
+    rng = np.random.default_rng(7)
+    n = 1000
+    first = np.zeros(n, np.int32)
+    first[0] = 1
+    last = np.zeros(n, np.int32)
+    last[-1] = 1
+    return [("none", np.zeros(n, np.int32)), ("all", np.ones(n, np.int32)), ("first", first), ("last", last),
+            ("half", (rng.random(n) < 0.5).astype(np.int32)), ("one item", np.ones(1, np.int32)),
+            ("3-D", (rng.random((2, 9, 13)) < 0.1).astype(np.int32))]
+
+
+@pytest.mark.parametrize("name,flags", _patterns(), ids=[p[0] for p in _patterns()])
+def test_queue_holds_the_flagged_items_in_order(name: str, flags: np.ndarray) -> None:
+    device = "cpu"
+    q = WorkQueue(wp.array(flags, dtype=wp.int32, device=device), device)
+    n = q.build()
+    expected = np.flatnonzero(flags.ravel())
+    assert n == expected.size
+    np.testing.assert_array_equal(q.items.numpy()[:n], expected)
+
+
+def test_queue_follows_its_flags_when_rebuilt() -> None:
+    """The queue reads its flag array each build (a view, not a copy): a stage that rewrites the flags is seen."""
+    flags = wp.zeros(50, dtype=wp.int32, device="cpu")
+    q = WorkQueue(flags, "cpu")
+    assert q.build() == 0
+    flags.assign(np.arange(50, dtype=np.int32) % 3 == 0)
+    n = q.build()
+    np.testing.assert_array_equal(q.items.numpy()[:n], np.arange(0, 50, 3))
