@@ -33,9 +33,11 @@ pair's difference is ⟨Δ_ij⟩ = ω*G(y, k) · W (Eq. 17), dx[i] = −Δ_ij. P
     corresponding pixel of this pair (the film offset translated by δ, the path shifted from the new
     primary vertex), k is kept and |∂T*/∂(y, k)| = |∂τ/∂y| (Eq. 22, ``outer_shift_of``). Where the pair is carried
     onto itself (δ = 0 under a still camera, in a scene where nothing moves) the two domains are one and
-    T* is the identity (:func:`pair_as_is`): no shift either way. The merge runs in stages of one hybrid shift each (the outer shift is two in series: the base
-    path into the pair, then the inner shift that evaluates ω*G there): the source pair; T*⁻¹ of the pair's own
-    samples, base then inner (their MIS weights); T* of the source's samples, base then inner; the merge.
+    T* is the identity (:func:`pair_as_is`): no shift either way. The merge runs in stages of one hybrid
+    shift each (the outer shift is two in series: the base path into the pair, then the inner shift that
+    evaluates ω*G there): the source pair; T*⁻¹ of the pair's own samples, base then inner (their MIS
+    weights); T* of the source's samples, base then inner; the merge. The shift stages run over a work
+    queue (:class:`~grisx.render.base.queue.WorkQueue`) of the pairs that have a source pair to shift from.
 ``# ---- spatial reuse ----``
     one neighbour pair (the paper's setting) of the same orientation: ``pair_reuse=dense`` a random
     pair within ``radius`` whose pixel i passes the G-buffer similarity test; ``adaptive`` (Sec. 4.3.2,
