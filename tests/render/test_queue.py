@@ -30,18 +30,22 @@ def _patterns() -> list[tuple[str, np.ndarray]]:
 @pytest.mark.parametrize("name,flags", _patterns(), ids=[p[0] for p in _patterns()])
 def test_queue_holds_the_flagged_items_in_order(name: str, flags: np.ndarray) -> None:
     device = "cpu"
-    q = WorkQueue(wp.array(flags, dtype=wp.int32, device=device), device)
-    n = q.build()
+    q = WorkQueue(flags.size, device)
+    n = q.build(wp.array(flags, dtype=wp.int32, device=device))
     expected = np.flatnonzero(flags.ravel())
     assert n == expected.size
     np.testing.assert_array_equal(q.items.numpy()[:n], expected)
 
 
-def test_queue_follows_its_flags_when_rebuilt() -> None:
-    """The queue reads its flag array each build (a view, not a copy): a stage that rewrites the flags is seen."""
+def test_queue_of_a_prefix_of_the_flags() -> None:
+    """``count`` limits the build to the first entries (the inner shift's queue reads the base stage's first n flags);
+    a rebuild reads the flags anew."""
     flags = wp.zeros(50, dtype=wp.int32, device="cpu")
-    q = WorkQueue(flags, "cpu")
-    assert q.build() == 0
+    q = WorkQueue(50, "cpu")
+    assert q.build(flags) == 0
     flags.assign(np.arange(50, dtype=np.int32) % 3 == 0)
-    n = q.build()
-    np.testing.assert_array_equal(q.items.numpy()[:n], np.arange(0, 50, 3))
+    n = q.build(flags, 20)
+    np.testing.assert_array_equal(q.items.numpy()[:n], np.arange(0, 20, 3))
+    assert q.build(flags, 0) == 0
+    with pytest.raises(ValueError):
+        WorkQueue(10, "cpu").build(flags)

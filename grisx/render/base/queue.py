@@ -7,7 +7,7 @@ test) even when it returns at once. ``DESIGN.md`` ("GPU execution") prescribes t
 into a queue and launch over the queue.
 
 :class:`WorkQueue` does it with an exclusive scan of a 0/1 flag array (``wp.utils.array_scan``) and a scatter
-(:func:`enqueue`): ``items[0:n]`` are the flat indices whose flag is 1, in increasing order, so neighbouring
+(:func:`enqueue`): ``items[0:n]`` are the flat indices whose flag is not 0, in increasing order, so neighbouring
 work stays neighbouring (coherent memory and paths in a warp), and the result does not depend on scheduling.
 ``n`` is read on the host to size the next launch, one small read a queue.
 """
@@ -38,19 +38,24 @@ def enqueue(flags: wp.array(dtype=wp.int32), offsets: wp.array(dtype=wp.int32), 
 
 
 class WorkQueue:
-    """The flat indices of the items flagged in ``flags`` (a contiguous int32 array of ``capacity`` items, any
-    shape), rebuilt by :meth:`build` after the stage that writes the flags."""
+    """A queue of at most ``capacity`` items: :meth:`build` fills :attr:`items` with the flat indices of the flagged
+    entries of a contiguous int32 flag array (any shape), or of its first ``count`` entries."""
 
-    def __init__(self, flags: wp.array, device: Any) -> None:
-        self.flags = flags.flatten()
-        capacity = self.flags.shape[0]
+    def __init__(self, capacity: int, device: Any) -> None:
         self.offsets = wp.zeros(capacity, dtype=wp.int32, device=device)
         self.items = wp.zeros(capacity, dtype=wp.int32, device=device)
         self.count = wp.zeros(1, dtype=wp.int32, device=device)
         self.device = device
 
-    def build(self) -> int:
-        """Compact the flagged items into :attr:`items`; returns their number."""
-        wp.utils.array_scan(self.flags, self.offsets, inclusive=False)
-        wp.launch(enqueue, dim=self.flags.shape[0], inputs=[self.flags, self.offsets], outputs=[self.items, self.count], device=self.device)
+    def build(self, flags: wp.array, count: int | None = None) -> int:
+        """Compact the flagged entries into :attr:`items`; returns their number."""
+        flat = flags.flatten()
+        n = flat.shape[0] if count is None else int(count)
+        if n > self.items.shape[0]:
+            raise ValueError(f"a work queue of {self.items.shape[0]} items cannot hold {n} flags")
+        if n == 0:
+            return 0
+        flat = flat[:n]
+        wp.utils.array_scan(flat, self.offsets[:n], inclusive=False)
+        wp.launch(enqueue, dim=n, inputs=[flat, self.offsets], outputs=[self.items, self.count], device=self.device)
         return int(self.count.numpy()[0])
