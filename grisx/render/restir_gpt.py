@@ -392,7 +392,8 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     # 1 KB stack); two stages of two shifts each still did. A source pair that is this pair's own domain (``as_is``)
     # is left to the light stages (back and merge): the identity is a copy, and a copy in a shift stage's 200-odd
     # registers a thread ran at a quarter of the light stages' occupancy (H200, still camera: 40 ms a merge).
-    # The shift stages run under SHIFT_REGISTERS: two blocks an SM with spills beat one without (grisx.device).
+    # The shift stages run under SHIFT_REGISTERS: two blocks an SM with spills beat one without (grisx.device), and
+    # over work queues of the reservoirs that hold a sample (most pairs see ω*G = 0 and keep none; shift_stages).
     @wp.kernel(module=module)
     def pair_source_pass(
         seed: int, frame: int, temporal: int, still: int, positivize: int, reuse: int, search: int, radius: float, g: GBufferData, g_src: GBufferData,
