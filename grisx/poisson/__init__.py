@@ -77,12 +77,13 @@ from grisx.poisson.gradient import (
 )
 from grisx.poisson.l1 import DEFAULT_EPS, L1_PRESETS, IRLSPreset
 from grisx.poisson.reconstruct import DEFAULT_TOL, NORMS, SOLVERS, PoissonResult, reconstruct, solve
-from grisx.poisson.system import ScreenedPoisson
+from grisx.poisson.system import FrameReconstruction, ScreenedPoisson
 
 __all__ = [
     "reconstruct",
     "solve",
     "ScreenedPoisson",
+    "FrameReconstruction",
     "PoissonResult",
     "ImageGradients",
     "forward_gradient",

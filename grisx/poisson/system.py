@@ -44,7 +44,7 @@ from grisx.errors import InvalidParameterError
 from grisx.poisson import operators as ops
 from grisx.poisson.cg import CGReport, LoopState, Measurement, allocate_system, assemble, capture, cg_loop, cg_report, measure_system
 from grisx.poisson.l1 import DEFAULT_EPS, get_preset, irls
-from grisx.poisson.reconstruct import DEFAULT_MAX_ITER, DEFAULT_TOL, _check_options, _check_shapes, _pick_device, as_warp_input
+from grisx.poisson.reconstruct import DEFAULT_MAX_ITER, DEFAULT_TOL, _check_options, _check_shapes, _pick_device, as_warp_input, reconstruct
 
 __all__ = ["ScreenedPoisson"]
 
@@ -129,3 +129,27 @@ class ScreenedPoisson:
     def measure(self) -> Measurement:
         """True residual of the last linear system and the energies of the last image (host reads)."""
         return measure_system(self.system, self._weighted)
+
+
+class FrameReconstruction:
+    """A renderer's screened Poisson image of three buffers, re-solved each frame: L2 on the CPU by the exact DCT
+    solve (:func:`~grisx.poisson.reconstruct`), otherwise by a :class:`ScreenedPoisson` bound to the buffers (its
+    buffers and CUDA graph made once). What the gradient-domain renderers run, and what a benchmark that
+    reconstructs their averaged buffers itself must run to time the same thing."""
+
+    def __init__(self, primal: wp.array, dx: wp.array, dy: wp.array, *, alpha: float = 0.2, norm: str = "L2") -> None:
+        self.primal, self.dx, self.dy = primal, dx, dy
+        self.alpha, self.norm = float(alpha), norm
+        cpu_l2 = str(norm).upper() == "L2" and wp.get_device(primal.device).is_cpu
+        self.system = None if cpu_l2 else ScreenedPoisson(primal, dx, dy, alpha=alpha, norm=norm)
+
+    def solve(self) -> Any:
+        """The image of what the buffers hold now."""
+        if self.system is None:
+            return reconstruct(self.primal, self.dx, self.dy, alpha=self.alpha, norm=self.norm, check_finite=False, measure=False)
+        return self.system.solve()
+
+    def reset(self) -> None:
+        """A new sequence: the next solve starts from its primal."""
+        if self.system is not None:
+            self.system.reset()

@@ -47,7 +47,7 @@ import numpy as np
 import warp as wp
 
 from grisx.params import Param
-from grisx.poisson import ScreenedPoisson, reconstruct
+from grisx.poisson import FrameReconstruction
 from grisx.render.area_restir import AREA_KEYS, AreaReSTIR, area_params
 from grisx.render.base.gradient import DIFFERENCES_PATHS, RECONSTRUCTIONS, GradientFrame, make_gradient_kernels
 from grisx.render.base.registry import RenderMethod, create_renderer, register, renderer_params
@@ -66,18 +66,14 @@ class GradientFromPrimal(AreaReSTIR):
         self.symmetric = bool(symmetric)
         self.gradient = g = GradientFrame(self.width, self.height, built.device, reconstruction, poisson_alpha)
         self.gk = make_gradient_kernels(built.features.kernel_kinds)
-        # the frame's reconstruction: L2 on the CPU is the exact DCT solve; else a system bound to the buffers
-        self.poisson: ScreenedPoisson | None = None
-        if not (g.norm == "L2" and wp.get_device(built.device).is_cpu):
-            self.poisson = ScreenedPoisson(g.primal, g.dx, g.dy, alpha=g.alpha, norm=g.norm)
+        self.poisson = FrameReconstruction(g.primal, g.dx, g.dy, alpha=g.alpha, norm=g.norm)  # the frame's reconstruction
 
     def kernels(self) -> list[Any]:
         return [*super().kernels(), *self.gk.values()]
 
     def reset(self, seed: int | None = None) -> None:
         super().reset(seed)
-        if self.poisson is not None:
-            self.poisson.reset()  # a new sequence starts from its primal (with warm starts on)
+        self.poisson.reset()  # a new sequence starts from its primal (with warm starts on)
 
     def add_gradients(self, frame: int, reservoirs: wp.array, film: wp.array, scale: float, differences: int = DIFFERENCES_PATHS) -> None:
         """Add ``scale`` × the primal and the pixels' parts of dx, dy from the kept samples (film sample ``film``):
@@ -107,10 +103,7 @@ class GradientFromPrimal(AreaReSTIR):
             self.image = g.primal
             return self.image
         with self._phase("reconstruction"):
-            if self.poisson is None:
-                self.image = reconstruct(g.primal, g.dx, g.dy, alpha=g.alpha, norm=g.norm, check_finite=False, measure=False)
-            else:
-                self.image = self.poisson.solve()
+            self.image = self.poisson.solve()
         return self.image
 
     def extra(self) -> dict[str, np.ndarray]:
