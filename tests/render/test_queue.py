@@ -12,7 +12,11 @@ import numpy as np
 import pytest
 import warp as wp
 
+from grisx.device import cuda_available
 from grisx.render.base.queue import WorkQueue
+
+#: the queue's scan is Warp's (CUB on a GPU, a host loop on the CPU): both devices where there is a GPU
+DEVICES = ["cpu", pytest.param("cuda", marks=pytest.mark.skipif(not cuda_available(), reason="no CUDA device: Warp found none on this machine (CI is CPU-only)"))]
 
 
 def _patterns() -> list[tuple[str, np.ndarray]]:
@@ -27,9 +31,9 @@ def _patterns() -> list[tuple[str, np.ndarray]]:
             ("3-D", (rng.random((2, 9, 13)) < 0.1).astype(np.int32))]
 
 
+@pytest.mark.parametrize("device", DEVICES)
 @pytest.mark.parametrize("name,flags", _patterns(), ids=[p[0] for p in _patterns()])
-def test_queue_holds_the_flagged_items_in_order(name: str, flags: np.ndarray) -> None:
-    device = "cpu"
+def test_queue_holds_the_flagged_items_in_order(name: str, flags: np.ndarray, device: str) -> None:
     q = WorkQueue(flags.size, device)
     n = q.build(wp.array(flags, dtype=wp.int32, device=device))
     expected = np.flatnonzero(flags.ravel())
