@@ -42,8 +42,8 @@ Usage::
     python benchmarks/kernels.py --device cuda --ptxas ''    # a GPU machine without ptxas: times only, then
     python benchmarks/kernels.py --report results/kernels/kernels_cpu.json results/kernels/kernels_cuda.json  # joined
 
-Writes ``kernels_<cpu|cuda>.json`` (or ``compile_<cpu|cuda>.json``) to ``--out`` after every
-method, keeping the other methods of an earlier file of the same scene (a run split across
+Writes ``kernels_<cpu|cuda>.json`` (``kernels_cuda_path.json`` with ``--camera path``; or
+``compile_<cpu|cuda>.json``) to ``--out`` after every method, keeping the other methods of an earlier file of the same scene (a run split across
 calls fills one file), and prints a markdown table: one row per kernel, the heaviest first, the
 ones at the register cap marked.
 """
@@ -403,7 +403,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.frames is None:
         args.frames = 32 if dev.is_cuda else 0
     kind = "compile" if args.compile else "kernels"
-    path = args.out / f"{kind}_{'cuda' if dev.is_cuda else 'cpu'}.json"
+    camera = "" if args.camera == "static" else f"_{args.camera}"  # a moving camera's times in a file of their own
+    path = args.out / f"{kind}_{'cuda' if dev.is_cuda else 'cpu'}{camera}.json"
     result = {"benchmark": kind, **environment(args, dev), "methods": {}}
     if kind == "kernels":
         result.update(res=list(args.res), frames=args.frames, camera=args.camera)
