@@ -46,7 +46,7 @@ from grisx.poisson.cg import CGReport, LoopState, Measurement, allocate_system, 
 from grisx.poisson.l1 import DEFAULT_EPS, get_preset, irls
 from grisx.poisson.reconstruct import DEFAULT_MAX_ITER, DEFAULT_TOL, _check_options, _check_shapes, _pick_device, as_warp_input, reconstruct
 
-__all__ = ["ScreenedPoisson"]
+__all__ = ["ScreenedPoisson", "FrameReconstruction"]
 
 
 class ScreenedPoisson:
