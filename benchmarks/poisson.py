@@ -18,7 +18,8 @@ device, as a renderer would pass its buffers; on the CPU they are numpy arrays.
 Then what a renderer pays per frame (``per_frame`` in the JSON): a
 :class:`grisx.poisson.ScreenedPoisson` bound to three device buffers, each call
 on a new frame (four noise seeds in turn, copied into the buffers outside the
-clock), for L2 with each CG preconditioner and every L1 preset: median ms,
+clock), for L2 with each CG preconditioner (and multigrid at ``FRAME_TOL``, where the
+renderers' :class:`~grisx.poisson.FrameReconstruction` stops) and every L1 preset: median ms,
 CG iterations, and the true residual and energy of the last call.
 
 Anchors: seed 000 (Wang et al., G-PT, Sec. 5) reports 11 ms (L2) and 300 ms (L1)
@@ -53,7 +54,7 @@ import scipy
 import warp as wp
 
 from grisx.device import resolve_device, synchronize
-from grisx.poisson import DEFAULT_TOL, L1_PRESETS, ScreenedPoisson, forward_gradient, solve
+from grisx.poisson import DEFAULT_TOL, FRAME_TOL, L1_PRESETS, ScreenedPoisson, forward_gradient, solve
 
 PAPER_ANCHORS = {"gpu": "NVIDIA RTX 5090", "L2_ms": 11.0, "L1_ms": 300.0, "source": "seed 000, Sec. 5"}
 
@@ -170,9 +171,10 @@ def run_per_frame(args: argparse.Namespace, dev: wp.Device, width: int, height: 
     buffers = [wp.zeros(shape, dtype=dtype, device=dev) for _ in range(3)]
     rows = []
     configs = [dict(norm="L2", preconditioner="jacobi"), dict(norm="L2", preconditioner="multigrid")]
+    configs += [dict(norm="L2", preconditioner="multigrid", tol=FRAME_TOL)]  # what FrameReconstruction stops at
     configs += [dict(norm="L1", preset=name) for name in L1_PRESETS]
     for cfg in configs:
-        system = ScreenedPoisson(*buffers, alpha=args.alpha, tol=args.tol, **cfg)
+        system = ScreenedPoisson(*buffers, alpha=args.alpha, **{"tol": args.tol, **cfg})
         times = []
         for k in range(args.warmup + max(args.repeats, 4)):
             for dst, src in zip(buffers, staged[k % 4]):
@@ -203,8 +205,8 @@ def print_table(report: dict) -> None:
               f"{r['residual']:9.2e} {r['energy']:12.5g} {r['rmse_truth']:8.4f} {diff:>10}")
     print("\nper frame (a ScreenedPoisson bound to the buffers, a new frame each call):")
     for r in report["per_frame"]:
-        what = r["norm"] + " " + (r.get("preconditioner") or f"preset {r.get('preset')}")
-        print(f"  {what:22} {r['seconds'] * 1e3:9.2f} ms  {r['iterations']:5d} CG it  residual {r['residual']:.2e}  energy {r['energy']:.6g}")
+        what = r["norm"] + " " + (r.get("preconditioner") or f"preset {r.get('preset')}") + (f" tol {r['tol']:g}" if "tol" in r else "")
+        print(f"  {what:26} {r['seconds'] * 1e3:9.2f} ms  {r['iterations']:5d} CG it  residual {r['residual']:.2e}  energy {r['energy']:.6g}")
     a = report["paper_anchors"]
     print(f"anchors ({a['source']}, {a['gpu']}): L2 {a['L2_ms']} ms, L1 {a['L1_ms']} ms at 1920x1080")
 

@@ -77,7 +77,7 @@ from grisx.poisson.gradient import (
 )
 from grisx.poisson.l1 import DEFAULT_EPS, L1_PRESETS, IRLSPreset
 from grisx.poisson.reconstruct import DEFAULT_TOL, NORMS, SOLVERS, PoissonResult, reconstruct, solve
-from grisx.poisson.system import FrameReconstruction, ScreenedPoisson
+from grisx.poisson.system import FRAME_TOL, FrameReconstruction, ScreenedPoisson
 
 __all__ = [
     "reconstruct",
@@ -95,6 +95,7 @@ __all__ = [
     "L1_PRESETS",
     "DEFAULT_EPS",
     "DEFAULT_TOL",
+    "FRAME_TOL",
     "NORMS",
     "SOLVERS",
 ]

@@ -15,17 +15,22 @@ import warp as wp
 from numpy.testing import assert_array_equal
 
 from grisx.errors import InvalidParameterError, UnknownNameError
-from grisx.poisson import ScreenedPoisson, forward_gradient, reconstruct, screened_operator, screened_rhs
+from grisx.poisson import FRAME_TOL, FrameReconstruction, ScreenedPoisson, forward_gradient, reconstruct, screened_operator, screened_rhs
 
 ALPHA = 0.2
 TOL = 1e-5
 
 
+def _truth(h: int, w: int) -> np.ndarray:
+    """The scene's image: smooth shading with an edge."""
+    yy, xx = np.mgrid[0:h, 0:w] / max(h, w)
+    return np.stack([np.sin(3 * xx + c) * np.cos(2 * yy) + 1.5 + (xx > 0.5) for c in range(3)], axis=2)
+
+
 def _frames(h: int, w: int, count: int, seed: int = 0) -> list[list[np.ndarray]]:
     """Frames of one scene: a fixed truth, fresh noise in the primal and the gradients each frame."""
     rng = np.random.default_rng(seed)
-    yy, xx = np.mgrid[0:h, 0:w] / max(h, w)
-    truth = np.stack([np.sin(3 * xx + c) * np.cos(2 * yy) + 1.5 + (xx > 0.5) for c in range(3)], axis=2)
+    truth = _truth(h, w)
     g = forward_gradient(truth)
     return [[np.asarray(a + s * rng.standard_normal(a.shape), dtype=np.float32) for a, s in ((truth, 0.1), (g.dx, 0.02), (g.dy, 0.02))]
             for _ in range(count)]
@@ -80,6 +85,38 @@ def test_warm_start_without_the_stopping_rule_is_caught():
     rel, ratio = _check_l2(system.solve().numpy(), frames[1])
     assert system.iterations == 0
     assert rel > 100 * TOL and ratio > 1.0
+
+
+def _algebraic_over_noise(tol: float, seed: int) -> float:
+    """A frame's L2 image stopped at ``tol``: its squared distance to the exact solve over the exact solve's own
+    squared error against the truth (the frame's noise, here ~4% a pixel, milder than a 1-spp frame's)."""
+    h, w = 64, 96
+    frame = _frames(h, w, 1, seed)[0]
+    exact = reconstruct(*[a.astype(np.float64) for a in frame], alpha=ALPHA, solver="dct")
+    system, arrays = _system("cpu", h, w, norm="L2", tol=tol)
+    _bound(arrays, frame)
+    image = system.solve().numpy()
+    return float(np.mean((image - exact) ** 2) / np.mean((exact - _truth(h, w)) ** 2))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_frame_tolerance_leaves_an_error_far_below_the_frames_noise(seed):
+    """FrameReconstruction stops L2's CG at FRAME_TOL, not the one-off solve's 1e-5: the algebraic error must stay
+    10⁴× under the frame's Monte Carlo error (measured: 2.5–2.6e-6 of it, 7 iterations)."""
+    assert _algebraic_over_noise(FRAME_TOL, seed) < 1e-4
+
+
+def test_a_tolerance_that_shows_in_the_image_is_caught():
+    """The sibling: stopped at 1e-2 (4 iterations), the algebraic error is 2.6–2.8e-3 of the noise; the check fails."""
+    assert _algebraic_over_noise(1e-2, 0) > 1e-4
+
+
+def test_frame_reconstruction_passes_its_tolerance():
+    """Off the CPU's exact L2 (here: L1, which builds the system), the bound system carries FrameReconstruction's tol."""
+    arrays = [wp.zeros((8, 12), dtype=wp.vec3, device="cpu") for _ in range(3)]
+    assert FrameReconstruction(*arrays, norm="L1").system.tol == FRAME_TOL
+    assert FrameReconstruction(*arrays, norm="L1", tol=3e-5).system.tol == 3e-5
+    assert FrameReconstruction(*arrays, norm="L2").system is None  # the CPU solves L2 exactly (DCT)
 
 
 def test_reset_gives_a_cold_start_bit_for_bit(device):
