@@ -134,8 +134,9 @@ class ScreenedPoisson:
 # CG's stopping rule for a rendered frame's L2 image: relative residual 1e-4, not the 1e-5 of a one-off solve.
 # A frame's primal and gradients carry Monte Carlo noise far above that: on ReSTIR G-PT's own frames (door-ajar
 # 320×180, cornell-box 480×270, camera path, against the exact DCT solve) the image then differs from the exact
-# solve by relMSE 5e-8–1.5e-7 (the frame's own relMSE against a 256-spp pt reference: 0.05–0.13), 0.6–0.8% at
-# the 99.9th percentile pixel and ≤ 5.3% at the worst, in 7–8 multigrid-preconditioned CG iterations against 9–10.
+# solve by relMSE 1.5e-8–1.3e-7 (the frame's own relMSE against a 256-spp pt reference: 0.05–0.13); on cornell-box
+# by 0.6–0.8% at the 99.9th percentile pixel and ≤ 5.3% at the worst. 7–8 multigrid-preconditioned CG iterations
+# against 9–10 (benchmarks/reference/poisson_frame_tol_h200_2026-11-28/).
 FRAME_TOL = 1e-4
 
 
