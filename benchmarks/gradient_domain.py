@@ -54,6 +54,8 @@ SCENES = ("cornell-box", "glossy-room", "metal-rack")
 METHODS = {
     "ours": ("restir-gpt", {}, "one"),
     "ours-no-positivization": ("restir-gpt", {"positivize": False}, "one"),
+    "ours-no-pair-spatial": ("restir-gpt", {"pair_reuse": "off"}, "one"),  # ablations: what each pair reuse buys
+    "ours-no-pair-temporal": ("restir-gpt", {"pair_temporal": False}, "one"),
     "B.1": ("gradient-after-restir", {}, "average-gradients"),
     "B.2": ("gpt", {}, "spp"),
     "B.3": ("area-restir", {}, "average-images"),
@@ -262,7 +264,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--eval-frames", type=int, default=2, help="the last frames evaluated")
     p.add_argument("--calibration-frames", type=int, default=4)
     p.add_argument("--scenes", nargs="+", default=list(SCENES))
-    p.add_argument("--methods", nargs="+", default=list(METHODS), choices=list(METHODS), help="the first sets the equal time")
+    p.add_argument("--methods", nargs="+", default=[m for m in METHODS if not m.startswith("ours-no-pair")], choices=list(METHODS),
+                   help="the first sets the equal time (default: all but the pair-reuse ablations)")
     p.add_argument("--camera", choices=("path", "static"), default="path")
     p.add_argument("--max-depth", type=int, default=8)
     p.add_argument("--ref-spp", type=int, default=1024)
