@@ -126,7 +126,7 @@ _axpy = None
 def run_method(built: Any, label: str, n: int, frames: int, eval_frames: list[int], args: argparse.Namespace) -> dict[str, Any]:
     """Render ``frames`` frames of ``n`` instances of ``label``; frame times and the evaluated frames' images."""
     from grisx.device import synchronize
-    from grisx.poisson import FrameReconstruction
+    from grisx.poisson import FrameReconstruction, frame_tol
 
     inst = Instances(built, label, n, args)
     solvers: dict[str, Any] = {}  # per norm, bound to the instances' output buffers (the same arrays every frame)
@@ -143,7 +143,9 @@ def run_method(built: Any, label: str, n: int, frames: int, eval_frames: list[in
         images = {"primal": parts["primal"]}
         if inst.gradient:
             if not solvers:  # the renderers' own reconstruction (grisx.poisson.FrameReconstruction), made once
-                solvers = {norm: FrameReconstruction(parts["primal"], parts["dx"], parts["dy"], alpha=0.2, norm=norm) for norm in ("L2", "L1")}
+                # as accurate as n averaged instances (or spp) need: their noise is 1/√n of one's (poisson.frame_tol)
+                solvers = {norm: FrameReconstruction(parts["primal"], parts["dx"], parts["dy"], alpha=0.2, norm=norm, tol=frame_tol(n))
+                           for norm in ("L2", "L1")}
             images["L2"] = solvers["L2"].solve()
             synchronize(dev)
             t2 = time.perf_counter()

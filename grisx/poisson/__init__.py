@@ -77,7 +77,7 @@ from grisx.poisson.gradient import (
 )
 from grisx.poisson.l1 import DEFAULT_EPS, L1_PRESETS, IRLSPreset
 from grisx.poisson.reconstruct import DEFAULT_TOL, NORMS, SOLVERS, PoissonResult, reconstruct, solve
-from grisx.poisson.system import FRAME_TOL, FrameReconstruction, ScreenedPoisson
+from grisx.poisson.system import FRAME_TOL, FrameReconstruction, ScreenedPoisson, frame_tol
 
 __all__ = [
     "reconstruct",
@@ -96,6 +96,7 @@ __all__ = [
     "DEFAULT_EPS",
     "DEFAULT_TOL",
     "FRAME_TOL",
+    "frame_tol",
     "NORMS",
     "SOLVERS",
 ]

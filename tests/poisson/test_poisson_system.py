@@ -15,7 +15,7 @@ import warp as wp
 from numpy.testing import assert_array_equal
 
 from grisx.errors import InvalidParameterError, UnknownNameError
-from grisx.poisson import FRAME_TOL, FrameReconstruction, ScreenedPoisson, forward_gradient, reconstruct, screened_operator, screened_rhs
+from grisx.poisson import FRAME_TOL, FrameReconstruction, ScreenedPoisson, frame_tol, forward_gradient, reconstruct, screened_operator, screened_rhs
 
 ALPHA = 0.2
 TOL = 1e-5
@@ -87,11 +87,14 @@ def test_warm_start_without_the_stopping_rule_is_caught():
     assert rel > 100 * TOL and ratio > 1.0
 
 
-def _algebraic_over_noise(tol: float, seed: int) -> float:
+def _algebraic_over_noise(tol: float, seed: int, samples: int = 1) -> float:
     """A frame's L2 image stopped at ``tol``: its squared distance to the exact solve over the exact solve's own
-    squared error against the truth (the frame's noise, here ~4% a pixel, milder than a 1-spp frame's)."""
+    squared error against the truth (the frame's noise, here ~4% a pixel, milder than a 1-spp frame's; with
+    ``samples``, the noise of that many such frames averaged)."""
     h, w = 64, 96
-    frame = _frames(h, w, 1, seed)[0]
+    truth = _truth(h, w)
+    g = forward_gradient(truth)
+    frame = [np.asarray(t + (a - t) / np.sqrt(samples), dtype=np.float32) for a, t in zip(_frames(h, w, 1, seed)[0], (truth, g.dx, g.dy))]
     exact = reconstruct(*[a.astype(np.float64) for a in frame], alpha=ALPHA, solver="dct")
     system, arrays = _system("cpu", h, w, norm="L2", tol=tol)
     _bound(arrays, frame)
@@ -109,6 +112,17 @@ def test_the_frame_tolerance_leaves_an_error_far_below_the_frames_noise(seed):
 def test_a_tolerance_that_shows_in_the_image_is_caught():
     """The sibling: stopped at 1e-2 (4 iterations), the algebraic error is 2.6–2.8e-3 of the noise; the check fails."""
     assert _algebraic_over_noise(1e-2, 0) > 1e-4
+
+
+def test_averaged_samples_tighten_the_frame_tolerance():
+    """1000 frames' worth of samples have 1/√1000 of one frame's noise: frame_tol(1000) (the one-off solve's 1e-5)
+    keeps the algebraic error under 1e-4 of it (measured 2.7e-6, as one frame at FRAME_TOL); FRAME_TOL there (the
+    sibling) lets it reach 3.2e-4 and fails."""
+    assert frame_tol(1) == FRAME_TOL and frame_tol(4) == FRAME_TOL / 2 and frame_tol(100) == frame_tol(10_000) == 1e-5
+    assert _algebraic_over_noise(frame_tol(1000), 0, samples=1000) < 1e-4
+    assert _algebraic_over_noise(FRAME_TOL, 0, samples=1000) > 1e-4
+    with pytest.raises(InvalidParameterError, match="samples >= 1"):
+        frame_tol(0)
 
 
 def test_frame_reconstruction_passes_its_tolerance():
