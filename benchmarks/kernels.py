@@ -76,7 +76,7 @@ VARIANTS: list[tuple[str, str, dict[str, Any]]] = [
     ("restir-gi", "restir-gi", {}),
     *((f"restir-pt {s}", "restir-pt", {"shift": s}) for s in RESTIR_PT_SHIFTS),
     *((m, m, {}) for m in ("restcv", "restcv-di", "stcv", "icv", "restir-pt-decoupled", "area-restir",
-                           "suffix-restir", "restir-gpt", "sms", "sms-partitioned", "sms-restir")),
+                           "suffix-restir", "restir-gpt", "gradient-after-restir", "gpt", "sms", "sms-partitioned", "sms-restir")),
 ]
 REGISTER_CAP = 255
 

@@ -397,7 +397,7 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     @wp.kernel(module=module)
     def pair_source_pass(
         seed: int, frame: int, temporal: int, still: int, positivize: int, reuse: int, search: int, radius: float, g: GBufferData, g_src: GBufferData,
-        own: wp.array4d(dtype=PairReservoir), src: wp.array4d(dtype=PairReservoir), out: wp.array4d(dtype=PairReservoir),
+        own: wp.array4d(dtype=PairReservoir), src: wp.array4d(dtype=PairReservoir),
         source: wp.array3d(dtype=wp.vec2i), to_source: wp.array3d(dtype=wp.vec2), as_is: wp.array3d(dtype=wp.int32),
         due_back: wp.array4d(dtype=wp.int32), due_here: wp.array4d(dtype=wp.int32),
     ):
@@ -405,12 +405,10 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         whether the source pair is this pair's own domain (``as_is``: T* and T*⁻¹ the identity, :func:`pair_as_is`).
         Elsewhere the reservoirs whose samples the shift stages carry are flagged: ``due_back[s]``, the pair's own
         sample of slot s toward the source pair (T*⁻¹); ``due_here[s]``, the source's toward this pair (T*); each only
-        where the reservoir holds a sample (:func:`pair_carries`). ``out`` starts as the pair's own reservoirs."""
+        where the reservoir holds a sample (:func:`pair_carries`)."""
         orient, y, x = wp.tid()
         h = own.shape[2]
         w = own.shape[3]
-        out[0, orient, y, x] = own[0, orient, y, x]
-        out[1, orient, y, x] = own[1, orient, y, x]
         source[orient, y, x] = wp.vec2i(-1, -1)
         as_is[orient, y, x] = 0
         for s in range(2):
@@ -537,17 +535,23 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
 
     @wp.kernel(module=module)
     def pair_merge_pass(
-        seed: int, frame: int, positivize: int, cross_sign: int, temporal: int, history_cap: float,
+        seed: int, frame: int, positivize: int, cross_sign: int, temporal: int, history_cap: float, in_place: int,
         own: wp.array4d(dtype=PairReservoir), src: wp.array4d(dtype=PairReservoir),
         source: wp.array3d(dtype=wp.vec2i), as_is: wp.array3d(dtype=wp.int32), due_here: wp.array4d(dtype=wp.int32), back: wp.array4d(dtype=wp.vec3),
         carried: wp.array4d(dtype=PairCandidate), out: wp.array4d(dtype=PairReservoir),
     ):
         """The generalized balance heuristic over the pair's own reservoir and the source pair's (seed 001, Eq. 15–16),
-        every shift done by the stages before; ``out`` holds the own reservoir (:func:`pair_source_pass`)."""
+        every shift done by the stages before, written to ``out`` for the pairs that have a source pair. ``in_place``:
+        ``out`` is ``own`` (a temporal merge, whose source is the history: each pair reads only its own reservoirs of
+        ``own``, each before writing it); otherwise ``out`` is scratch that :func:`pair_commit_pass` copies back, since
+        a spatial merge's sources are other pairs of ``own``."""
         orient, y, x = wp.tid()
         nxy = source[orient, y, x]
         if nxy[0] < 0:
             return
+        if in_place == 0:
+            out[0, orient, y, x] = own[0, orient, y, x]
+            out[1, orient, y, x] = own[1, orient, y, x]
         nx = nxy[0]
         ny = nxy[1]
         ukey = pixel_key_of(seed, frame, x, y, own.shape[3], _STREAM_PAIR_TEMPORAL + orient + 2 * (1 - temporal))
@@ -592,6 +596,14 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
                         keep_in(out, slot, orient, y, x, cand)
                 out[slot, orient, y, x].res = reservoir_finalize(r)
 
+    @wp.kernel(module=module)
+    def pair_commit_pass(source: wp.array3d(dtype=wp.vec2i), merged: wp.array4d(dtype=PairReservoir), own: wp.array4d(dtype=PairReservoir)):
+        """A spatial merge's results into the pairs' reservoirs, where there was a merge (the others are as they were)."""
+        orient, y, x = wp.tid()
+        if source[orient, y, x][0] >= 0:
+            own[0, orient, y, x] = merged[0, orient, y, x]
+            own[1, orient, y, x] = merged[1, orient, y, x]
+
     # ---- gradients and reconstruction ----
     @wp.kernel(module=module)
     def pair_gradient_pass(
@@ -611,7 +623,7 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             dy[y, x] = dy[y, x] - d
 
     return {"initial": pair_initial_pass, "source": pair_source_pass, "base": pair_base_pass, "inner": pair_inner_pass, "back": pair_back_pass,
-            "merge": pair_merge_pass, "gradient": pair_gradient_pass}
+            "merge": pair_merge_pass, "commit": pair_commit_pass, "gradient": pair_gradient_pass}
 
 
 def pair_scenes(built: Any, temporal: bool) -> tuple[Any, Any]:
@@ -673,8 +685,9 @@ class ReSTIRGPT(GradientFromPrimal):
     def after_canonical(self, reservoirs: wp.array) -> None:
         wp.copy(self.canonical_kept, reservoirs)  # the gradient pass's initial candidates (before any reuse)
 
-    def merge_pairs(self, frame: int, cam: Any, cam_src: Any, g: Any, g_src: Any, own: wp.array, src: wp.array, out: wp.array, *, temporal: bool) -> None:
-        """One temporal or spatial merge of a source pair into every pair's reservoirs, stage by stage (the kernels')."""
+    def merge_pairs(self, frame: int, cam: Any, cam_src: Any, g: Any, g_src: Any, own: wp.array, src: wp.array, scratch: wp.array, *, temporal: bool) -> None:
+        """One temporal or spatial merge of a source pair into every pair's reservoirs ``own``, in place, stage by stage
+        (the kernels'). A spatial merge writes its results to ``scratch`` first: its sources are pairs of ``own``."""
         b = self.built
         dev = b.device
         pairs = (2, self.height, self.width)
@@ -685,14 +698,18 @@ class ReSTIRGPT(GradientFromPrimal):
         still = int(temporal and camera_data_equal(cam, cam_src) and SCENE_MOVING_OBJECTS not in b.features.kernel_kinds)
         wp.launch(self.pk["source"], dim=pairs, inputs=[self.seed, int(frame), int(temporal), still, int(self.positivize), self.pair_reuse, self.pair_search,
                                                        self.radius, g, g_src, own, src],
-                  outputs=[out, self.pair_source, self.pair_to_source, self.pair_as_is, self.pair_due_back, self.pair_due_here], device=dev)
+                  outputs=[self.pair_source, self.pair_to_source, self.pair_as_is, self.pair_due_back, self.pair_due_here], device=dev)
         # the pair's own samples to the source pair (T*⁻¹): base, inner, what the merge keeps of them
         self.shift_stages(scene_src, cam_src, 1, temporal, own, src, self.pair_due_back)
         wp.launch(self.pk["back"], dim=each, inputs=[own, self.pair_source, self.pair_as_is, self.pair_due_back, self.pair_carried], outputs=[self.pair_back], device=dev)
         # the source's samples here (T*), then the merge
         self.shift_stages(scene_here, cam, 0, temporal, own, src, self.pair_due_here)
-        wp.launch(self.pk["merge"], dim=pairs, inputs=[self.seed, int(frame), int(self.positivize), int(self.cross_sign), int(temporal), self.history_cap, own, src,
-                                                      self.pair_source, self.pair_as_is, self.pair_due_here, self.pair_back, self.pair_carried], outputs=[out], device=dev)
+        out = own if temporal else scratch
+        wp.launch(self.pk["merge"], dim=pairs, inputs=[self.seed, int(frame), int(self.positivize), int(self.cross_sign), int(temporal), self.history_cap,
+                                                      int(temporal), own, src, self.pair_source, self.pair_as_is, self.pair_due_here, self.pair_back,
+                                                      self.pair_carried], outputs=[out], device=dev)
+        if not temporal:
+            wp.launch(self.pk["commit"], dim=pairs, inputs=[self.pair_source, scratch], outputs=[own], device=dev)
 
     def shift_stages(self, scene: Any, cam: Any, toward_source: int, temporal: bool, own: wp.array, src: wp.array, due: wp.array) -> None:
         """The outer shift of the reservoirs flagged in ``due`` (slot, orientation, pixel), over work queues: the base
@@ -731,12 +748,10 @@ class ReSTIRGPT(GradientFromPrimal):
         if self.pair_temporal and self.pair_frames > 0:
             with self._phase("pair_temporal"):
                 self.merge_pairs(frame, cam, cam_prev, g, g_prev, pairs, history, other, temporal=True)
-            pairs, other = other, pairs
         # ---- spatial reuse ----
         if self.pair_reuse != 0:
             with self._phase("pair_spatial"):
                 self.merge_pairs(frame, cam, cam, g, g, pairs, pairs, other, temporal=False)
-            pairs, other = other, pairs
         self.pairs = [pairs, history, other]
         self.pair_frames += 1
         # ---- gradients and reconstruction ----
