@@ -38,7 +38,8 @@ pair's difference is ⟨Δ_ij⟩ = ω*G(y, k) · W (Eq. 17), dx[i] = −Δ_ij. P
     evaluates ω*G there): the source pair; T*⁻¹ of the pair's own samples, base then inner (their MIS
     weights); T* of the source's samples, base then inner; the merge. The shift stages run over a work
     queue (:class:`~grisx.render.base.queue.WorkQueue`) of the reservoirs that hold a sample, in pairs that
-    have a source pair to shift from.
+    have a source pair to shift from. The merge writes the pairs' reservoirs in place: each pair reads only
+    its own, and its sources are the history's.
 ``# ---- spatial reuse ----``
     one neighbour pair (the paper's setting) of the same orientation: ``pair_reuse=dense`` a random
     pair within ``radius`` whose pixel i passes the G-buffer similarity test; ``adaptive`` (Sec. 4.3.2,
@@ -47,7 +48,8 @@ pair's difference is ⟨Δ_ij⟩ = ω*G(y, k) · W (Eq. 17), dx[i] = −Δ_ij. P
     read as a typo; measured, the literal test reuses for 47–95% of the pairs at 1.8–2.4× the frame and
     lowers no error, benchmarks/README.md) or depths by more than 10% — and picks, among up to ``pair_search`` random pairs
     within ``radius``, the first that is an edge pair whose two pixels match this pair's (edge-aligned
-    reuse); ``off`` none.
+    reuse); ``off`` none. Here the sources are other pairs of the same frame, so the merged pairs are
+    written to scratch and copied back after the merge (``pair_commit_pass``).
 ``# ---- gradients and reconstruction ----``
     dx, dy from the pairs' reservoirs plus the emission seen directly (as B.1 does, ω* = ½; written by
     the initial pair pass), then the screened Poisson image (``reconstruction=l2|l1``: a
