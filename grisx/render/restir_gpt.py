@@ -53,7 +53,8 @@ pair's difference is ⟨Δ_ij⟩ = ω*G(y, k) · W (Eq. 17), dx[i] = −Δ_ij. P
 ``# ---- gradients and reconstruction ----``
     dx, dy from the pairs' reservoirs plus the emission seen directly (as B.1 does, ω* = ½; written by
     the initial pair pass), then the screened Poisson image (``reconstruction=l2|l1``: a
-    :class:`~grisx.poisson.ScreenedPoisson` kept across frames, CG preconditioned by multigrid), which is the frame.
+    :class:`~grisx.poisson.ScreenedPoisson` kept across frames, CG preconditioned by multigrid and stopped at
+    :data:`~grisx.poisson.FRAME_TOL`), which is the frame.
 
 **MIS.** Every merge (temporal and spatial) is the generalized balance heuristic over its inputs
 (seed 001, Eq. 15–16) — the pair's own reservoir and the source pair's reservoir of the same sign,
