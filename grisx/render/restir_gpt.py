@@ -236,6 +236,51 @@ def pair_as_is(r: PairReservoir) -> PairCandidate:
     return c
 
 
+@wp.func
+def _spatial_source(g: GBufferData, x: int, y: int, orient: int, width: int, height: int, reuse: int, tries: int, radius: float,
+                    ukey: wp.uint32) -> wp.vec2i:
+    """A spatial source pair for pair (orient, y, x), or (−1, −1): the first of ``tries`` random pairs within ``radius``
+    that is similar (dense reuse) or an edge pair whose pixels match this pair's (adaptive reuse, Sec. 4.3.2)."""
+    e = _axis(orient)
+    nx = int(-1)
+    ny = int(-1)
+    for t in range(tries):
+        if nx < 0:
+            nb = spatial_neighbor(x, y, width, height, radius, wp.vec2(random_uniform(ukey, 2 * t + 8), random_uniform(ukey, 2 * t + 9)))
+            if nb.valid != 0 and _pair_on_film(nb.x, nb.y, orient, width, height):
+                ok = bool(False)
+                if reuse == _REUSE_ADAPTIVE:
+                    ok = _edge_pair(g, nb.x, nb.y, nb.x + e[0], nb.y + e[1]) and _pairs_alike(g, x, y, nb.x, nb.y, e)
+                else:
+                    ok = pixels_similar(g, x, y, g, nb.x, nb.y, SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH)
+                if ok:
+                    nx = nb.x
+                    ny = nb.y
+    return wp.vec2i(nx, ny)
+
+
+@wp.func
+def _record_source(
+    still: int, positivize: int, orient: int, y: int, x: int, nx: int, ny: int, to_dst: wp.vec2,
+    own: wp.array4d(dtype=PairReservoir), src: wp.array4d(dtype=PairReservoir),
+    source: wp.array3d(dtype=wp.vec2i), to_source: wp.array3d(dtype=wp.vec2), as_is: wp.array3d(dtype=wp.int32),
+    due_back: wp.array4d(dtype=wp.int32), due_here: wp.array4d(dtype=wp.int32),
+):
+    """Pair (orient, y, x) takes pair (nx, ny) as its source: the film translation, ``as_is``, and the reservoirs whose
+    samples the shift stages carry (``due_back``, ``due_here``: :func:`pair_carries`)."""
+    source[orient, y, x] = wp.vec2i(nx, ny)
+    to_source[orient, y, x] = to_dst
+    if film_onto_itself(still, x, y, nx, ny, to_dst):
+        as_is[orient, y, x] = 1
+        return
+    for s in range(2):
+        if s == 0 or positivize != 0:
+            if pair_carries(own[s, orient, y, x].film, own[s, orient, y, x].path):
+                due_back[s, orient, y, x] = 1
+            if pair_carries(src[s, orient, ny, nx].film, src[s, orient, ny, nx].path):
+                due_here[s, orient, y, x] = 1
+
+
 @kernel_cache
 def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     """The paired-pixel passes of ReSTIR G-PT compiled for the material kinds ``kinds`` (cached)."""
@@ -400,28 +445,29 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     # over work queues of the reservoirs that hold a sample (most pairs see ω*G = 0 and keep none; shift_stages).
     @wp.kernel(module=module)
     def pair_source_pass(
-        seed: int, frame: int, temporal: int, still: int, positivize: int, reuse: int, search: int, radius: float, g: GBufferData, g_src: GBufferData,
+        seed: int, frame: int, temporal: int, still: int, positivize: int, reuse: int, radius: float, g: GBufferData, g_src: GBufferData,
         own: wp.array4d(dtype=PairReservoir), src: wp.array4d(dtype=PairReservoir),
         source: wp.array3d(dtype=wp.vec2i), to_source: wp.array3d(dtype=wp.vec2), as_is: wp.array3d(dtype=wp.int32),
-        due_back: wp.array4d(dtype=wp.int32), due_here: wp.array4d(dtype=wp.int32),
+        due_back: wp.array4d(dtype=wp.int32), due_here: wp.array4d(dtype=wp.int32), edge: wp.array3d(dtype=wp.int32),
     ):
         """The source pair of each pair, from the G-buffers alone, the film translation u_dst = u_src + to_dst, and
         whether the source pair is this pair's own domain (``as_is``: T* and T*⁻¹ the identity, :func:`pair_as_is`).
         Elsewhere the reservoirs whose samples the shift stages carry are flagged: ``due_back[s]``, the pair's own
         sample of slot s toward the source pair (T*⁻¹); ``due_here[s]``, the source's toward this pair (T*); each only
-        where the reservoir holds a sample (:func:`pair_carries`)."""
+        where the reservoir holds a sample (:func:`pair_carries`). Adaptive spatial reuse only flags the edge pairs
+        (``edge``): their search of up to ``pair_search`` pairs runs over a queue of them (:func:`pair_search_pass`)."""
         orient, y, x = wp.tid()
         h = own.shape[2]
         w = own.shape[3]
         source[orient, y, x] = wp.vec2i(-1, -1)
         as_is[orient, y, x] = 0
+        edge[orient, y, x] = 0
         for s in range(2):
             due_back[s, orient, y, x] = 0
             due_here[s, orient, y, x] = 0
         if not _pair_on_film(x, y, orient, w, h):
             return
         e = _axis(orient)
-        ukey = pixel_key_of(seed, frame, x, y, w, _STREAM_PAIR_TEMPORAL + orient + 2 * (1 - temporal))
         nx = int(-1)
         ny = int(-1)
         to_dst = wp.vec2(0.0, 0.0)
@@ -431,37 +477,37 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
                 nx = nb.x
                 ny = nb.y
                 to_dst = -temporal_film_offset(x, y, nb.x, nb.y, g.motion[y, x])
+        elif reuse == _REUSE_ADAPTIVE:
+            if _edge_pair(g, x, y, x + e[0], y + e[1]):
+                edge[orient, y, x] = 1  # searched by pair_search_pass; an interior pair has no spatial reuse (Sec. 4.3.2)
+            return
         else:
-            if reuse == _REUSE_ADAPTIVE and not _edge_pair(g, x, y, x + e[0], y + e[1]):
-                return  # an interior pair: no spatial reuse (Sec. 4.3.2)
-            tries = int(1)
-            if reuse == _REUSE_ADAPTIVE:
-                tries = search
-            for t in range(tries):
-                if nx < 0:
-                    nb = spatial_neighbor(x, y, w, h, radius, wp.vec2(random_uniform(ukey, 2 * t + 8), random_uniform(ukey, 2 * t + 9)))
-                    if nb.valid != 0 and _pair_on_film(nb.x, nb.y, orient, w, h):
-                        ok = bool(False)
-                        if reuse == _REUSE_ADAPTIVE:
-                            ok = _edge_pair(g, nb.x, nb.y, nb.x + e[0], nb.y + e[1]) and _pairs_alike(g, x, y, nb.x, nb.y, e)
-                        else:
-                            ok = pixels_similar(g, x, y, g, nb.x, nb.y, SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH)
-                        if ok:
-                            nx = nb.x
-                            ny = nb.y
-        if nx < 0:
-            return
-        source[orient, y, x] = wp.vec2i(nx, ny)
-        to_source[orient, y, x] = to_dst
-        if film_onto_itself(still, x, y, nx, ny, to_dst):
-            as_is[orient, y, x] = 1
-            return
-        for s in range(2):
-            if s == 0 or positivize != 0:
-                if pair_carries(own[s, orient, y, x].film, own[s, orient, y, x].path):
-                    due_back[s, orient, y, x] = 1
-                if pair_carries(src[s, orient, ny, nx].film, src[s, orient, ny, nx].path):
-                    due_here[s, orient, y, x] = 1
+            ukey = pixel_key_of(seed, frame, x, y, w, _STREAM_PAIR_TEMPORAL + orient + 2)
+            nxy = _spatial_source(g, x, y, orient, w, h, reuse, 1, radius, ukey)
+            nx = nxy[0]
+            ny = nxy[1]
+        if nx >= 0:
+            _record_source(still, positivize, orient, y, x, nx, ny, to_dst, own, src, source, to_source, as_is, due_back, due_here)
+
+    @wp.kernel(module=module)
+    def pair_search_pass(
+        seed: int, frame: int, positivize: int, search: int, radius: float, g: GBufferData, queue: wp.array(dtype=wp.int32),
+        own: wp.array4d(dtype=PairReservoir), source: wp.array3d(dtype=wp.vec2i), to_source: wp.array3d(dtype=wp.vec2),
+        as_is: wp.array3d(dtype=wp.int32), due_back: wp.array4d(dtype=wp.int32), due_here: wp.array4d(dtype=wp.int32),
+    ):
+        """Adaptive spatial reuse's edge-aligned search (Sec. 4.3.2) for the edge pairs of ``queue`` (flat indices of
+        (orientation, y, x)): a few percent of the pairs, each trying up to ``search`` random pairs, run in full warps
+        instead of holding every warp that has one of them."""
+        i = queue[wp.tid()]
+        h = own.shape[2]
+        w = own.shape[3]
+        orient = i / (h * w)
+        y = (i / w) % h
+        x = i % w
+        ukey = pixel_key_of(seed, frame, x, y, w, _STREAM_PAIR_TEMPORAL + orient + 2)
+        nxy = _spatial_source(g, x, y, orient, w, h, _REUSE_ADAPTIVE, search, radius, ukey)
+        if nxy[0] >= 0:  # a spatial source is never the pair itself: still = 0
+            _record_source(0, positivize, orient, y, x, nxy[0], nxy[1], wp.vec2(0.0, 0.0), own, own, source, to_source, as_is, due_back, due_here)
 
     @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
     def pair_base_pass(
@@ -626,7 +672,7 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         else:
             dy[y, x] = dy[y, x] - d
 
-    return {"initial": pair_initial_pass, "source": pair_source_pass, "base": pair_base_pass, "inner": pair_inner_pass, "back": pair_back_pass,
+    return {"initial": pair_initial_pass, "source": pair_source_pass, "search": pair_search_pass, "base": pair_base_pass, "inner": pair_inner_pass, "back": pair_back_pass,
             "merge": pair_merge_pass, "commit": pair_commit_pass, "gradient": pair_gradient_pass}
 
 
@@ -669,6 +715,7 @@ class ReSTIRGPT(GradientFromPrimal):
         self.pair_source = wp.zeros((2, self.height, self.width), dtype=wp.vec2i, device=built.device)
         self.pair_to_source = wp.zeros((2, self.height, self.width), dtype=wp.vec2, device=built.device)
         self.pair_as_is = wp.zeros((2, self.height, self.width), dtype=wp.int32, device=built.device)  # the source pair is this pair's domain
+        self.pair_edge = wp.zeros((2, self.height, self.width), dtype=wp.int32, device=built.device)  # edge pairs (adaptive spatial reuse)
         # reservoirs whose samples the shift stages carry, toward the source pair and here (pair_source_pass)
         self.pair_due_back = wp.zeros(shape, dtype=wp.int32, device=built.device)
         self.pair_due_here = wp.zeros(shape, dtype=wp.int32, device=built.device)
@@ -700,9 +747,15 @@ class ReSTIRGPT(GradientFromPrimal):
         # a temporal source pair onto itself (zero motion), under a still camera in a scene where nothing moves, is this
         # pair's own domain: T* and T*⁻¹ are the identity there (pair_as_is)
         still = int(temporal and camera_data_equal(cam, cam_src) and SCENE_MOVING_OBJECTS not in b.features.kernel_kinds)
-        wp.launch(self.pk["source"], dim=pairs, inputs=[self.seed, int(frame), int(temporal), still, int(self.positivize), self.pair_reuse, self.pair_search,
+        wp.launch(self.pk["source"], dim=pairs, inputs=[self.seed, int(frame), int(temporal), still, int(self.positivize), self.pair_reuse,
                                                        self.radius, g, g_src, own, src],
-                  outputs=[self.pair_source, self.pair_to_source, self.pair_as_is, self.pair_due_back, self.pair_due_here], device=dev)
+                  outputs=[self.pair_source, self.pair_to_source, self.pair_as_is, self.pair_due_back, self.pair_due_here, self.pair_edge], device=dev)
+        if not temporal and self.pair_reuse == PAIR_REUSE["adaptive"]:
+            n = self.pair_queue.build(self.pair_edge)  # the edge pairs (the queue is free until the shift stages)
+            if n > 0:
+                wp.launch(self.pk["search"], dim=n, inputs=[self.seed, int(frame), int(self.positivize), self.pair_search, self.radius, g,
+                                                            self.pair_queue.items, own],
+                          outputs=[self.pair_source, self.pair_to_source, self.pair_as_is, self.pair_due_back, self.pair_due_here], device=dev)
         # the pair's own samples to the source pair (T*⁻¹): base, inner, what the merge keeps of them
         self.shift_stages(scene_src, cam_src, 1, temporal, own, src, self.pair_due_back)
         wp.launch(self.pk["back"], dim=each, inputs=[own, self.pair_source, self.pair_as_is, self.pair_due_back, self.pair_carried], outputs=[self.pair_back], device=dev)
