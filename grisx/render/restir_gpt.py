@@ -48,8 +48,9 @@ pair's difference is ⟨Δ_ij⟩ = ω*G(y, k) · W (Eq. 17), dx[i] = −Δ_ij. P
     read as a typo; measured, the literal test reuses for 47–95% of the pairs at 1.8–2.4× the frame and
     lowers no error, benchmarks/README.md) or depths by more than 10% — and picks, among up to ``pair_search`` random pairs
     within ``radius``, the first that is an edge pair whose two pixels match this pair's (edge-aligned
-    reuse); ``off`` none. Here the sources are other pairs of the same frame, so the merged pairs are
-    written to scratch and copied back after the merge (``pair_commit_pass``).
+    reuse; the search runs over a work queue of the edge pairs, a few percent of all); ``off`` none. Here the
+    sources are other pairs of the same frame, so the merged pairs are written to scratch and copied back after
+    the merge (``pair_commit_pass``).
 ``# ---- gradients and reconstruction ----``
     dx, dy from the pairs' reservoirs plus the emission seen directly (as B.1 does, ω* = ½; written by
     the initial pair pass), then the screened Poisson image (``reconstruction=l2|l1``: a
