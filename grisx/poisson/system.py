@@ -154,9 +154,10 @@ def frame_tol(samples: int = 1) -> float:
 class FrameReconstruction:
     """A renderer's screened Poisson image of three buffers, re-solved each frame: L2 on the CPU by the exact DCT
     solve (:func:`~grisx.poisson.reconstruct`), otherwise by a :class:`ScreenedPoisson` bound to the buffers (its
-    buffers and CUDA graph made once) that stops L2's CG at ``tol`` (:data:`FRAME_TOL`: a frame is noisy, so
-    its image needs no float32-floor accuracy; :func:`frame_tol` for buffers that hold more samples). What the gradient-domain renderers run, and what a benchmark
-    that reconstructs their averaged buffers itself must run to time the same thing."""
+    buffers and CUDA graph made once) that stops L2's CG at ``tol`` (:data:`FRAME_TOL`: a frame is noisy, so its
+    image needs no float32-floor accuracy; :func:`frame_tol` for buffers that hold more samples). What the
+    gradient-domain renderers run, and what a benchmark that reconstructs their averaged buffers itself must run to
+    time the same thing."""
 
     def __init__(self, primal: wp.array, dx: wp.array, dy: wp.array, *, alpha: float = 0.2, norm: str = "L2",
                  tol: float = FRAME_TOL) -> None:

@@ -74,7 +74,7 @@ class GradientFromPrimal(AreaReSTIR):
 
     def reset(self, seed: int | None = None) -> None:
         super().reset(seed)
-        self.poisson.reset()  # a new sequence starts from its primal (with warm starts on)
+        self.poisson.reset()  # a new sequence starts from its primal (what matters with warm starts on)
 
     def add_gradients(self, frame: int, reservoirs: wp.array, film: wp.array, scale: float, differences: int = DIFFERENCES_PATHS) -> None:
         """Add ``scale`` × the primal and the pixels' parts of dx, dy from the kept samples (film sample ``film``):

@@ -169,11 +169,18 @@ def _axis(orient: int) -> wp.vec2i:
 
 
 @wp.func
-def _queued_reservoir(i: int, height: int, width: int) -> wp.vec4i:
-    """(slot, orientation, y, x) of the flat index ``i`` of a (2, 2, height, width) array (a :class:`WorkQueue` item)."""
+def _queued_pair(i: int, height: int, width: int) -> wp.vec3i:
+    """(orientation, y, x) of the flat index ``i`` of a (2, height, width) array (a :class:`WorkQueue` item)."""
     plane = height * width
     r = i % plane
-    return wp.vec4i(i // (2 * plane), (i // plane) % 2, r // width, r % width)
+    return wp.vec3i(i // plane, r // width, r % width)
+
+
+@wp.func
+def _queued_reservoir(i: int, height: int, width: int) -> wp.vec4i:
+    """(slot, orientation, y, x) of the flat index ``i`` of a (2, 2, height, width) array (a :class:`WorkQueue` item)."""
+    p = _queued_pair(i % (2 * height * width), height, width)
+    return wp.vec4i(i // (2 * height * width), p[0], p[1], p[2])
 
 
 @wp.func
@@ -372,9 +379,10 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         as_is: int, shifted: int, src: wp.array4d(dtype=PairReservoir), carried: wp.array4d(dtype=PairCandidate),
         s: int, orient: int, y: int, x: int, nx: int, ny: int,
     ) -> PairCandidate:
-        """T* of the source pair's reservoir ``s`` into pair (x, y): the shift stages' result where they ran
-        (``shifted``), else the identity, which for a sample the shift could not carry (:func:`pair_carries`) is the
-        invalid candidate the shift would have returned."""
+        """The outer shift of reservoir ``s`` of pair (nx, ny), as the merge reads it at pair (x, y): the shift stages'
+        result where they ran (``shifted``), else the identity, which for a sample the shift could not carry
+        (:func:`pair_carries`) is the invalid candidate the shift would have returned. T* of the source's reservoirs
+        here (the merge); T*⁻¹ of the pair's own, (nx, ny) = (x, y) (the back pass)."""
         if as_is != 0 or shifted == 0:
             return pair_as_is(src[s, orient, ny, nx])
         return carried[s, orient, y, x]
@@ -499,12 +507,12 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         """Adaptive spatial reuse's edge-aligned search (Sec. 4.3.2) for the edge pairs of ``queue`` (flat indices of
         (orientation, y, x)): a few percent of the pairs, each trying up to ``search`` random pairs, run in full warps
         instead of holding every warp that has one of them."""
-        i = queue[wp.tid()]
         h = own.shape[2]
         w = own.shape[3]
-        orient = i / (h * w)
-        y = (i / w) % h
-        x = i % w
+        p = _queued_pair(queue[wp.tid()], h, w)
+        orient = p[0]
+        y = p[1]
+        x = p[2]
         ukey = pixel_key_of(seed, frame, x, y, w, _STREAM_PAIR_TEMPORAL + orient + 2)
         nxy = _spatial_source(g, x, y, orient, w, h, _REUSE_ADAPTIVE, search, radius, ukey)
         if nxy[0] >= 0:  # a spatial source is never the pair itself: still = 0
@@ -577,30 +585,28 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         s, orient, y, x = wp.tid()
         if source[orient, y, x][0] < 0:
             return
-        if as_is[orient, y, x] != 0 or due_back[s, orient, y, x] == 0:
-            # T*⁻¹ onto itself: the identity, ω*G included; or no sample to carry (the invalid candidate, as the shift's)
-            c = pair_as_is(own[s, orient, y, x])
-            back[s, orient, y, x] = wp.vec3(luminance(c.value), c.jacobian, float(c.valid))
-        else:
-            back[s, orient, y, x] = wp.vec3(luminance(carried[s, orient, y, x].value), carried[s, orient, y, x].jacobian, float(carried[s, orient, y, x].valid))
+        # T*⁻¹ onto itself is the identity, ω*G included; a reservoir with no sample to carry gives the invalid candidate
+        # (as the shift would); the others were carried by the shift stages
+        c = carried_here(as_is[orient, y, x], due_back[s, orient, y, x], own, carried, s, orient, y, x, x, y)
+        back[s, orient, y, x] = wp.vec3(luminance(c.value), c.jacobian, float(c.valid))
 
     @wp.kernel(module=module)
     def pair_merge_pass(
-        seed: int, frame: int, positivize: int, cross_sign: int, temporal: int, history_cap: float, in_place: int,
+        seed: int, frame: int, positivize: int, cross_sign: int, temporal: int, history_cap: float,
         own: wp.array4d(dtype=PairReservoir), src: wp.array4d(dtype=PairReservoir),
         source: wp.array3d(dtype=wp.vec2i), as_is: wp.array3d(dtype=wp.int32), due_here: wp.array4d(dtype=wp.int32), back: wp.array4d(dtype=wp.vec3),
         carried: wp.array4d(dtype=PairCandidate), out: wp.array4d(dtype=PairReservoir),
     ):
         """The generalized balance heuristic over the pair's own reservoir and the source pair's (seed 001, Eq. 15–16),
-        every shift done by the stages before, written to ``out`` for the pairs that have a source pair. ``in_place``:
-        ``out`` is ``own`` (a temporal merge, whose source is the history: each pair reads only its own reservoirs of
-        ``own``, each before writing it); otherwise ``out`` is scratch that :func:`pair_commit_pass` copies back, since
-        a spatial merge's sources are other pairs of ``own``."""
+        every shift done by the stages before, written to ``out`` for the pairs that have a source pair. A temporal merge
+        writes in place (``out`` is ``own``: its sources are the history's, and each pair reads only its own reservoirs
+        of ``own``, each before writing it); a spatial merge's sources are other pairs of ``own``, so ``out`` is scratch
+        that :func:`pair_commit_pass` copies back."""
         orient, y, x = wp.tid()
         nxy = source[orient, y, x]
         if nxy[0] < 0:
             return
-        if in_place == 0:
+        if temporal == 0:
             out[0, orient, y, x] = own[0, orient, y, x]
             out[1, orient, y, x] = own[1, orient, y, x]
         nx = nxy[0]
@@ -764,7 +770,7 @@ class ReSTIRGPT(GradientFromPrimal):
         self.shift_stages(scene_here, cam, 0, temporal, own, src, self.pair_due_here)
         out = own if temporal else scratch
         wp.launch(self.pk["merge"], dim=pairs, inputs=[self.seed, int(frame), int(self.positivize), int(self.cross_sign), int(temporal), self.history_cap,
-                                                      int(temporal), own, src, self.pair_source, self.pair_as_is, self.pair_due_here, self.pair_back,
+                                                      own, src, self.pair_source, self.pair_as_is, self.pair_due_here, self.pair_back,
                                                       self.pair_carried], outputs=[out], device=dev)
         if not temporal:
             wp.launch(self.pk["commit"], dim=pairs, inputs=[self.pair_source, scratch], outputs=[own], device=dev)

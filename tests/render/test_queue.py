@@ -13,6 +13,7 @@ import pytest
 import warp as wp
 
 from grisx.device import cuda_available
+from grisx.errors import InvalidParameterError
 from grisx.render.base.queue import WorkQueue
 
 #: the queue's scan is Warp's (CUB on a GPU, a host loop on the CPU): both devices where there is a GPU
@@ -51,5 +52,5 @@ def test_queue_of_a_prefix_of_the_flags() -> None:
     n = q.build(flags, 20)
     np.testing.assert_array_equal(q.items.numpy()[:n], np.arange(0, 20, 3))
     assert q.build(flags, 0) == 0
-    with pytest.raises(ValueError):
+    with pytest.raises(InvalidParameterError, match="cannot hold 50 flags"):
         WorkQueue(10, "cpu").build(flags)

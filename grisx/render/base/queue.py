@@ -18,6 +18,8 @@ from typing import Any
 
 import warp as wp
 
+from grisx.errors import InvalidParameterError
+
 wp.set_module_options({"enable_backward": False})
 
 __all__ = ["WorkQueue", "enqueue"]
@@ -52,7 +54,7 @@ class WorkQueue:
         flat = flags.flatten()
         n = flat.shape[0] if count is None else int(count)
         if n > self.items.shape[0]:
-            raise ValueError(f"a work queue of {self.items.shape[0]} items cannot hold {n} flags")
+            raise InvalidParameterError(f"a work queue of {self.items.shape[0]} items cannot hold {n} flags")
         if n == 0:
             return 0
         flat = flat[:n]
