@@ -387,6 +387,27 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             return pair_as_is(src[s, orient, ny, nx])
         return carried[s, orient, y, x]
 
+    @wp.func
+    def pair_initial_reservoir(
+        canonical: wp.array2d(dtype=PathReservoir), film: wp.array2d(dtype=FilmSample), x: int, y: int, orient: int,
+        r: Reservoir, k: int, value: wp.vec3,
+    ) -> PairReservoir:
+        """An initial pair reservoir, finalized: bookkeeping ``r`` and, where it kept side ``k`` ≥ 0, that pixel's canonical
+        path and film sample (read here, once, not carried across the shifts) with ω*G = ``value``."""
+        p = PairReservoir()
+        p.res = reservoir_finalize(r)
+        p.path = path_sample_empty()
+        p.value = wp.vec3(0.0)
+        if k >= 0:
+            e = _axis(orient)
+            px = x + k * e[0]
+            py = y + k * e[1]
+            p.path = canonical[py, px].path
+            p.film = film[py, px]
+            p.k = k
+            p.value = value
+        return p
+
     # ---- initial paired-pixel candidates ----
     @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
     def pair_initial_pass(
@@ -399,47 +420,44 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         orient, y, x = wp.tid()
         h = film.shape[0]
         w = film.shape[1]
-        empty = PairReservoir()
-        empty.res = reservoir_empty()
-        empty.path = path_sample_empty()
-        empty.value = wp.vec3(0.0)
-        out[0, orient, y, x] = empty
-        out[1, orient, y, x] = empty
-        if not _pair_on_film(x, y, orient, w, h):
-            return
-        e = _axis(orient)
-        ukey = pixel_key_of(seed, frame, x, y, w, _STREAM_PAIR_INITIAL + orient)
-        # (y_i, 0) and (y_j, 1): each pixel's canonical sample with its UCW, alone on its half of X (m = 1)
-        sides = int(2)  # a dynamic bound: Warp unrolls a constant range, and this body inlines a shift (pair_value_in)
-        for k in range(sides):
-            px = x + k * e[0]
-            py = y + k * e[1]
-            o = pair_other_pixel(x, y, orient, k)
-            ad = area_domain(scene, cam, o[0], o[1], film[py, px])  # u kept in the other pixel: a film translation, |J| = 1
-            # ---- the emission at x₁ (a path of length 0) of pixel (px, py) toward the other: ω* = ½ (Eq. 4), its half
-            # of the pair's difference (the gradient pass's slot: right/down for side i, left/up for side j) ----
-            halves[2 * orient + k, py, px] = finite_or_dropped(pair_value(k, direct[py, px], ad.emission, 1.0, 1.0, 1.0, True), nonfinite)
-            ucw = canonical[py, px].res.ucw
-            value = wp.vec3(0.0)
-            if ucw > 0.0 and canonical[py, px].path.length > 0:
-                value = pair_value_in(scene, ad.dom, k, canonical[py, px].path, sp, symmetric)
-            # the candidate (y, k) is read back from memory where it is kept, not carried across the shift: a 50-word
-            # record live beside a shift spilled at the register cap (sm_90)
-            for slot in range(2):
-                if slot == 0 or positivize != 0:
-                    sign = pair_slot_sign(positivize, slot)
-                    # the shared candidates of r+ and r- (Sec. 4.4); Eq. 20 with m = 1, |J| = 1
-                    r = pair_update(out[slot, orient, y, x].res, sign, luminance(value), 1.0, ucw, 1.0, 0.5, random_uniform(ukey, 2 * k + slot))
-                    out[slot, orient, y, x].res = r
-                    if r.selected:
-                        out[slot, orient, y, x].path = canonical[py, px].path
-                        out[slot, orient, y, x].film = film[py, px]
-                        out[slot, orient, y, x].k = k
-                        out[slot, orient, y, x].value = value
-        for slot in range(2):
-            p = out[slot, orient, y, x]
-            p.res = reservoir_finalize(p.res)  # W = Σ w / p̂(y, k), Eq. 18
-            out[slot, orient, y, x] = p
+        # the two reservoirs' bookkeeping, the side k of the kept candidate (−1: none) and its ω*G stay in registers;
+        # each reservoir is written once, at the end: a field-by-field read-modify-write of a 60-word record at a
+        # 240-byte stride in every update is what this pass paid for on a GPU
+        r0 = reservoir_empty()
+        r1 = reservoir_empty()
+        k0 = int(-1)
+        k1 = int(-1)
+        v0 = wp.vec3(0.0)
+        v1 = wp.vec3(0.0)
+        if _pair_on_film(x, y, orient, w, h):
+            e = _axis(orient)
+            ukey = pixel_key_of(seed, frame, x, y, w, _STREAM_PAIR_INITIAL + orient)
+            # (y_i, 0) and (y_j, 1): each pixel's canonical sample with its UCW, alone on its half of X (m = 1)
+            sides = int(2)  # a dynamic bound: Warp unrolls a constant range, and this body inlines a shift (pair_value_in)
+            for k in range(sides):
+                px = x + k * e[0]
+                py = y + k * e[1]
+                o = pair_other_pixel(x, y, orient, k)
+                ad = area_domain(scene, cam, o[0], o[1], film[py, px])  # u kept in the other pixel: a film translation, |J| = 1
+                # ---- the emission at x₁ (a path of length 0) of pixel (px, py) toward the other: ω* = ½ (Eq. 4), its half
+                # of the pair's difference (the gradient pass's slot: right/down for side i, left/up for side j) ----
+                halves[2 * orient + k, py, px] = finite_or_dropped(pair_value(k, direct[py, px], ad.emission, 1.0, 1.0, 1.0, True), nonfinite)
+                ucw = canonical[py, px].res.ucw
+                value = wp.vec3(0.0)
+                if ucw > 0.0 and canonical[py, px].path.length > 0:
+                    value = pair_value_in(scene, ad.dom, k, canonical[py, px].path, sp, symmetric)
+                # the shared candidates of r+ and r- (Sec. 4.4); Eq. 20 with m = 1, |J| = 1
+                r0 = pair_update(r0, pair_slot_sign(positivize, 0), luminance(value), 1.0, ucw, 1.0, 0.5, random_uniform(ukey, 2 * k))
+                if r0.selected:
+                    k0 = k
+                    v0 = value
+                if positivize != 0:
+                    r1 = pair_update(r1, pair_slot_sign(positivize, 1), luminance(value), 1.0, ucw, 1.0, 0.5, random_uniform(ukey, 2 * k + 1))
+                    if r1.selected:
+                        k1 = k
+                        v1 = value
+        out[0, orient, y, x] = pair_initial_reservoir(canonical, film, x, y, orient, r0, k0, v0)  # W = Σ w / p̂(y, k), Eq. 18
+        out[1, orient, y, x] = pair_initial_reservoir(canonical, film, x, y, orient, r1, k1, v1)
 
     # ---- temporal reuse / spatial reuse: one merge of a source pair into each of this pair's reservoirs, in stages ----
     # The outer shift is two hybrid shifts in series (the base path into the pair, then the inner shift that gives ω*G);
