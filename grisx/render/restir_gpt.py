@@ -558,17 +558,23 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         nx = nxy[0]
         ny = nxy[1]
         to_dst = to_source[orient, y, x]
-        # the reservoir and its destination chosen first, shifted at one place (one inlined shift)
-        r = src[s, orient, ny, nx]
+        # the reservoir and its destination chosen first, shifted at one place (one inlined shift); only the fields the
+        # shift reads are loaded, from the one array the record lives in (a select between two records loaded both)
+        rs = src
+        ry = ny
+        rx = nx
         px = x
         py = y
         t = to_dst
         if toward_source != 0:
-            r = own[s, orient, y, x]
+            rs = own
+            ry = y
+            rx = x
             px = nx
             py = ny
             t = -to_dst
-        c = outer_base(scene, cam_dst, px, py, orient, r.film, t, r.k, r.path, sp, use_outer_jacobian, across)
+        c = outer_base(scene, cam_dst, px, py, orient, rs[s, orient, ry, rx].film, t, rs[s, orient, ry, rx].k, rs[s, orient, ry, rx].path, sp,
+                       use_outer_jacobian, across)
         carried[s, orient, y, x] = c
         inner_due[q] = int(c.valid)
 
@@ -624,9 +630,6 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         nxy = source[orient, y, x]
         if nxy[0] < 0:
             return
-        if temporal == 0:
-            out[0, orient, y, x] = own[0, orient, y, x]
-            out[1, orient, y, x] = own[1, orient, y, x]
         nx = nxy[0]
         ny = nxy[1]
         ukey = pixel_key_of(seed, frame, x, y, own.shape[3], _STREAM_PAIR_TEMPORAL + orient + 2 * (1 - temporal))
@@ -648,6 +651,7 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
                 b = pair_balance_add(b, sign, n_src, c_same, c_other, bk[0], bk[1], bk[2] != 0.0, -1)
                 r = reservoir_empty()
                 r = pair_update(r, sign, t_own, pair_balance_mis(b, c_own), own[slot, orient, y, x].res.ucw, 1.0, c_own, random_uniform(ukey, 0))
+                kept_e = int(-1)  # the input kept: −1 the pair's own sample, else the source's input e (written once, below)
                 # the source pair's reservoirs of this sign (and of the other, across signs), carried here by T*
                 for input_e in range(n_src):  # 1 or 2 (pair_source_inputs)
                     theirs = pair_input_slot(slot, input_e)
@@ -668,8 +672,15 @@ def make_restir_gpt_kernels(kinds: frozenset[int]) -> dict[str, Any]:
                     r = pair_update(r, sign, t_cand, mis, src[theirs, orient, ny, nx].res.ucw, jac, c_e,
                                     random_uniform(ukey, 1 + input_e))  # Eq. 20
                     if r.selected:
-                        keep_in(out, slot, orient, y, x, cand)
+                        kept_e = input_e
+                if kept_e >= 0:
+                    theirs = pair_input_slot(slot, kept_e)
+                    keep_in(out, slot, orient, y, x, carried_here(as_is[orient, y, x], due_here[theirs, orient, y, x], src, carried, theirs, orient, y, x, nx, ny))
+                elif temporal == 0:
+                    out[slot, orient, y, x] = own[slot, orient, y, x]  # the own sample kept: into the scratch record
                 out[slot, orient, y, x].res = reservoir_finalize(r)
+            elif temporal == 0:
+                out[slot, orient, y, x] = own[slot, orient, y, x]  # an unused slot (unpositivized), as it was
 
     @wp.kernel(module=module)
     def pair_commit_pass(source: wp.array3d(dtype=wp.vec2i), merged: wp.array4d(dtype=PairReservoir), own: wp.array4d(dtype=PairReservoir)):
