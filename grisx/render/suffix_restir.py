@@ -678,13 +678,18 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         for q in range(neighbors):
             nb = spatial_neighbor(x, y, width, domains.shape[0], radius, wp.vec2(random_uniform(ukey, 2 * q), random_uniform(ukey, 2 * q + 1)))
             l = q + 1
-            # an empty domain (no prefix, confidence 0) where no similar neighbour was drawn: it weighs nothing
-            row_set(rows, t, l, prefix_empty(), path_sample_empty(), reservoir_empty(), 0.0)
+            # an empty domain (no prefix, confidence 0) where no similar neighbour was drawn: it weighs nothing (each
+            # entry written once, as in the gather)
+            drawn = bool(False)
             if nb.valid != 0:
+                if domains[nb.y, nb.x].valid != 0 and inp[nb.y, nb.x].prefix.dom.valid != 0 and pixels_similar(g, x, y, g, nb.x, nb.y, SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH):
+                    drawn = True
+            if drawn:
                 other = inp[nb.y, nb.x]
-                if domains[nb.y, nb.x].valid != 0 and other.prefix.dom.valid != 0 and pixels_similar(g, x, y, g, nb.x, nb.y, SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH):
-                    row_set(rows, t, l, other.prefix, other.suffix.path, other.suffix.res, other.suffix.res.confidence)
-                    found += 1
+                row_set(rows, t, l, other.prefix, other.suffix.path, other.suffix.res, other.suffix.res.confidence)
+                found += 1
+            else:
+                row_set(rows, t, l, prefix_empty(), path_sample_empty(), reservoir_empty(), 0.0)
         if found == 0:
             return
         # out[y, x] holds the pixel's reservoir already: only its suffix changes, and nothing of it is held across the row's
@@ -805,9 +810,11 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         L = accum[y, x]
         if j == 0:
             L = direct[y, x]
-        # entry 0 holds the integration prefix for the MIS pass; none (invalid) makes it skip the pixel
-        row_set(rows, t, 0, prefix_empty(), path_sample_empty(), reservoir_empty(), 0.0)
+        # entry 0 holds the integration prefix for the MIS pass; none (invalid) makes it skip the pixel. Each entry is
+        # written once: a field-by-field store of a row's records (some 70 words at a row's stride) costs a GPU a memory
+        # transaction per field and lane
         if dom.valid == 0:
+            row_set(rows, t, 0, prefix_empty(), path_sample_empty(), reservoir_empty(), 0.0)
             accum[y, x] = L
             return
         gkey = pixel_key_of(seed, frame, x, y, width, _STREAM_GATHER)
@@ -823,12 +830,17 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         L += walk.pr.estimate * (1.0 / float(prefixes))  # Σ f/p over its candidates
         accum[y, x] = L
         if z.dom.valid == 0 or z.bounces == 0:
+            row_set(rows, t, 0, prefix_empty(), path_sample_empty(), reservoir_empty(), 0.0)
             return
-        # entry 0: the prefix's own (canonical) suffix domain, α = 0 without it (canonical=false, biased)
-        row_set(rows, t, 0, z, path_sample_empty(), reservoir_empty(), float(canonical))
-        # (a traced canonical suffix is gather_suffix_pass's walk, after this pass; MMIS's own ones are here already)
+        # entry 0: the prefix's own (canonical) suffix domain, α = 0 without it (canonical=false, biased). A traced
+        # canonical suffix is gather_suffix_pass's walk, after this pass, which writes the rest of the entry; MMIS's own
+        # ones are here already
         if j < own_suffixes and canonical != 0:
             row_set(rows, t, 0, z, own_x[t, j], own_res[t, j], 1.0)
+        elif j >= own_suffixes and gather_traced(j, gather_chosen(seed, frame, prefixes, own_suffixes), prefixes, own_suffixes, kept, canonical):
+            rows.z[t, 0] = z
+        else:
+            row_set(rows, t, 0, z, path_sample_empty(), reservoir_empty(), float(canonical))
         # entries 1 … k: the suffixes of the k nearest supporting prefixes (Alg. 1 lines 14–15)
         found = int(0)
         if gather_k > 0:
@@ -839,7 +851,6 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
                     r_wide = r_wide * 4.0
                     found = knn(grid, z.dom.p, r_wide, gather_k, points, knn_idx[t], knn_dist[t])
         for l in range(gather_k):
-            row_set(rows, t, 1 + l, prefix_empty(), path_sample_empty(), reservoir_empty(), 0.0)
             if l < found:
                 q = knn_idx[t, l]
                 s = support[q // width, q % width]
@@ -847,12 +858,15 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
                 if alpha_cap > 0.0:
                     alpha = confidence_capped(s.suffix.res.confidence, alpha_cap)
                 row_set(rows, t, 1 + l, s.prefix, s.suffix.path, s.suffix.res, alpha)
+            else:
+                row_set(rows, t, 1 + l, prefix_empty(), path_sample_empty(), reservoir_empty(), 0.0)
         # entries after: the pixel's own suffixes (MMIS), the prefix's own one left empty (it is entry 0)
         for l in range(own_suffixes):
             e = 1 + gather_k + l
-            row_set(rows, t, e, prefix_empty(), path_sample_empty(), reservoir_empty(), 0.0)
             if l != j:
                 row_set(rows, t, e, own_z[t, l], own_x[t, l], own_res[t, l], 1.0)
+            else:
+                row_set(rows, t, e, prefix_empty(), path_sample_empty(), reservoir_empty(), 0.0)
 
     @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
     def gather_suffix_pass(
