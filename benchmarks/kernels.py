@@ -78,6 +78,12 @@ VARIANTS: list[tuple[str, str, dict[str, Any]]] = [
     *((m, m, {}) for m in ("restcv", "restcv-di", "stcv", "icv", "restir-pt-decoupled", "area-restir",
                            "suffix-restir", "restir-gpt", "gradient-after-restir", "gpt", "sms", "sms-partitioned", "sms-restir")),
 ]
+#: settings timed on request only (``--methods``), beside the defaults: the paper's variants of a default
+EXTRA_VARIANTS: list[tuple[str, str, dict[str, Any]]] = [
+    ("restir-gpt unpositivized", "restir-gpt", {"positivize": False}),  # seed 000, Fig. 9: 29.9 ms, 39.8 positivized
+    ("suffix-restir rouletted", "suffix-restir", {"roulette": True}),  # seed 001, Eq. 23 with R = 1
+]
+ALL_VARIANTS = VARIANTS + EXTRA_VARIANTS
 REGISTER_CAP = 255
 
 
@@ -251,7 +257,7 @@ def compile_child(label: str, args: argparse.Namespace) -> int:
         import aot_cuda
 
         aot_cuda.install_hook(args.arch)  # the CPU process also builds what a GPU would: sm_ARCH cubins
-    _, method, params = next(v for v in VARIANTS if v[0] == label)
+    _, method, params = next(v for v in ALL_VARIANTS if v[0] == label)
     t0 = time.perf_counter()
     render(**render_kwargs(method, params, args, res=(8, 8), frames=1))
     print(json.dumps({"render_s": time.perf_counter() - t0, "compiles": compiles}))
@@ -370,7 +376,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--device", default="cpu")
     ap.add_argument("--scene", default="glossy-room", help="modules are specialised to its material kinds")
-    ap.add_argument("--methods", default=None, help="comma-separated labels (default: all of " + ", ".join(v[0] for v in VARIANTS) + ")")
+    ap.add_argument("--methods", default=None, help="comma-separated labels (default: all of " + ", ".join(v[0] for v in VARIANTS) + "; on request: " + ", ".join(v[0] for v in EXTRA_VARIANTS) + ")")
     ap.add_argument("--res", type=int, nargs=2, default=(1920, 1080), metavar=("W", "H"), help="timing resolution (CUDA)")
     ap.add_argument("--frames", type=int, default=None, help="timed frames after the first (default 32 on CUDA, 0 = no timing on CPU)")
     ap.add_argument("--camera", default="static", choices=("static", "path"),
@@ -397,7 +403,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.compile_child:
         return compile_child(args.compile_child, args)
     labels = [v[0] for v in VARIANTS] if args.methods is None else args.methods.split(",")
-    unknown = set(labels) - {v[0] for v in VARIANTS}
+    unknown = set(labels) - {v[0] for v in ALL_VARIANTS}
     if unknown:
         ap.error(f"unknown methods {sorted(unknown)}")
     if args.frames is None:
@@ -426,7 +432,7 @@ def main(argv: list[str] | None = None) -> int:
     from grisx.render.driver import render
 
     for label in labels:
-        _, method, params = next(v for v in VARIANTS if v[0] == label)
+        _, method, params = next(v for v in ALL_VARIANTS if v[0] == label)
         print(f"{label} ...", file=sys.stderr, flush=True)
         t0 = time.perf_counter()
         try:
