@@ -367,9 +367,9 @@ class AreaReSTIR(ReSTIRPT):
             wp.launch(k["primary"], dim=dim, inputs=[b.data, cam, self.seed, sf], outputs=[film, self.domains[0], self.direct], device=dev)
         cur = self.buffers[1]
         with self._phase("initial"):
-            wp.launch(k["initial"], dim=dim, inputs=[b.data, self.seed, sf, self.candidates, self.max_bounces, self.shift_params, 1.0, self.domains[0]],
-                      outputs=[cur], device=dev)
-            wp.launch(k["settle"], dim=dim, inputs=[b.data, self.shift_params, self.domains[0]], outputs=[cur], device=dev)
+            wp.launch(k["initial"], dim=dim, inputs=[b.data, self.seed, sf, self.candidates, self.max_bounces, self.shift_params, 1.0, self.domains[0],
+                                                    self.kept_paths], outputs=[cur], device=dev)
+            wp.launch(k["settle"], dim=dim, inputs=[b.data, self.shift_params, self.domains[0], self.kept_paths], outputs=[cur], device=dev)
         return cur, film
 
     def after_canonical(self, reservoirs: wp.array) -> None:

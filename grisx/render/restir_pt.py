@@ -100,9 +100,13 @@ from grisx.render.base.path_shift import (
     PathReservoir,
     PathSample,
     PathShiftResult,
+    PathSlots,
     ShiftParams,
     make_path_shift,
     path_sample_empty,
+    path_slot_load,
+    path_slot_store,
+    path_slots,
     path_target,
     shift_params,
     target_back,
@@ -312,10 +316,12 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
         sp: ShiftParams,
         missed_confidence: float,
         domains: wp.array2d(dtype=Domain),
+        kept: PathSlots,
         out: wp.array2d(dtype=PathReservoir),
     ):
         """N paths per pixel streamed into its reservoir; confidence 1, or ``missed_confidence`` where the
-        primary ray missed (Area ReSTIR: 1, those film samples are part of the pixel's domain)."""
+        primary ray missed (Area ReSTIR: 1, those film samples are part of the pixel's domain). The kept path is left in
+        the pixel's slot of ``kept``, the bookkeeping in ``out``: :func:`settle_pass` joins them."""
         y, x = wp.tid()
         width = domains.shape[1]
         ukey = pixel_key_of(seed, frame, x, y, width, _STREAM_RESAMPLE)
@@ -325,12 +331,12 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
         pr.path = path_sample_empty()
         pr.estimate = wp.vec3(0.0)
         inv_n = 1.0 / float(candidates)
-        out[y, x] = pr
+        path_slot_store(kept, y, x, pr.path)  # what the slot holds where no candidate is kept
         if dom.valid != 0:
             for cand in range(candidates):
                 key = pixel_key_of(seed, frame, x, y, width, _STREAM_PATHS + cand)  # the path's seed: shifts replay it
-                # the kept candidate goes to out[y, x].path as it is kept (not carried across the walk's rays)
-                pr = sample_paths(scene, dom, key, max_bounces, inv_n, sp, pr, random_subkey(ukey, cand), out, y, x)
+                # the kept candidate goes to the slot as it is kept (not carried across the walk's rays)
+                pr = sample_paths(scene, dom, key, max_bounces, inv_n, sp, pr, random_subkey(ukey, cand), kept, y, x)
             pr.res.confidence = 1.0  # one frame's canonical sample: the unit of the history cap
         else:
             pr.res.confidence = missed_confidence
@@ -338,10 +344,15 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
         out[y, x].estimate = pr.estimate
 
     @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
-    def settle_pass(scene: SceneData, sp: ShiftParams, domains: wp.array2d(dtype=Domain), out: wp.array2d(dtype=PathReservoir)):
-        """The kept candidate re-evaluated as the shifts see it, and the UCW (``settle``), in place."""
+    def settle_pass(scene: SceneData, sp: ShiftParams, domains: wp.array2d(dtype=Domain), kept: PathSlots, out: wp.array2d(dtype=PathReservoir)):
+        """The kept candidate (from its slot) re-evaluated as the shifts see it, and the UCW (``settle``): the whole
+        reservoir written once."""
         y, x = wp.tid()
-        out[y, x] = settle(scene, domains[y, x], out[y, x], sp)
+        pr = PathReservoir()
+        pr.res = out[y, x].res
+        pr.path = path_slot_load(kept, y, x)
+        pr.estimate = out[y, x].estimate
+        out[y, x] = settle(scene, domains[y, x], pr, sp)
 
     # ---- temporal reuse, in two stages (one shift each): the canonical path into the history's domain, then the merge ----
     @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
@@ -652,6 +663,7 @@ class ReSTIRPT(ScreenSpaceRenderer):
             self.gbuffer = GBuffer(self.width, self.height, dev, material=self.GBUFFER_MATERIAL)
         self.domains = [wp.zeros(shape, dtype=Domain, device=dev) for _ in range(2)]  # current, previous
         self.buffers = [wp.zeros(shape, dtype=PathReservoir, device=dev) for _ in range(3)]  # 0: history, 1–2: scratch
+        self.kept_paths = path_slots(self.height, self.width, dev)  # the initial walk's kept candidate (settle_pass reads it)
         # the spatial pass's two stages share the neighbours drawn, m_c, and (for a variant) the canonical path's shifts
         self.spatial_domains = DomainList(self.height, self.width, self.neighbors, dev)
         self.m_canonical = wp.zeros(shape, dtype=float, device=dev)
@@ -700,11 +712,11 @@ class ReSTIRPT(ScreenSpaceRenderer):
             wp.launch(
                 k["initial"],
                 dim=dim,
-                inputs=[b.data, self.seed, int(frame), self.candidates, self.max_bounces, self.shift_params, 0.0, dom],
+                inputs=[b.data, self.seed, int(frame), self.candidates, self.max_bounces, self.shift_params, 0.0, dom, self.kept_paths],
                 outputs=[cur],
                 device=dev,
             )
-            wp.launch(k["settle"], dim=dim, inputs=[b.data, self.shift_params, dom], outputs=[cur], device=dev)
+            wp.launch(k["settle"], dim=dim, inputs=[b.data, self.shift_params, dom, self.kept_paths], outputs=[cur], device=dev)
         if self.temporal and self.frames_rendered > 0:
             with self._phase("temporal"):
                 g, g_prev = self.gbuffer.current, self.gbuffer.previous

@@ -147,11 +147,15 @@ from grisx.render.base.path_shift import (
     Domain,
     PathReservoir,
     PathSample,
+    PathSlots,
     PrefixCut,
     ShiftParams,
     make_path_shift,
     path_dim,
     path_sample_empty,
+    path_slot_load,
+    path_slot_store,
+    path_slots,
     path_target,
     prefix_cut_empty,
     prefix_cut_here,
@@ -488,21 +492,21 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
 
     @wp.func
     def trace_suffix(
-        spec: SuffixSpec, z: Prefix, key: wp.uint32, ukey: wp.uint32, kept: wp.array2d(dtype=PathReservoir), ky: int, kx: int
+        spec: SuffixSpec, z: Prefix, key: wp.uint32, ukey: wp.uint32, kept: PathSlots, ky: int, kx: int
     ) -> PathReservoir:
         """A canonical suffix after z (Alg. 1 line 8): one path-tracer path from x_k, one candidate kept by RIS, confidence 1.
 
-        The walk writes the candidate it keeps into ``kept[ky, kx]`` (the pixel's scratch record) as ReSTIR PT's initial
-        pass does, instead of carrying a 32-word path across its rays (where it spilled)."""
+        The walk writes the candidate it keeps into the pixel's slot (ky, kx) of ``kept`` as ReSTIR PT's initial pass
+        does, instead of carrying a 32-word path across its rays (where it spilled)."""
         pr = PathReservoir()
         pr.res = reservoir_empty()
         pr.path = path_sample_empty()
         pr.estimate = wp.vec3(0.0)
         if z.dom.valid == 0 or z.bounces == 0:
             return pr
-        kept[ky, kx].path = path_sample_empty()  # what the walk leaves there where it keeps nothing
+        path_slot_store(kept, ky, kx, path_sample_empty())  # what the walk leaves there where it keeps nothing
         pr = stream_kept(spec.scene, z.dom, key, z.bounces, 1.0, spec.sp, pr, ukey, kept, ky, kx)
-        pr.path = kept[ky, kx].path
+        pr.path = path_slot_load(kept, ky, kx)
         pr = settle(spec.scene, z.dom, pr, spec.sp)
         pr.res.confidence = 1.0
         return pr
@@ -612,7 +616,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
 
     @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
     def support_suffix_pass(
-        spec: SuffixSpec, seed: int, frame: int, kept: wp.array2d(dtype=PathReservoir), out: wp.array2d(dtype=SupportReservoir)
+        spec: SuffixSpec, seed: int, frame: int, kept: PathSlots, out: wp.array2d(dtype=SupportReservoir)
     ):
         """The canonical suffix after the supporting prefix (Alg. 1 line 8)."""
         y, x = wp.tid()
@@ -871,7 +875,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
     def gather_suffix_pass(
         spec: SuffixSpec, seed: int, frame: int, j: int, prefixes: int, own_suffixes: int, kept: int, canonical: int, width: int, rows: Rows,
-        kept_path: wp.array2d(dtype=PathReservoir),
+        kept_path: PathSlots,
     ):
         """Prefix j's canonical suffix (Eq. 22's canonical input), traced where the window of Eq. 23 holds j: a kernel
         of its own, so that the walk does not hold the prefix pass's state (the row, the k-NN lists) where it spilled."""
@@ -940,7 +944,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         seed: int,
         frame: int,
         domains: wp.array2d(dtype=Domain),
-        kept: wp.array2d(dtype=PathReservoir),
+        kept: PathSlots,
         own_z: wp.array2d(dtype=Prefix),
         own_x: wp.array2d(dtype=PathSample),
         own_res: wp.array2d(dtype=Reservoir),
@@ -1108,7 +1112,7 @@ class SuffixReSTIR(ScreenSpaceRenderer):
         self.own_z = wp.zeros((n, own), dtype=Prefix, device=dev)
         self.own_x = wp.zeros((n, own), dtype=PathSample, device=dev)
         self.own_res = wp.zeros((n, own), dtype=Reservoir, device=dev)
-        self.suffix_kept = wp.zeros(shape, dtype=PathReservoir, device=dev)  # each suffix walk's kept candidate (scratch)
+        self.suffix_kept = path_slots(self.height, self.width, dev)  # each suffix walk's kept candidate (scratch)
         self.knn_idx = wp.zeros((n, max(self.gather_k, 1)), dtype=int, device=dev)
         self.knn_dist = wp.zeros((n, max(self.gather_k, 1)), dtype=float, device=dev)
         self.points = wp.zeros(n, dtype=wp.vec3, device=dev)

@@ -29,7 +29,23 @@ from grisx.scene.builtin import build_builtin
 from grisx.scene.camera import Camera, lookat
 from grisx.scene.lights import sample_light
 from grisx.scene.material import Diffuse
-from grisx.render.base.path_shift import DIM_NEE, Domain, ShiftParams, make_path_shift, path_dim, path_target, shift_params
+from grisx.render.base.path_shift import (
+    DIM_NEE,
+    PATH_SLOT_FLOATS,
+    PATH_SLOT_INTS,
+    PATH_SLOT_KEYS,
+    Domain,
+    PathSample,
+    PathSlots,
+    ShiftParams,
+    make_path_shift,
+    path_dim,
+    path_slot_load,
+    path_slot_store,
+    path_slots,
+    path_target,
+    shift_params,
+)
 from grisx.render.restir_pt import PathReservoir, ReSTIRPT
 from grisx.scene.scene import Scene, SceneData
 from grisx.scene.shapes import rectangle
@@ -296,3 +312,57 @@ def test_jacobian_threshold_rejects_symmetrically():
 def test_unknown_shift_is_an_error():
     with pytest.raises(InvalidParameterError, match="unknown shift"):
         shift_params("teleport")
+
+
+# ---- path slots: a kept path in structure-of-arrays form ----
+
+@wp.kernel
+def _slot_roundtrip(src: wp.array2d(dtype=PathSample), slots: PathSlots, out: wp.array2d(dtype=PathSample)):
+    y, x = wp.tid()
+    path_slot_store(slots, y, x, src[y, x])
+    out[y, x] = path_slot_load(slots, y, x)
+
+
+def _random_paths(rng: np.random.Generator, shape: tuple[int, int]) -> np.ndarray:
+    a = np.zeros(shape, dtype=PathSample.numpy_dtype())
+    for name in a.dtype.names:
+        field = a[name]
+        if np.issubdtype(field.dtype, np.floating):
+            a[name] = rng.normal(size=field.shape).astype(field.dtype)
+        else:
+            a[name] = rng.integers(1, 2**31 - 1, size=field.shape).astype(field.dtype)
+    a["key"] = rng.integers(2**31, 2**32, size=shape, dtype=np.uint64).astype(np.uint32)  # the high bit survives
+    return a
+
+
+def test_path_slots_hold_every_field_of_a_path():
+    """path_slot_store then path_slot_load gives back every word of a PathSample, and the named layout covers every
+    field: a field added to PathSample and not to the slots would come back as 0 here and fail."""
+    assert set(PATH_SLOT_FLOATS + PATH_SLOT_INTS + PATH_SLOT_KEYS) == set(PathSample.vars)
+    shape = (5, 7)
+    a = _random_paths(np.random.default_rng(3), shape)
+    src = wp.array(a, dtype=PathSample, device="cpu")
+    out = wp.zeros(shape, dtype=PathSample, device="cpu")
+    wp.launch(_slot_roundtrip, dim=shape, inputs=[src, path_slots(*shape, "cpu")], outputs=[out], device="cpu")
+    b = out.numpy()
+    for name in a.dtype.names:
+        assert np.array_equal(a[name], b[name]), name
+
+
+def test_path_slots_sibling_a_store_that_drops_a_field_is_caught():
+    """The check above fails when one word is left out: the same round trip through a store that skips rc_cos."""
+
+    @wp.kernel
+    def lossy(src: wp.array2d(dtype=PathSample), slots: PathSlots, out: wp.array2d(dtype=PathSample)):
+        y, x = wp.tid()
+        p = src[y, x]
+        p.rc_cos = 0.0
+        path_slot_store(slots, y, x, p)
+        out[y, x] = path_slot_load(slots, y, x)
+
+    shape = (3, 4)
+    a = _random_paths(np.random.default_rng(4), shape)
+    out = wp.zeros(shape, dtype=PathSample, device="cpu")
+    wp.launch(lossy, dim=shape, inputs=[wp.array(a, dtype=PathSample, device="cpu"), path_slots(*shape, "cpu")], outputs=[out], device="cpu")
+    b = out.numpy()
+    assert not np.array_equal(a["rc_cos"], b["rc_cos"])

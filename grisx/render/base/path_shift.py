@@ -139,6 +139,10 @@ __all__ = [
     "Domain",
     "PathSample",
     "PathReservoir",
+    "PathSlots",
+    "path_slots",
+    "path_slot_store",
+    "path_slot_load",
     "ShiftParams",
     "PathShiftResult",
     "PathShiftFuncs",
@@ -350,6 +354,100 @@ def path_sample_empty() -> PathSample:
     return x
 
 
+# ---- a path walk's kept candidate, one slot a pixel, in structure-of-arrays form ----
+# A path walk writes the candidate it keeps into memory as it keeps it (a 32-word PathSample carried across the walk's
+# rays spilled). In an array of PathSample a warp's store of one field is 32 lanes at a 128-byte stride: a memory
+# transaction per lane, for each of the 32 fields. Word w of slot (y, x) at [w, y, x] makes the same store one
+# coalesced transaction of the warp. PATH_SLOT_FLOATS/INTS name the words in order; path_slot_store and path_slot_load
+# are their one reading (tests/render/test_path_shift.py checks that they cover every field of PathSample).
+PATH_SLOT_FLOATS = ("pdf_replay", "rc_p", "rc_ng", "rc_ns", "rc_uv", "rc_wi", "rc_cos", "rc_dist", "suffix", "end_light_pdf", "f")
+PATH_SLOT_INTS = ("length", "end_nee", "rc_index", "rc_material", "rc_tri", "rc_kind", "end_delta")
+PATH_SLOT_KEYS = ("key",)
+_PATH_SLOT_FLOAT_WORDS = 24  # the float fields' words (vec3 three, vec2 two)
+
+
+@wp.struct
+class PathSlots:
+    """Kept paths, one slot a pixel, in structure-of-arrays form (``path_slots`` allocates them): the float words of slot
+    (y, x) at ``words[w, y, x]``, its integers at ``ints[w, y, x]``, its seed at ``key[y, x]``."""
+
+    words: wp.array3d(dtype=float)
+    ints: wp.array3d(dtype=wp.int32)
+    key: wp.array2d(dtype=wp.uint32)
+
+
+def path_slots(height: int, width: int, device: Any) -> PathSlots:
+    """Path slots for a height × width image on ``device``, every slot the empty path (all words 0)."""
+    s = PathSlots()
+    s.words = wp.zeros((_PATH_SLOT_FLOAT_WORDS, height, width), dtype=float, device=device)
+    s.ints = wp.zeros((len(PATH_SLOT_INTS), height, width), dtype=wp.int32, device=device)
+    s.key = wp.zeros((height, width), dtype=wp.uint32, device=device)
+    return s
+
+
+@wp.func
+def _slot_vec3(s: PathSlots, w: int, y: int, x: int, v: wp.vec3):
+    s.words[w, y, x] = v[0]
+    s.words[w + 1, y, x] = v[1]
+    s.words[w + 2, y, x] = v[2]
+
+
+@wp.func
+def _slot_vec3_at(s: PathSlots, w: int, y: int, x: int) -> wp.vec3:
+    return wp.vec3(s.words[w, y, x], s.words[w + 1, y, x], s.words[w + 2, y, x])
+
+
+@wp.func
+def path_slot_store(s: PathSlots, y: int, x: int, p: PathSample):
+    """Write path ``p`` into slot (y, x) (the words in PATH_SLOT_FLOATS, PATH_SLOT_INTS, PATH_SLOT_KEYS order)."""
+    s.words[0, y, x] = p.pdf_replay
+    _slot_vec3(s, 1, y, x, p.rc_p)
+    _slot_vec3(s, 4, y, x, p.rc_ng)
+    _slot_vec3(s, 7, y, x, p.rc_ns)
+    s.words[10, y, x] = p.rc_uv[0]
+    s.words[11, y, x] = p.rc_uv[1]
+    _slot_vec3(s, 12, y, x, p.rc_wi)
+    s.words[15, y, x] = p.rc_cos
+    s.words[16, y, x] = p.rc_dist
+    _slot_vec3(s, 17, y, x, p.suffix)
+    s.words[20, y, x] = p.end_light_pdf
+    _slot_vec3(s, 21, y, x, p.f)
+    s.ints[0, y, x] = p.length
+    s.ints[1, y, x] = p.end_nee
+    s.ints[2, y, x] = p.rc_index
+    s.ints[3, y, x] = p.rc_material
+    s.ints[4, y, x] = p.rc_tri
+    s.ints[5, y, x] = p.rc_kind
+    s.ints[6, y, x] = p.end_delta
+    s.key[y, x] = p.key
+
+
+@wp.func
+def path_slot_load(s: PathSlots, y: int, x: int) -> PathSample:
+    """The path in slot (y, x), as :func:`path_slot_store` wrote it."""
+    p = PathSample()
+    p.pdf_replay = s.words[0, y, x]
+    p.rc_p = _slot_vec3_at(s, 1, y, x)
+    p.rc_ng = _slot_vec3_at(s, 4, y, x)
+    p.rc_ns = _slot_vec3_at(s, 7, y, x)
+    p.rc_uv = wp.vec2(s.words[10, y, x], s.words[11, y, x])
+    p.rc_wi = _slot_vec3_at(s, 12, y, x)
+    p.rc_cos = s.words[15, y, x]
+    p.rc_dist = s.words[16, y, x]
+    p.suffix = _slot_vec3_at(s, 17, y, x)
+    p.end_light_pdf = s.words[20, y, x]
+    p.f = _slot_vec3_at(s, 21, y, x)
+    p.length = s.ints[0, y, x]
+    p.end_nee = s.ints[1, y, x]
+    p.rc_index = s.ints[2, y, x]
+    p.rc_material = s.ints[3, y, x]
+    p.rc_tri = s.ints[4, y, x]
+    p.rc_kind = s.ints[5, y, x]
+    p.end_delta = s.ints[6, y, x]
+    p.key = s.key[y, x]
+    return p
+
+
 @wp.func
 def rc_pair_ok(sp: ShiftParams, rough_prev: float, rough_cur: float, dist: float, index: int) -> bool:
     """Whether (x_{index−1}, x_index) may be the reconnection pair: the hybrid's rule, or x₂ for pure reconnection.
@@ -459,7 +557,7 @@ class PathShiftFuncs:
     ``stream_candidates(scene, dom, key, max_bounces, weight_scale, sp, pr, ukey) -> PathReservoir``
     traces one path and streams its candidates (with their reconnection data) into a path
     reservoir, and ``settle(scene, dom, pr, sp) -> PathReservoir`` finalizes it; ``stream_candidates_kept`` (the same
-    arguments, then ``kept, ky, kx``) writes the path it keeps into ``kept[ky, kx].path`` instead of returning it; ``stream_prefix`` (the same arguments,
+    arguments, then ``kept, ky, kx``) writes the path it keeps into slot (ky, kx) of the :class:`PathSlots` ``kept`` instead of returning it; ``stream_prefix`` (the same arguments,
     then ``cut_sp, cut_rule``; returns :class:`StreamedPath`) walks a path for ``estimate`` alone (Σ f/(N p) of its
     candidates; the reservoir is left as given) up to where :func:`prefix_cut_here` ends its prefix.
     ``shift_across`` is ``shift`` between the frames of :meth:`~grisx.scene.scene.BuiltScene.across_frames`,
@@ -780,7 +878,7 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
     # data (Suffix ReSTIR's gather walks a prefix for its light alone: two thirds of its prefix pass was that bookkeeping).
     # ``cut``: the walk also ends its prefix where ``prefix_cut_here`` says (the gather sampled the prefix in a walk of its
     # own before, the same directions traced twice)
-    # ``kept_in_memory``: the walk writes the candidate it keeps into ``kept[ky, kx].path`` when it keeps it, instead of
+    # ``kept_in_memory``: the walk writes the candidate it keeps into slot (ky, kx) of ``kept`` (PathSlots) when it keeps it, instead of
     # carrying it across every ray of the walk: a third 32-word PathSample live beside the walk's reconnection data and
     # the candidate being composed, it spilled (sm_90, glossy-room: initial_pass 2160 -> 1104 B of stack at 128
     # registers). ``pr.path`` is then left as given
@@ -899,7 +997,7 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                                         else:
                                             cand_x.pdf_replay = pdf * ls.pdf * s_nee
                                         if wp.static(kept_in_memory):
-                                            kept[ky, kx].path = cand_x
+                                            path_slot_store(kept, ky, kx, cand_x)
                                         else:
                                             sel = cand_x
                 # -- BSDF sampling (drawn above) --
@@ -967,7 +1065,7 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                             else:
                                 cand_x.pdf_replay = pdf
                             if wp.static(kept_in_memory):
-                                kept[ky, kx].path = cand_x
+                                path_slot_store(kept, ky, kx, cand_x)
                             else:
                                 sel = cand_x
                 if wp.static(cut):
@@ -1032,10 +1130,10 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
     @wp.func
     def stream_path_candidates_kept(
         scene: SceneData, dom: Domain, key: wp.uint32, max_bounces: int, weight_scale: float, sp: ShiftParams, pr: PathReservoir,
-        ukey: wp.uint32, kept: wp.array2d(dtype=PathReservoir), ky: int, kx: int,
+        ukey: wp.uint32, kept: PathSlots, ky: int, kx: int,
     ) -> PathReservoir:
-        """:func:`stream_path_candidates` that writes the candidate it keeps into ``kept[ky, kx].path`` when it keeps it
-        (``pr.path`` is left as given: the kept path is the one in memory)."""
+        """:func:`stream_path_candidates` that writes the candidate it keeps into slot (ky, kx) of ``kept`` when it keeps it
+        (``pr.path`` is left as given: the kept path is the one in memory, :func:`path_slot_load`)."""
         return stream_path_kept(scene, dom, key, max_bounces, weight_scale, sp, pr, ukey, sp, CUT_NONE, kept, ky, kx).pr
 
     @wp.func
