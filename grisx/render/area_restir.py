@@ -182,17 +182,19 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         history_pixel: wp.array2d(dtype=wp.int32), target_cj: wp.array2d(dtype=float),
     ):
         y, x = wp.tid()
-        can = canonical[y, x]
         fs_c = film_can[y, x]
-        out[y, x] = can  # the merge stage overwrites it where there is a history
-        film_out[y, x] = fs_c
+        film_out[y, x] = fs_c  # the merge stage overwrites it where it keeps the history's sample
         history_pixel[y, x] = -1
         # the previous pixel p and the fractional motion δ come from the G-buffer alone (independent of the samples)
         nb = temporal_neighbor(g, g_prev, x, y, SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH)
-        if nb.valid == 0:
+        found = bool(False)
+        if nb.valid != 0:
+            found = history[nb.y, nb.x].res.confidence > 0.0
+        if not found:
+            out[y, x] = canonical[y, x]  # no history: the canonical reservoir passes through (the merge stage skips it)
             return
-        if history[nb.y, nb.x].res.confidence <= 0.0:
-            return
+        # (where there is a history the merge stage writes the whole reservoir, once)
+        can = canonical[y, x]
         # canonical sample: p̂_{←p}(y_c) through the inverse translation, on the previous camera and in the
         # previous frame's scene (each domain in its own frame)
         to_prev = temporal_film_offset(x, y, nb.x, nb.y, g.motion[y, x])
@@ -238,10 +240,12 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         other = prev.res
         other.confidence = c_j
         r = reservoir_merge(r, other, m_t, t_ti, s_t.jacobian, random_uniform(ukey, 1))  # seed 000, Eq. 9
-        # the kept sample written where it is kept; the canonical stage left the canonical one in out (no path carried)
+        # the kept sample written once, after the merge; the canonical stage left the canonical film sample in film_out
         if r.selected:
             out[y, x].path = s_t.path
             film_out[y, x] = fs_t
+        else:
+            out[y, x].path = can.path
         finalize_kept(out, y, x, r)
 
     # ---- spatial reuse, in two stages (one film shift each): the canonical sample's pairwise weight, then the merge ----

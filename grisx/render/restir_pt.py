@@ -372,23 +372,24 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
         shifted: Any,
     ):
         y, x = wp.tid()
-        can = canonical[y, x]
-        out[y, x] = can  # the merge stage overwrites it where there is a history
         history_pixel[y, x] = -1
-        if domains[y, x].valid == 0:
+        code = int(-1)
+        if domains[y, x].valid != 0:
+            nb = temporal_neighbor(g, g_prev, x, y, SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH)
+            if nb.valid != 0:
+                if domains_prev[nb.y, nb.x].valid != 0 and history[nb.y, nb.x].res.confidence > 0.0:
+                    code = domain_code(nb.x, nb.y, domains.shape[1], 0)
+        if code < 0:
+            out[y, x] = canonical[y, x]  # no history: the canonical reservoir passes through (the merge stage skips it)
             return
-        nb = temporal_neighbor(g, g_prev, x, y, SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH)
-        if nb.valid == 0:
-            return
-        dom_j = domains_prev[nb.y, nb.x]
-        if dom_j.valid == 0 or history[nb.y, nb.x].res.confidence <= 0.0:
-            return
+        # (where there is a history the merge stage writes the whole reservoir, once)
+        hp = domain_pixel(code, domains.shape[1])
         # canonical path y_c: p̂_{←j}(y_c) through T_{i→j} (seed 001, Eq. 16)
-        s_cj = shift_across(scene, dom_j, can.path, sp)
+        s_cj = shift_across(scene, domains_prev[hp.y, hp.x], canonical[y, x].path, sp)
         target_cj[y, x] = target_to(s_cj)
         if wp.static(est is not None):
             shifted[y, x] = s_cj  # a variant's estimate needs the whole shift
-        history_pixel[y, x] = domain_code(nb.x, nb.y, domains.shape[1], 0)
+        history_pixel[y, x] = code
 
     @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
     @arg_types(shifted=wp.array2d(dtype=PathShiftResult))
@@ -430,15 +431,17 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
         m_t = two_domain_balance(c_j, t_tj, c_i, t_ti)
         r = reservoir_empty()
         r = reservoir_update(r, resampling_weight(m_c, t_c, can.res.ucw, 1.0), t_c, c_i, random_uniform(ukey, 0))
+        canonical_kept = r.selected
         other = prev.res
         other.confidence = c_j
-        # the kept path written where it is kept, no path carried across the shift: out[y, x] holds the canonical
-        # reservoir already (the canonical stage passed it through)
-        if not r.selected:
-            out[y, x].path = path_sample_empty()
         r = reservoir_merge(r, other, m_t, t_ti, s_t.jacobian, random_uniform(ukey, 1))  # seed 000, Eq. 9
+        # the kept path written once, after the merge (no shift after it: nothing is held across one)
         if r.selected:
             out[y, x].path = s_t.path
+        elif canonical_kept:
+            out[y, x].path = can.path
+        else:
+            out[y, x].path = path_sample_empty()
         if wp.static(est is None):
             finalize_kept(out, y, x, r)
         else:
@@ -540,9 +543,10 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
         r = reservoir_empty()
         r = reservoir_update(r, resampling_weight(m_c, t_c, can.res.ucw, 1.0), t_c, c_c, random_uniform(ukey, 100))
         # the kept path goes to out[y, x].path as it is kept, not carried across the neighbours' shifts
-        out[y, x].path = path_sample_empty()
         if r.selected:
             out[y, x].path = can.path
+        else:
+            out[y, x].path = path_sample_empty()
         # each neighbour's path shifted here, weighted against the canonical domain
         for j in range(k):
             nb = domain_pixel(codes[y, x, j], width)
