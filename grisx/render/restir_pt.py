@@ -435,18 +435,18 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
         other = prev.res
         other.confidence = c_j
         r = reservoir_merge(r, other, m_t, t_ti, s_t.jacobian, random_uniform(ukey, 1))  # seed 000, Eq. 9
-        # the kept path written once, after the merge (no shift after it: nothing is held across one)
+        # the kept path, chosen after the merge (no shift follows it: nothing is held across one) and written once
+        kept = path_sample_empty()
         if r.selected:
-            out[y, x].path = s_t.path
+            kept = s_t.path
         elif canonical_kept:
-            out[y, x].path = can.path
-        else:
-            out[y, x].path = path_sample_empty()
+            kept = can.path
         if wp.static(est is None):
+            out[y, x].path = kept
             finalize_kept(out, y, x, r)
         else:
             step = TemporalStep(x=x, y=y, nb=nb, can=can, prev=prev, c_j=c_j, s_cj=shifted[y, x], s_t=s_t, m_c=m_c, m_t=m_t)
-            out[y, x] = est_temporal(cvo, g, g_prev, step, path_reservoir(r, out[y, x].path))  # the kept path read back
+            out[y, x] = est_temporal(cvo, g, g_prev, step, path_reservoir(r, kept))
 
     # ---- spatial reuse, in two stages (one shift each): the canonical path's pairwise weight, then the merge ----
     @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
