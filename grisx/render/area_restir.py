@@ -312,9 +312,9 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         m_c = m_canonical[y, x]
         r = reservoir_empty()
         r = reservoir_update(r, resampling_weight(m_c, t_c, can.res.ucw, 1.0), t_c, c_c, random_uniform(ukey, 100))
-        # the kept sample goes to out as it is kept, not carried across the neighbours' shifts
-        out[y, x].path = can.path
-        film_out[y, x] = fs_c
+        # a neighbour's kept sample goes to out as it is kept, not carried across the other neighbours' shifts; the
+        # canonical one is written at the end, only where no neighbour's replaced it
+        neighbor_kept = bool(False)
         # each neighbour's sample moved here by the whole-pixel translation, weighted against the canonical
         for j in range(k):
             nb = domain_pixel(codes[y, x, j], width)
@@ -328,6 +328,10 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             if r.selected:
                 out[y, x].path = s.path
                 film_out[y, x] = fs_q
+                neighbor_kept = True
+        if not neighbor_kept:
+            out[y, x].path = inp[y, x].path  # read again here: not held across the shifts
+            film_out[y, x] = fs_c
         finalize_kept(out, y, x, r)
 
     pt = make_restir_pt_kernels(kinds)  # ReSTIR PT's candidate walk, settle and shade passes serve as they are

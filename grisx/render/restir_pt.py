@@ -549,11 +549,10 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
             state = est_spatial_begin(cvo, can)
         r = reservoir_empty()
         r = reservoir_update(r, resampling_weight(m_c, t_c, can.res.ucw, 1.0), t_c, c_c, random_uniform(ukey, 100))
-        # the kept path goes to out[y, x].path as it is kept, not carried across the neighbours' shifts
-        if r.selected:
-            out[y, x].path = can.path
-        else:
-            out[y, x].path = path_sample_empty()
+        # a neighbour's kept path goes to out[y, x].path as it is kept, not carried across the other neighbours' shifts;
+        # the canonical one (or none) is written at the end, only where no neighbour's replaced it
+        own_kept = r.selected
+        neighbor_kept = bool(False)
         # each neighbour's path shifted here, weighted against the canonical domain
         for j in range(k):
             nb = domain_pixel(codes[y, x, j], width)
@@ -568,6 +567,12 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
             r = reservoir_merge(r, other.res, m_q, t_qi, s.jacobian, random_uniform(ukey, 101 + slots[y, x, j]))  # seed 000, Eq. 9
             if r.selected:
                 out[y, x].path = s.path
+                neighbor_kept = True
+        if not neighbor_kept:
+            if own_kept:
+                out[y, x].path = inp[y, x].path  # read again here: not held across the shifts
+            else:
+                out[y, x].path = path_sample_empty()
         if wp.static(est is None):
             finalize_kept(out, y, x, r)
         else:

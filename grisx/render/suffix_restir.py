@@ -673,8 +673,8 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         width = domains.shape[1]
         t = y * width + x
         own = inp[y, x]
-        out[y, x] = own
         if domains[y, x].valid == 0 or own.prefix.dom.valid == 0:
+            out[y, x] = own
             return
         ukey = pixel_key_of(seed, frame, x, y, width, _STREAM_SPATIAL)
         row_set(rows, t, 0, own.prefix, own.suffix.path, own.suffix.res, own.suffix.res.confidence)
@@ -695,12 +695,16 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             else:
                 row_set(rows, t, l, prefix_empty(), path_sample_empty(), reservoir_empty(), 0.0)
         if found == 0:
+            out[y, x] = inp[y, x]
             return
-        # out[y, x] holds the pixel's reservoir already: only its suffix changes, and nothing of it is held across the row's
-        # shifts (73 words)
+        # only the suffix changes; nothing of the pixel's reservoir is held across the row's shifts (73 words): the rest
+        # is read again after them, and each word of out written once
         cr = CRIS.conditional_ris(spec, inp[y, x].prefix, 0, rows.z[t], rows.x[t], rows.res[t], rows.conf[t], rows.targets[t], ukey, 2 * neighbors)
         res = cr.reservoir
         res.confidence = confidence_capped(cr.reservoir.confidence, history_cap)
+        out[y, x].prefix = inp[y, x].prefix
+        out[y, x].prefix_res = inp[y, x].prefix_res
+        out[y, x].suffix.estimate = inp[y, x].suffix.estimate
         out[y, x].suffix.res = res
         out[y, x].suffix.path = cr.y
 
