@@ -358,8 +358,9 @@ def path_sample_empty() -> PathSample:
 # A path walk writes the candidate it keeps into memory as it keeps it (a 32-word PathSample carried across the walk's
 # rays spilled). In an array of PathSample a warp's store of one field is 32 lanes at a 128-byte stride: a memory
 # transaction per lane, for each of the 32 fields. Word w of slot (y, x) at [w, y, x] makes the same store one
-# coalesced transaction of the warp. PATH_SLOT_FLOATS/INTS name the words in order; path_slot_store and path_slot_load
-# are their one reading (tests/render/test_path_shift.py checks that they cover every field of PathSample).
+# coalesced transaction of the warp (on a CPU the same indices address slot-major memory). PATH_SLOT_FLOATS/INTS name
+# the words in order; path_slot_store and path_slot_load are their one reading (tests/render/test_path_shift.py checks
+# that they cover every field of PathSample).
 PATH_SLOT_FLOATS = ("pdf_replay", "rc_p", "rc_ng", "rc_ns", "rc_uv", "rc_wi", "rc_cos", "rc_dist", "suffix", "end_light_pdf", "f")
 PATH_SLOT_INTS = ("length", "end_nee", "rc_index", "rc_material", "rc_tri", "rc_kind", "end_delta")
 PATH_SLOT_KEYS = ("key",)
@@ -376,11 +377,23 @@ class PathSlots:
     key: wp.array2d(dtype=wp.uint32)
 
 
+def _slot_words(words: int, height: int, width: int, dtype: Any, device: Any) -> wp.array:
+    """A (words, height, width) array of zeros: word-major on a GPU (a warp's store of one word is coalesced); on a CPU
+    the same indices over slot-major memory (strides), so that one thread's slot is a few cache lines, not ``words``."""
+    if not wp.get_device(device).is_cpu:
+        return wp.zeros((words, height, width), dtype=dtype, device=device)
+    base = wp.zeros((height, width, words), dtype=dtype, device=device)
+    item = wp.types.type_size_in_bytes(dtype)
+    view = wp.array(ptr=base.ptr, dtype=dtype, shape=(words, height, width), strides=(item, width * words * item, words * item), device=device)
+    view._slot_memory = base  # the view does not own its memory: keep it alive with the view
+    return view
+
+
 def path_slots(height: int, width: int, device: Any) -> PathSlots:
     """Path slots for a height × width image on ``device``, every slot the empty path (all words 0)."""
     s = PathSlots()
-    s.words = wp.zeros((_PATH_SLOT_FLOAT_WORDS, height, width), dtype=float, device=device)
-    s.ints = wp.zeros((len(PATH_SLOT_INTS), height, width), dtype=wp.int32, device=device)
+    s.words = _slot_words(_PATH_SLOT_FLOAT_WORDS, height, width, float, device)
+    s.ints = _slot_words(len(PATH_SLOT_INTS), height, width, wp.int32, device)
     s.key = wp.zeros((height, width), dtype=wp.uint32, device=device)
     return s
 
