@@ -59,13 +59,16 @@ estimators own disjoint sets of paths and their sum estimates ``pt``'s image.
 kernels are ReSTIR PT's alone.
 
 **Stages** (``DESIGN.md``, "GPU execution"). Each phase runs as kernels with at most one
-inlined shift or walk: ``initial_pass`` (the candidate walk) then ``settle_pass`` (the kept
-path's own shift); ``temporal_canonical_pass`` (T_{i→j}(y_c)) then ``temporal_merge_pass``;
-per spatial round ``spatial_canonical_pass`` (draws the neighbours into a
-:class:`~grisx.render.base.reuse.DomainList`, m_c) then ``spatial_merge_pass``. What one stage
-hands the next (the neighbours, m_c, p̂_{←j}(y_c), a variant's state) goes through per-pixel
-buffers; the images are bit-identical to the one-kernel passes. On CUDA these kernels run
-under :data:`~grisx.device.SHIFT_REGISTERS`.
+inlined shift or walk: ``initial_pass`` (the candidate walk, its kept candidate in
+:class:`~grisx.render.base.path_shift.PathSlots`) then ``settle_pass`` (the kept path's own shift);
+``temporal_canonical_pass`` (T_{i→j}(y_c)) then ``temporal_merge_pass``; per spatial round
+``spatial_canonical_pass`` (draws the neighbours into a :class:`~grisx.render.base.reuse.DomainList`,
+m_c) then ``spatial_merge_pass``. What one stage hands the next (the neighbours, m_c, p̂_{←j}(y_c), a
+variant's state) goes through per-pixel buffers; the images are bit-identical to the one-kernel
+passes. On CUDA these kernels run under :data:`~grisx.device.SHIFT_REGISTERS`, and each stage writes
+a reservoir's words once where it can: a lane's store of one field at a record's stride is a memory
+transaction of its own, so a record copied and then rewritten cost the temporal stages a third of their
+time (benchmarks/README, "ReSTIR PT's merges write the kept path once").
 
 **Moving objects.** Temporal reuse evaluates every domain in its own frame's
 scene (:meth:`~grisx.scene.scene.BuiltScene.across_frames`): this frame's
