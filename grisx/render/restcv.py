@@ -156,7 +156,7 @@ def temporal_estimate(o: CVOptions, g: GBufferData, g_prev: GBufferData, t: Temp
         return t.can.estimate
     alpha = pair_alpha(o, g.albedo[t.y, t.x], g_prev.albedo[t.nb.y, t.nb.x], t.can, t.prev.estimate)
     c = cv_composite_add(cv_composite_empty(), t.can.estimate, Q_INIT)
-    from_j = from_pixel(o, alpha, t.can, t.prev, t.c_j, t.s_cj.path.f, t.s_cj.jacobian, t.s_t.path.f, t.s_t.jacobian)
+    from_j = from_pixel(o, alpha, t.can, t.prev, t.c_j, t.f_cj, t.jacobian_cj, t.s_t.path.f, t.s_t.jacobian)
     c = cv_composite_add(c, from_j, compositing_weight(t.c_j))  # seed 002, Eq. 6
     return cv_composite_value(c)
 

@@ -427,6 +427,16 @@ def gi_sample_none() -> GISample:
 
 
 @wp.struct
+class InitialSample:
+    """Alg. 2's draw at a visible point: the sample (``valid`` 0 where there is none), its source pdf p_q, and the
+    hit x_s that the path tracer at x_s starts from."""
+
+    s: GISample
+    pdf: float
+    hit: SurfaceInteraction
+
+
+@wp.struct
 class SampleRadiance:
     """L_r at a sample point toward the visible point that found it, and the path's technique records."""
 
@@ -907,49 +917,28 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
 
     # the sample itself in three stages, so that the path tracer runs in a kernel of its own with nothing
     # else live across it (pt's occupancy): the sample point, L_o there, the target
-    @wp.kernel(module=module)
-    def initial_pass(
-        scene: SceneData,
-        sf: ScreenFrame,
-        source: int,
-        max_depth: int,
-        mb_fraction: float,
-        exact_bsdf: int,
-        res_out: wp.array2d(dtype=Reservoir),
-        s_out: wp.array2d(dtype=GISample),
-        source_pdf: wp.array2d(dtype=float),
-        sample_hit: wp.array2d(dtype=SurfaceInteraction),
-    ):
-        """Alg. 2: a direction from the source pdf p_q and the ray to the sample point x_s."""
-        y, x = wp.tid()
-        width = sf.si.shape[1]
-        key = pixel_key(sf, x, y, 0)
-        si = sf.si[y, x]
-        wo = sf.wo[y, x]
-        r = reservoir_empty()
-        s = gi_sample_none()
-        res_out[y, x] = r
-        s_out[y, x] = s
-        if si.valid == 0 or path_traced_here(scene, si):
-            return  # the sky, mirrors and glass: the direct pass has all of it
-        r.confidence = 1.0  # one initial sample: M = 1 (Alg. 1 UPDATE), even if it carries no weight
-        res_out[y, x] = r
-        if max_depth >= 0 and max_depth <= 2:
-            return  # nothing indirect to estimate
+    @wp.func
+    def initial_sample(scene: SceneData, sf: ScreenFrame, x: int, y: int, source: int, mb_fraction: float, exact_bsdf: int,
+                       key: wp.uint32, si: SurfaceInteraction, wo: wp.vec3) -> InitialSample:
+        """Alg. 2 at a visible point that has a reservoir: a direction from the source pdf p_q, and the ray to the
+        sample point x_s (no sample where the direction or the ray gives none)."""
+        out = InitialSample()
+        out.s = gi_sample_none()
         nv = visible_normal(si, wo)
         ss = sample_source(scene, si, wo, nv, source, key)
         if ss.pdf <= 0.0:
-            return
+            return out
         wi = wp.normalize(ss.wi)
         if wp.dot(wi, nv) <= 0.0:
-            return
+            return out
         if wp.dot(wi, si.ng) * wp.dot(wo, si.ng) <= 0.0:
-            return  # below the geometric surface (shading normals): not a reflection this estimator reconnects
+            return out  # below the geometric surface (shading normals): not a reflection this estimator reconnects
         o = domain_point(scene, si, wo)
         hit = intersect(scene, o, wi, 1.0e30)
         if hit.valid == 0:
-            return  # the sky: direct light's business
-        s.multi = tile_multi_bounce(sf, x, y, width, mb_fraction)
+            return out  # the sky: direct light's business
+        s = out.s
+        s.multi = tile_multi_bounce(sf, x, y, sf.si.shape[1], mb_fraction)
         s.key = random_subkey(key, 2)
         s.xv = si.p
         s.nv = nv
@@ -966,9 +955,41 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
             s.tri_s = hit.tri
             s.ns_s = hit.ns
         s.valid = 1
-        s_out[y, x] = s
-        source_pdf[y, x] = ss.pdf
-        sample_hit[y, x] = hit  # the path tracer at x_s starts from it: x_v → x_s is traced once
+        out.s = s
+        out.pdf = ss.pdf
+        out.hit = hit
+        return out
+
+    @wp.kernel(module=module)
+    def initial_pass(
+        scene: SceneData,
+        sf: ScreenFrame,
+        source: int,
+        max_depth: int,
+        mb_fraction: float,
+        exact_bsdf: int,
+        res_out: wp.array2d(dtype=Reservoir),
+        s_out: wp.array2d(dtype=GISample),
+        source_pdf: wp.array2d(dtype=float),
+        sample_hit: wp.array2d(dtype=SurfaceInteraction),
+    ):
+        """Alg. 2: a direction from the source pdf p_q and the ray to the sample point x_s; each output written once
+        (a 200-byte record stored by every lane at its stride is a store per word: written twice, it was half the pass)."""
+        y, x = wp.tid()
+        si = sf.si[y, x]
+        r = reservoir_empty()
+        src = InitialSample()
+        src.s = gi_sample_none()
+        # the sky, mirrors and glass: the direct pass has all of it
+        if si.valid != 0 and not path_traced_here(scene, si):
+            r.confidence = 1.0  # one initial sample: M = 1 (Alg. 1 UPDATE), even if it carries no weight
+            if max_depth < 0 or max_depth > 2:  # else nothing indirect to estimate
+                src = initial_sample(scene, sf, x, y, source, mb_fraction, exact_bsdf, pixel_key(sf, x, y, 0), si, sf.wo[y, x])
+        res_out[y, x] = r
+        s_out[y, x] = src.s
+        if src.s.valid != 0:
+            source_pdf[y, x] = src.pdf
+            sample_hit[y, x] = src.hit  # the path tracer at x_s starts from it: x_v → x_s is traced once
 
     def make_sample_radiance_pass(record: int) -> Any:
         """The path tracer's kernel with ``exact_bsdf``'s records compiled in or out (a runtime flag would
@@ -990,16 +1011,16 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
                 return
             sr = outgoing_radiance(scene, s.ray_o, s.ray_d, sample_hit[y, x], s.key, depth_from_visible_point(max_depth), rr_depth, s.multi,
                                    mb_fraction, wp.static(record))
-            s.lo = sr.lo
-            s.box_lo = sr.box_lo
-            s.box_hi = sr.box_hi
+            # the fields it computed, not the whole record back (a store per word and lane)
+            samples[y, x].lo = sr.lo
+            samples[y, x].box_lo = sr.box_lo
+            samples[y, x].box_hi = sr.box_hi
             if wp.static(record != 0):
-                s.exact = 2 - sr.recorded
-                s.nee_wi = sr.nee_wi
-                s.nee_li = sr.nee_li
-                s.bs_wi = sr.bs_wi
-                s.bs_li = sr.bs_li
-            samples[y, x] = s
+                samples[y, x].exact = 2 - sr.recorded
+                samples[y, x].nee_wi = sr.nee_wi
+                samples[y, x].nee_li = sr.nee_li
+                samples[y, x].bs_wi = sr.bs_wi
+                samples[y, x].bs_li = sr.bs_li
 
         return sample_radiance_pass
 

@@ -116,7 +116,7 @@ from grisx.render.base.path_shift import (
     target_to,
     vertex_from_hit,
 )
-from grisx.render.base.screen import ScreenSpaceRenderer, arg_types, kernel_cache, pixel_key_of
+from grisx.render.base.screen import ScreenSpaceRenderer, kernel_cache, pixel_key_of
 from grisx.render.base.reuse import (
     SIMILARITY_DEPTH,
     SIMILARITY_NORMAL_COS,
@@ -193,8 +193,9 @@ def _spatial_candidate(
 @wp.struct
 class TemporalStep:
     """What the temporal pass evaluated for pixel (x, y) and its history pixel ``nb``: the canonical
-    reservoir, the history ``prev`` (its confidence c_j after the cap), T_{i→j}(y_c) = ``s_cj``,
-    T_{j→i}(y_prev) = ``s_t`` and the two candidates' MIS weights."""
+    reservoir, the history ``prev`` (its confidence c_j after the cap), of T_{i→j}(y_c) (the canonical stage's
+    shift into the history's domain) its f and |∂T/∂y| (0 and 0 where it failed), T_{j→i}(y_prev) = ``s_t`` and
+    the two candidates' MIS weights."""
 
     x: int
     y: int
@@ -202,7 +203,8 @@ class TemporalStep:
     can: PathReservoir
     prev: PathReservoir
     c_j: float
-    s_cj: PathShiftResult
+    f_cj: wp.vec3
+    jacobian_cj: float
     s_t: PathShiftResult
     m_c: float
     m_t: float
@@ -359,7 +361,6 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
 
     # ---- temporal reuse, in two stages (one shift each): the canonical path into the history's domain, then the merge ----
     @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
-    @arg_types(shifted=wp.array2d(dtype=PathShiftResult))
     def temporal_canonical_pass(
         scene: SceneData,
         sp: ShiftParams,
@@ -372,7 +373,8 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
         out: wp.array2d(dtype=PathReservoir),
         history_pixel: wp.array2d(dtype=wp.int32),
         target_cj: wp.array2d(dtype=float),
-        shifted: Any,
+        f_cj: wp.array2d(dtype=wp.vec3),
+        jacobian_cj: wp.array2d(dtype=float),
     ):
         y, x = wp.tid()
         history_pixel[y, x] = -1
@@ -391,11 +393,13 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
         s_cj = shift_across(scene, domains_prev[hp.y, hp.x], canonical[y, x].path, sp)
         target_cj[y, x] = target_to(s_cj)
         if wp.static(est is not None):
-            shifted[y, x] = s_cj  # a variant's estimate needs the whole shift
+            # a variant's estimate needs T_{i→j}(y_c)'s f and |J|: two words-wide arrays, not the whole 136-byte
+            # result (a record store per lane made this stage 6× ReSTIR PT's, H200 1080p)
+            f_cj[y, x] = s_cj.path.f
+            jacobian_cj[y, x] = s_cj.jacobian
         history_pixel[y, x] = code
 
     @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
-    @arg_types(shifted=wp.array2d(dtype=PathShiftResult))
     def temporal_merge_pass(
         scene: SceneData,
         seed: int,
@@ -410,7 +414,8 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
         history: wp.array2d(dtype=PathReservoir),
         history_pixel: wp.array2d(dtype=wp.int32),
         target_cj: wp.array2d(dtype=float),
-        shifted: Any,
+        f_cj: wp.array2d(dtype=wp.vec3),
+        jacobian_cj: wp.array2d(dtype=float),
         out: wp.array2d(dtype=PathReservoir),
     ):
         y, x = wp.tid()
@@ -455,7 +460,7 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
                 kept = s_t.path
             elif canonical_kept:
                 kept = can.path
-            step = TemporalStep(x=x, y=y, nb=nb, can=can, prev=prev, c_j=c_j, s_cj=shifted[y, x], s_t=s_t, m_c=m_c, m_t=m_t)
+            step = TemporalStep(x=x, y=y, nb=nb, can=can, prev=prev, c_j=c_j, f_cj=f_cj[y, x], jacobian_cj=jacobian_cj[y, x], s_t=s_t, m_c=m_c, m_t=m_t)
             out[y, x] = est_temporal(cvo, g, g_prev, step, path_reservoir(r, kept))
 
     # ---- spatial reuse, in two stages (one shift each): the canonical path's pairwise weight, then the merge ----
@@ -687,10 +692,12 @@ class ReSTIRPT(ScreenSpaceRenderer):
         self.spatial_domains = DomainList(self.height, self.width, self.neighbors, dev)
         self.m_canonical = wp.zeros(shape, dtype=float, device=dev)
         state_t = getattr(self.k, "spatial_state", None) or _NoSpatialState  # a subclass with passes of its own has none
-        # the temporal pass's two stages share the history pixel, p̂_{←j}(y_c) and (for a variant) T_{i→j}(y_c)
+        # the temporal pass's two stages share the history pixel, p̂_{←j}(y_c) and (for a variant) T_{i→j}(y_c)'s f and |J|
         self.history_pixel = wp.zeros(shape, dtype=wp.int32, device=dev)
         self.target_cj = wp.zeros(shape, dtype=float, device=dev)
-        self.shifted_canonical = wp.zeros(shape if state_t is not _NoSpatialState else (1, 1), dtype=PathShiftResult, device=dev)
+        variant_shape = shape if state_t is not _NoSpatialState else (1, 1)
+        self.f_cj = wp.zeros(variant_shape, dtype=wp.vec3, device=dev)
+        self.jacobian_cj = wp.zeros(variant_shape, dtype=float, device=dev)
         # T_{i→q}(y_c)'s f and |J| per neighbour slot, from the canonical stage to a variant's merge
         slots_shape = (self.spatial_domains.capacity, self.height, self.width) if state_t is not _NoSpatialState else (1, 1, 1)
         self.f_cq = wp.zeros(slots_shape, dtype=wp.vec3, device=dev)
@@ -744,14 +751,14 @@ class ReSTIRPT(ScreenSpaceRenderer):
                     k["temporal_canonical"],
                     dim=dim,
                     inputs=[scene_prev, self.shift_params, g, g_prev, dom, dom_prev, cur, history],
-                    outputs=[other, self.history_pixel, self.target_cj, self.shifted_canonical],
+                    outputs=[other, self.history_pixel, self.target_cj, self.f_cj, self.jacobian_cj],
                     device=dev,
                 )
                 wp.launch(
                     k["temporal_merge"],
                     dim=dim,
                     inputs=[scene_from_prev, self.seed, int(frame), self.shift_params, self.history_cap, self.cv_options, g, g_prev, dom, cur, history,
-                            self.history_pixel, self.target_cj, self.shifted_canonical],
+                            self.history_pixel, self.target_cj, self.f_cj, self.jacobian_cj],
                     outputs=[other],
                     device=dev,
                 )
