@@ -245,7 +245,7 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             out[y, x].path = s_t.path
             film_out[y, x] = fs_t
         else:
-            out[y, x].path = can.path
+            out[y, x].path = canonical[y, x].path  # read again: not held across the shift
         finalize_kept(out, y, x, r)
 
     # ---- spatial reuse, in two stages (one film shift each): the canonical sample's pairwise weight, then the merge ----
@@ -304,7 +304,6 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
             return
         width = inp.shape[1]
         can = inp[y, x]
-        fs_c = film_in[y, x]
         ukey = pixel_key_of(seed, frame, x, y, width, _STREAM_SPATIAL + round_index)
         c_c = can.res.confidence
         total = confidence_total(inp, codes, y, x, k, c_c)
@@ -331,7 +330,7 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
                 neighbor_kept = True
         if not neighbor_kept:
             out[y, x].path = inp[y, x].path  # read again here: not held across the shifts
-            film_out[y, x] = fs_c
+            film_out[y, x] = film_in[y, x]
         finalize_kept(out, y, x, r)
 
     pt = make_restir_pt_kernels(kinds)  # ReSTIR PT's candidate walk, settle and shade passes serve as they are

@@ -450,7 +450,7 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
             if r.selected:
                 out[y, x].path = s_t.path
             elif canonical_kept:
-                out[y, x].path = can.path
+                out[y, x].path = canonical[y, x].path  # read again: not held across the shift
             else:
                 out[y, x].path = path_sample_empty()
             finalize_kept(out, y, x, r)
@@ -459,8 +459,10 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
             if r.selected:
                 kept = s_t.path
             elif canonical_kept:
-                kept = can.path
-            step = TemporalStep(x=x, y=y, nb=nb, can=can, prev=prev, c_j=c_j, f_cj=f_cj[y, x], jacobian_cj=jacobian_cj[y, x], s_t=s_t, m_c=m_c, m_t=m_t)
+                kept = canonical[y, x].path
+            # the two reservoirs read again after the shift, not held across it (the variant's spills)
+            step = TemporalStep(x=x, y=y, nb=nb, can=canonical[y, x], prev=history[nb.y, nb.x], c_j=c_j, f_cj=f_cj[y, x], jacobian_cj=jacobian_cj[y, x],
+                                s_t=s_t, m_c=m_c, m_t=m_t)
             out[y, x] = est_temporal(cvo, g, g_prev, step, path_reservoir(r, kept))
 
     # ---- spatial reuse, in two stages (one shift each): the canonical path's pairwise weight, then the merge ----
@@ -547,7 +549,6 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
             return
         width = domains.shape[1]
         can = inp[y, x]
-        dom_i = domains[y, x]
         ukey = pixel_key_of(seed, frame, x, y, width, _STREAM_SPATIAL + round_index)
         c_c = can.res.confidence
         total = confidence_total(inp, codes, y, x, k, c_c)
@@ -565,12 +566,13 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
         for j in range(k):
             nb = domain_pixel(codes[y, x, j], width)
             other = inp[nb.y, nb.x]
-            s = shift(scene, dom_i, other.path, sp)
+            s = shift(scene, domains[y, x], other.path, sp)  # x₁ read again for each shift, not held across them
             t_qi = path_target(s.path)  # 0 where the shift failed
             t_qq = target_back(other.path, s)
             m_q = pairwise_mis_neighbor(other.res.confidence, t_qq, c_c, t_qi, k, total)
             if wp.static(est is not None):
-                step = SpatialStep(x=x, y=y, nb=nb, j=j, can=can, other=other, s_qi=s, m_q=m_q, f_cq=f_cq[j, y, x], jacobian_cq=jacobian_cq[j, y, x])
+                # the canonical reservoir read again for each neighbour, not held across the shifts (the variant's spills)
+                step = SpatialStep(x=x, y=y, nb=nb, j=j, can=inp[y, x], other=other, s_qi=s, m_q=m_q, f_cq=f_cq[j, y, x], jacobian_cq=jacobian_cq[j, y, x])
                 state = est_spatial_add(cvo, state, g, step)
             r = reservoir_merge(r, other.res, m_q, t_qi, s.jacobian, random_uniform(ukey, 101 + slots[y, x, j]))  # seed 000, Eq. 9
             if r.selected:
@@ -584,7 +586,7 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
         if wp.static(est is None):
             finalize_kept(out, y, x, r)
         else:
-            out[y, x] = est_spatial_end(state, can, m_c, path_reservoir(r, out[y, x].path))  # the kept path read back
+            out[y, x] = est_spatial_end(state, inp[y, x], m_c, path_reservoir(r, out[y, x].path))  # the kept path read back
 
     # ---- shading ----
     @wp.kernel(module=module)
