@@ -426,6 +426,134 @@ def gi_sample_none() -> GISample:
     return s
 
 
+# ---- sample buffers: what is stored of a GISample, in two arrays ----
+# Every reuse pass moves whole samples (a history's or a neighbour's, to this pixel's output), and each lane's store
+# of a record is a store per word at the record's stride. exact_bsdf's records are 20 of a sample's 50 words and off by
+# default, so they live in an array of their own, allocated only with exact_bsdf: without them a door-ajar frame took
+# 15.2 ms instead of 18.2 (H200, 1080p; benchmarks/README, "ReSTIR GI's samples without their exact records").
+@wp.struct
+class GISampleCore:
+    """What a sample buffer stores of every :class:`GISample`: its fields up to ``valid``."""
+
+    xv: wp.vec3
+    nv: wp.vec3
+    xs: wp.vec3
+    ns: wp.vec3
+    lo: wp.vec3
+    ray_o: wp.vec3
+    ray_d: wp.vec3
+    key: wp.uint32
+    multi: int
+    box_lo: wp.vec3
+    box_hi: wp.vec3
+    valid: int
+
+
+@wp.struct
+class GISampleExact:
+    """``exact_bsdf``'s records of a stored :class:`GISample` (its fields from ``exact`` on)."""
+
+    exact: int
+    mat_s: int
+    uv_s: wp.vec2
+    tri_s: int
+    ns_s: wp.vec3
+    nee_wi: wp.vec3
+    nee_li: wp.vec3
+    bs_wi: wp.vec3
+    bs_li: wp.vec3
+
+
+@wp.struct
+class GISamples:
+    """A buffer of samples, one a pixel (:func:`gi_samples` allocates it; :func:`gi_load`, :func:`gi_store` read and
+    write it): each sample's core at ``core[y, x]`` and, where ``with_exact``, its ``exact_bsdf`` records at
+    ``exact[y, x]``; without them ``exact`` is a 1×1 placeholder and every sample reads as the paper's Lambertian
+    reuse (``exact`` = 0, as :func:`gi_sample_none`)."""
+
+    core: wp.array2d(dtype=GISampleCore)
+    exact: wp.array2d(dtype=GISampleExact)
+    with_exact: int
+
+
+def gi_samples(height: int, width: int, exact: bool, device: Any) -> GISamples:
+    """An empty sample buffer (every sample invalid) for a height × width image; ``exact``: with the records."""
+    b = GISamples()
+    b.core = wp.zeros((height, width), dtype=GISampleCore, device=device)
+    b.exact = wp.zeros((height, width) if exact else (1, 1), dtype=GISampleExact, device=device)
+    b.with_exact = int(bool(exact))
+    return b
+
+
+def gi_samples_copy(dst: GISamples, src: GISamples) -> None:
+    """Copy buffer ``src`` into ``dst`` (same size and records)."""
+    wp.copy(dst.core, src.core)
+    if src.with_exact:
+        wp.copy(dst.exact, src.exact)
+
+
+@wp.func
+def gi_load(b: GISamples, y: int, x: int) -> GISample:
+    """The sample at (y, x) of buffer ``b``."""
+    c = b.core[y, x]
+    s = gi_sample_none()
+    s.xv = c.xv
+    s.nv = c.nv
+    s.xs = c.xs
+    s.ns = c.ns
+    s.lo = c.lo
+    s.ray_o = c.ray_o
+    s.ray_d = c.ray_d
+    s.key = c.key
+    s.multi = c.multi
+    s.box_lo = c.box_lo
+    s.box_hi = c.box_hi
+    s.valid = c.valid
+    if b.with_exact != 0:
+        rec = b.exact[y, x]
+        s.exact = rec.exact
+        s.mat_s = rec.mat_s
+        s.uv_s = rec.uv_s
+        s.tri_s = rec.tri_s
+        s.ns_s = rec.ns_s
+        s.nee_wi = rec.nee_wi
+        s.nee_li = rec.nee_li
+        s.bs_wi = rec.bs_wi
+        s.bs_li = rec.bs_li
+    return s
+
+
+@wp.func
+def gi_store(b: GISamples, y: int, x: int, s: GISample):
+    """Write sample ``s`` at (y, x) of buffer ``b`` (its records only where the buffer has them)."""
+    c = GISampleCore()
+    c.xv = s.xv
+    c.nv = s.nv
+    c.xs = s.xs
+    c.ns = s.ns
+    c.lo = s.lo
+    c.ray_o = s.ray_o
+    c.ray_d = s.ray_d
+    c.key = s.key
+    c.multi = s.multi
+    c.box_lo = s.box_lo
+    c.box_hi = s.box_hi
+    c.valid = s.valid
+    b.core[y, x] = c
+    if b.with_exact != 0:
+        rec = GISampleExact()
+        rec.exact = s.exact
+        rec.mat_s = s.mat_s
+        rec.uv_s = s.uv_s
+        rec.tri_s = s.tri_s
+        rec.ns_s = s.ns_s
+        rec.nee_wi = s.nee_wi
+        rec.nee_li = s.nee_li
+        rec.bs_wi = s.bs_wi
+        rec.bs_li = s.bs_li
+        b.exact[y, x] = rec
+
+
 @wp.struct
 class InitialSample:
     """Alg. 2's draw at a visible point: the sample (``valid`` 0 where there is none), its source pdf p_q, and the
@@ -744,22 +872,22 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         temporal_cap: float,
         spatial_cap: float,
         res_t: wp.array2d(dtype=Reservoir),
-        s_t: wp.array2d(dtype=GISample),
+        s_t: GISamples,
         res_s_prev: wp.array2d(dtype=Reservoir),
-        s_s_prev: wp.array2d(dtype=GISample),
+        s_s_prev: GISamples,
     ) -> NeighborDomain:
         """Neighbour ``nb``'s reservoir (confidence capped), sample and visible point: this frame's temporal
         reservoir, or last frame's spatial one for a pixel still low on confidence (Fig. 10)."""
         n = NeighborDomain()
         if from_spatial != 0:
             n.res = res_s_prev[nb.y, nb.x]
-            n.sample = s_s_prev[nb.y, nb.x]
+            n.sample = gi_load(s_s_prev, nb.y, nb.x)
             n.si = sf.si_prev[nb.y, nb.x]
             n.wo = sf.wo_prev[nb.y, nb.x]
             n.res.confidence = confidence_capped(n.res.confidence, spatial_cap)
         else:
             n.res = res_t[nb.y, nb.x]
-            n.sample = s_t[nb.y, nb.x]
+            n.sample = gi_load(s_t, nb.y, nb.x)
             n.si = sf.si[nb.y, nb.x]
             n.wo = sf.wo[nb.y, nb.x]
             n.res.confidence = confidence_capped(n.res.confidence, temporal_cap)
@@ -808,23 +936,23 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         mb_fraction: float,
         tolerance: float,
         res_t_prev: wp.array2d(dtype=Reservoir),
-        s_t_prev: wp.array2d(dtype=GISample),
+        s_t_prev: GISamples,
         res_s_prev: wp.array2d(dtype=Reservoir),
-        s_s_prev: wp.array2d(dtype=GISample),
+        s_s_prev: GISamples,
     ):
         """Sample validation (Sec. 4.3): replay last frame's temporal and spatial samples; clear those that changed."""
         which = int(0)
         while which < 2:  # the temporal, then the spatial sample (a loop: one copy of the path tracer in the kernel)
-            s_prev = s_t_prev[y, x]
+            s_prev = gi_load(s_t_prev, y, x)
             if which == 1:
-                s_prev = s_s_prev[y, x]
+                s_prev = gi_load(s_s_prev, y, x)
             if not validate(scene, s_prev, depth_from_xv, rr_depth, mb_fraction, tolerance):
                 if which == 0:
                     res_t_prev[y, x] = reservoir_empty()
-                    s_t_prev[y, x] = gi_sample_none()
+                    gi_store(s_t_prev, y, x, gi_sample_none())
                 else:
                     res_s_prev[y, x] = reservoir_empty()
-                    s_s_prev[y, x] = gi_sample_none()
+                    gi_store(s_s_prev, y, x, gi_sample_none())
             which += 1
 
     @wp.func
@@ -871,9 +999,9 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         mb_fraction: float,
         tolerance: float,
         res_t_prev: wp.array2d(dtype=Reservoir),
-        s_t_prev: wp.array2d(dtype=GISample),
+        s_t_prev: GISamples,
         res_s_prev: wp.array2d(dtype=Reservoir),
-        s_s_prev: wp.array2d(dtype=GISample),
+        s_s_prev: GISamples,
     ):
         """Sample validation (Sec. 4.3), launched every ``validation_interval`` frames in scenes that move."""
         y, x = wp.tid()
@@ -969,7 +1097,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         mb_fraction: float,
         exact_bsdf: int,
         res_out: wp.array2d(dtype=Reservoir),
-        s_out: wp.array2d(dtype=GISample),
+        s_out: GISamples,
         source_pdf: wp.array2d(dtype=float),
         sample_hit: wp.array2d(dtype=SurfaceInteraction),
     ):
@@ -986,7 +1114,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
             if max_depth < 0 or max_depth > 2:  # else nothing indirect to estimate
                 src = initial_sample(scene, sf, x, y, source, mb_fraction, exact_bsdf, pixel_key(sf, x, y, 0), si, sf.wo[y, x])
         res_out[y, x] = r
-        s_out[y, x] = src.s
+        gi_store(s_out, y, x, src.s)
         if src.s.valid != 0:
             source_pdf[y, x] = src.pdf
             sample_hit[y, x] = src.hit  # the path tracer at x_s starts from it: x_v → x_s is traced once
@@ -1002,25 +1130,25 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
             rr_depth: int,
             mb_fraction: float,
             sample_hit: wp.array2d(dtype=SurfaceInteraction),
-            samples: wp.array2d(dtype=GISample),
+            samples: GISamples,
         ):
             """L_o at the sample point by path tracing (NEE + MIS), tile-level multi-bounce roulette."""
             y, x = wp.tid()
-            s = samples[y, x]
+            s = gi_load(samples, y, x)
             if s.valid == 0:
                 return
             sr = outgoing_radiance(scene, s.ray_o, s.ray_d, sample_hit[y, x], s.key, depth_from_visible_point(max_depth), rr_depth, s.multi,
                                    mb_fraction, wp.static(record))
             # the fields it computed, not the whole record back (a store per word and lane)
-            samples[y, x].lo = sr.lo
-            samples[y, x].box_lo = sr.box_lo
-            samples[y, x].box_hi = sr.box_hi
-            if wp.static(record != 0):
-                samples[y, x].exact = 2 - sr.recorded
-                samples[y, x].nee_wi = sr.nee_wi
-                samples[y, x].nee_li = sr.nee_li
-                samples[y, x].bs_wi = sr.bs_wi
-                samples[y, x].bs_li = sr.bs_li
+            samples.core[y, x].lo = sr.lo
+            samples.core[y, x].box_lo = sr.box_lo
+            samples.core[y, x].box_hi = sr.box_hi
+            if wp.static(record != 0):  # exact_bsdf: the buffer has the records
+                samples.exact[y, x].exact = 2 - sr.recorded
+                samples.exact[y, x].nee_wi = sr.nee_wi
+                samples.exact[y, x].nee_li = sr.nee_li
+                samples.exact[y, x].bs_wi = sr.bs_wi
+                samples.exact[y, x].bs_li = sr.bs_li
 
         return sample_radiance_pass
 
@@ -1033,12 +1161,12 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         sf: ScreenFrame,
         target_mode: int,
         source_pdf: wp.array2d(dtype=float),
-        samples: wp.array2d(dtype=GISample),
+        samples: GISamples,
         res_out: wp.array2d(dtype=Reservoir),
     ):
         """p̂ of the sample at its own visible point, and its one-sample reservoir (W = 1/p_q)."""
         y, x = wp.tid()
-        s = samples[y, x]
+        s = gi_load(samples, y, x)
         if s.valid == 0:
             return
         si = sf.si[y, x]
@@ -1065,11 +1193,11 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         max_jacobian: float,
         mis_mode: int,
         res_in: wp.array2d(dtype=Reservoir),
-        s_in: wp.array2d(dtype=GISample),
+        s_in: GISamples,
         res_prev: wp.array2d(dtype=Reservoir),
-        s_prev: wp.array2d(dtype=GISample),
+        s_prev: GISamples,
         res_out: wp.array2d(dtype=Reservoir),
-        s_out: wp.array2d(dtype=GISample),
+        s_out: GISamples,
     ):
         y, x = wp.tid()
         key = pixel_key(sf, x, y, 3)
@@ -1081,7 +1209,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
             tn = temporal_neighbor(sf.g, sf.g_prev, x, y, SIMILARITY_NORMAL_COS, SIMILARITY_DEPTH)
         if tn.valid == 0:  # no history (or reprojection failed: the history is reset, seed 004, Sec. 5)
             res_out[y, x] = r_new  # each output written once: these struct stores are most of the pass's traffic
-            s_out[y, x] = s_in[y, x]
+            gi_store(s_out, y, x, gi_load(s_in, y, x))
             return
         wo = sf.wo[y, x]
         si_p = sf.si_prev[tn.y, tn.x]
@@ -1096,7 +1224,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         # rays that would evaluate them are not traced (the same images, bit for bit)
         sh = gi_shift_none()
         if r_p.ucw > 0.0:
-            sh = reconnect(scene, si_p, wo_p, si, wo, s_prev[tn.y, tn.x], target_mode, moved, use_jacobian, max_jacobian, 1)
+            sh = reconnect(scene, si_p, wo_p, si, wo, gi_load(s_prev, tn.y, tn.x), target_mode, moved, use_jacobian, max_jacobian, 1)
         m_h = r_p.confidence  # support counting streams c_i and applies 1/Z to the kept sample below
         m_n = r_new.confidence
         if mis_mode == _MIS_PAIRWISE:
@@ -1105,7 +1233,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
             # target over |J|; p̂_{←h} of the new one needs it reconnected at last frame's x_v, in last frame's scene
             t_n_from_h = float(0.0)
             if r_new.ucw > 0.0:
-                t_n_from_h = target_at_domain(scene_prev, si_p, wo_p, si, wo, s_in[y, x], target_mode, unbiased * moved, use_jacobian,
+                t_n_from_h = target_at_domain(scene_prev, si_p, wo_p, si, wo, gi_load(s_in, y, x), target_mode, unbiased * moved, use_jacobian,
                                               max_jacobian, 1)
             m_h = two_domain_balance(r_p.confidence, target_back(r_p.target, sh.jacobian), r_new.confidence, sh.target)
             m_n = two_domain_balance(r_new.confidence, r_new.target, r_p.confidence, t_n_from_h)
@@ -1118,9 +1246,9 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
             kept = 2
         sel = gi_sample_none()
         if kept == 1:
-            sel = s_prev[tn.y, tn.x]
+            sel = gi_load(s_prev, tn.y, tn.x)
         elif kept == 2:
-            sel = s_in[y, x]
+            sel = gi_load(s_in, y, x)
         if mis_mode == _MIS_PAIRWISE:
             out = reservoir_finalize(out)
         else:
@@ -1131,7 +1259,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
                                                                    unbiased, max_jacobian, 1))
             out = reservoir_finalize_mis(out, support_mis(1.0, out.target, z))
         res_out[y, x] = out
-        s_out[y, x] = sel
+        gi_store(s_out, y, x, sel)
 
     @wp.func
     def domain_of(
@@ -1140,9 +1268,9 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         temporal_cap: float,
         spatial_cap: float,
         res_t: wp.array2d(dtype=Reservoir),
-        s_t: wp.array2d(dtype=GISample),
+        s_t: GISamples,
         res_s_prev: wp.array2d(dtype=Reservoir),
-        s_s_prev: wp.array2d(dtype=GISample),
+        s_s_prev: GISamples,
     ) -> NeighborDomain:
         """The domain a :func:`~grisx.render.base.reuse.domain_code` names (reservoir, sample, visible point)."""
         return neighbor_domain(sf, domain_pixel(code, sf.si.shape[1]), int(domain_flags(code) != 0), temporal_cap, spatial_cap,
@@ -1282,11 +1410,11 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         use_jacobian: int,
         max_jacobian: float,
         res_t: wp.array2d(dtype=Reservoir),
-        s_t: wp.array2d(dtype=GISample),
+        s_t: GISamples,
         res_s_prev: wp.array2d(dtype=Reservoir),
-        s_s_prev: wp.array2d(dtype=GISample),
+        s_s_prev: GISamples,
         res_out: wp.array2d(dtype=Reservoir),
-        s_out: wp.array2d(dtype=GISample),
+        s_out: GISamples,
         kept: wp.array2d(dtype=wp.int32),
         domains: wp.array3d(dtype=wp.int32),
         slots: wp.array3d(dtype=wp.int32),
@@ -1298,7 +1426,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         si = sf.si[y, x]
         if si.valid == 0 or r_t.confidence <= 0.0:
             res_out[y, x] = r_t  # not resampled: passed through (the MIS stage writes every other pixel's sample)
-            s_out[y, x] = s_t[y, x]
+            gi_store(s_out, y, x, gi_load(s_t, y, x))
             domain_count[y, x] = -1
             return
         wo = sf.wo[y, x]
@@ -1344,14 +1472,14 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         unbiased: int,
         max_jacobian: float,
         res_t: wp.array2d(dtype=Reservoir),
-        s_t: wp.array2d(dtype=GISample),
+        s_t: GISamples,
         res_s_prev: wp.array2d(dtype=Reservoir),
-        s_s_prev: wp.array2d(dtype=GISample),
+        s_s_prev: GISamples,
         kept: wp.array2d(dtype=wp.int32),
         domains: wp.array3d(dtype=wp.int32),
         domain_count: wp.array2d(dtype=wp.int32),
         res_out: wp.array2d(dtype=Reservoir),
-        s_out: wp.array2d(dtype=GISample),
+        s_out: GISamples,
     ):
         y, x = wp.tid()
         count = int(domain_count[y, x])
@@ -1363,7 +1491,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         code = kept[y, x]
         sel = gi_sample_none()
         if code == KEPT_OWN:
-            sel = s_t[y, x]
+            sel = gi_load(s_t, y, x)
         elif code != KEPT_NONE:
             sel = domain_of(sf, code, temporal_cap, spatial_cap, res_t, s_t, res_s_prev, s_s_prev).sample
         # ---- Alg. 4 l. 15–19: Z = confidence of the domains that can produce the kept sample ----
@@ -1387,7 +1515,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
                     z = support_count(z, n.res.confidence, counts and (not own or n.res.target > 0.0))
         out = reservoir_finalize_mis(out, support_mis(1.0, out.target, z))
         res_out[y, x] = out
-        s_out[y, x] = sel
+        gi_store(s_out, y, x, sel)
 
     # ---- mis=pairwise in two stages: the canonical sample's weight against each domain, then the merge ----
     @wp.kernel(module=module, cuda_max_registers=PATH_REGISTERS)
@@ -1409,11 +1537,11 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         use_jacobian: int,
         max_jacobian: float,
         res_t: wp.array2d(dtype=Reservoir),
-        s_t: wp.array2d(dtype=GISample),
+        s_t: GISamples,
         res_s_prev: wp.array2d(dtype=Reservoir),
-        s_s_prev: wp.array2d(dtype=GISample),
+        s_s_prev: GISamples,
         res_out: wp.array2d(dtype=Reservoir),
-        s_out: wp.array2d(dtype=GISample),
+        s_out: GISamples,
         domains: wp.array3d(dtype=wp.int32),
         slots: wp.array3d(dtype=wp.int32),
         domain_count: wp.array2d(dtype=wp.int32),
@@ -1426,7 +1554,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         domain_count[y, x] = -1
         if si.valid == 0 or r_c.confidence <= 0.0:
             res_out[y, x] = r_c  # not resampled: passed through
-            s_out[y, x] = s_t[y, x]
+            gi_store(s_out, y, x, gi_load(s_t, y, x))
             return
         wo = sf.wo[y, x]
         # ---- the domains, drawn once into the DomainList (the merge stage reads the same ones) ----
@@ -1435,7 +1563,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         c_c = confidence_capped(r_c.confidence, temporal_cap)
         total = c_c + domains_confidence(sf, x, y, k, temporal_cap, spatial_cap, res_t, res_s_prev, domains)
         # ---- m_c = Σ_i (pair i's share of the canonical sample): y_c carried to each domain ----
-        y_c = s_t[y, x]
+        y_c = gi_load(s_t, y, x)
         m_c = pairwise_mis_canonical_term(0.0, 0.0, c_c, r_c.target, 0, total)  # no domain: 1
         if k > 0:
             m_c = float(0.0)
@@ -1466,15 +1594,15 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         use_jacobian: int,
         max_jacobian: float,
         res_t: wp.array2d(dtype=Reservoir),
-        s_t: wp.array2d(dtype=GISample),
+        s_t: GISamples,
         res_s_prev: wp.array2d(dtype=Reservoir),
-        s_s_prev: wp.array2d(dtype=GISample),
+        s_s_prev: GISamples,
         domains: wp.array3d(dtype=wp.int32),
         slots: wp.array3d(dtype=wp.int32),
         domain_count: wp.array2d(dtype=wp.int32),
         m_canonical: wp.array2d(dtype=float),
         res_out: wp.array2d(dtype=Reservoir),
-        s_out: wp.array2d(dtype=GISample),
+        s_out: GISamples,
     ):
         y, x = wp.tid()
         k = int(domain_count[y, x])
@@ -1510,11 +1638,11 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         out = reservoir_finalize(out)  # W = Σ w / p̂(y): every weight was applied before selection
         res_out[y, x] = out
         if sel == KEPT_OWN:
-            s_out[y, x] = s_t[y, x]
+            gi_store(s_out, y, x, gi_load(s_t, y, x))
         elif sel != KEPT_NONE:
-            s_out[y, x] = domain_of(sf, sel, temporal_cap, spatial_cap, res_t, s_t, res_s_prev, s_s_prev).sample
+            gi_store(s_out, y, x, domain_of(sf, sel, temporal_cap, spatial_cap, res_t, s_t, res_s_prev, s_s_prev).sample)
         else:
-            s_out[y, x] = gi_sample_none()
+            gi_store(s_out, y, x, gi_sample_none())
 
     @wp.kernel(module=module)
     def shade_pass(
@@ -1523,7 +1651,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         target_mode: int,
         base: wp.array2d(dtype=wp.vec3),
         res: wp.array2d(dtype=Reservoir),
-        samples: wp.array2d(dtype=GISample),
+        samples: GISamples,
         direct: wp.array2d(dtype=wp.vec3),
         use_direct: int,
         image: wp.array2d(dtype=wp.vec3),
@@ -1535,7 +1663,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
             L += direct[y, x]
         r = res[y, x]
         if r.ucw > 0.0:
-            ev = gi_eval(scene, sf.si[y, x], sf.wo[y, x], samples[y, x], target_mode)
+            ev = gi_eval(scene, sf.si[y, x], sf.wo[y, x], gi_load(samples, y, x), target_mode)
             L += ev.rgb * r.ucw  # seed 004, Eq. 8 (with Eq. 6's W from the spatial reservoir)
         write_pixel(image, nonfinite, y, x, L)
 
@@ -1626,7 +1754,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
             self.gbuffer = self.di.gbuffer
         else:
             self.gbuffer = GBuffer(self.width, self.height, dev, material=self.GBUFFER_MATERIAL)
-        pair = lambda: (wp.zeros(shape, dtype=Reservoir, device=dev), wp.zeros(shape, dtype=GISample, device=dev))  # noqa: E731
+        pair = lambda: (wp.zeros(shape, dtype=Reservoir, device=dev), gi_samples(self.height, self.width, self.exact_bsdf != 0, dev))  # noqa: E731
         self.initial = pair()  # the initial sample buffer (as one-sample reservoirs)
         self.temporal_buf = DoubleBuffer(pair)  # temporal reservoir buffer
         self.spatial_buf = DoubleBuffer(pair)  # spatial reservoir buffer
@@ -1778,7 +1906,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
                 )
         else:
             wp.copy(s_out[0], t_out[0])
-            wp.copy(s_out[1], t_out[1])
+            gi_samples_copy(s_out[1], t_out[1])
         direct = self.base
         if self.di is not None:
             direct = self.di.direct_light(frame)

@@ -109,7 +109,7 @@ def test_exact_bsdf_is_the_lambertian_reuse_on_diffuse_sample_points(cornell):
     for f in range(4):
         ia, ib = a.render_frame(f).numpy(), b.render_frame(f).numpy()
     np.testing.assert_allclose(ib, ia, rtol=1e-4, atol=1e-6)
-    assert b.initial[1].numpy()["exact"].max() == 1
+    assert b.initial[1].exact.numpy()["exact"].max() == 1
 
 
 def test_exact_bsdf_records_reproduce_the_sample_points_own_radiance():
@@ -120,16 +120,17 @@ def test_exact_bsdf_records_reproduce_the_sample_points_own_radiance():
     a = ReSTIRGI(built, 32, 24, **kw)
     for f in range(2):
         img = a.render_frame(f).numpy()
-    s = a.initial[1].numpy()
-    on_glossy = (s["valid"] == 1) & (s["mat_s"] == 2)
-    assert on_glossy.sum() > 50 and np.all(s["exact"][s["valid"] == 1] >= 1)
+    valid = a.initial[1].core.numpy()["valid"] == 1
+    s = a.initial[1].exact.numpy()  # exact_bsdf's records: a buffer of their own
+    on_glossy = valid & (s["mat_s"] == 2)
+    assert on_glossy.sum() > 50 and np.all(s["exact"][valid] >= 1)
     # shade each sample with its stored L_o instead of the re-evaluated one: the same image
     c = ReSTIRGI(built, 32, 24, **kw)
     for f in range(2):
         c.render_frame(f)
-    samples = c.initial[1].numpy()
-    samples["exact"][samples["exact"] == 1] = 0  # reuse the stored lo: what the records must reproduce
-    c.initial[1].assign(samples)
+    records = c.initial[1].exact.numpy()
+    records["exact"][records["exact"] == 1] = 0  # reuse the stored lo: what the records must reproduce
+    c.initial[1].exact.assign(records)
     np.testing.assert_allclose(_shade(c), img, rtol=2e-3, atol=1e-5)
 
 
