@@ -581,9 +581,10 @@ class SampleRadiance:
 
 
 @kernel_cache
-def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
+def make_restir_gi_kernels(kinds: frozenset[int], exact: bool = False) -> Any:
     """ReSTIR GI's functions and kernels compiled for the material kinds ``kinds`` (cached; with SCENE_MOVING_OBJECTS,
-    the box of what each L_o depends on)."""
+    the box of what each L_o depends on); ``exact``: with ``exact_bsdf``'s records and their BSDF re-evaluation, in a
+    module of their own (without it every sample is the Lambertian reuse, and no kernel carries that code)."""
     moving = SCENE_MOVING_OBJECTS in kinds
     bsdf = make_bsdf(kinds)
     surface = make_surface(kinds)  # the wrappers and shapes of these kinds only
@@ -625,18 +626,19 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
     def reflected_radiance(scene: SceneData, s: GISample, toward: wp.vec3) -> wp.vec3:
         """L_r leaving x_s in direction ``toward``: the stored L_o (the paper's Lambertian reuse), or with
         ``exact_bsdf`` x_s's BSDF re-evaluated for both techniques of its path (PathRadiance's records)."""
-        if s.exact == 0:
-            return s.lo
-        if s.exact == 2:  # a delta or transmitting BSDF at x_s: no other visible point can reconnect to it
-            if wp.dot(toward, -s.ray_d) >= 1.0 - 1.0e-6:
-                return s.lo
-            return wp.vec3(0.0)
-        m = surface_material_at(scene, s.mat_s, s.uv_s, s.tri_s, s.xs, s.ns_s, s.ns)
-        frame = frame_from_normal(s.ns_s)
-        wo_s = to_local(frame, toward)
-        f_nee = bsdf.eval(m, wo_s, to_local(frame, s.nee_wi))
-        f_bs = bsdf.eval(m, wo_s, to_local(frame, s.bs_wi))
-        return wp.max(wp.cw_mul(f_nee, s.nee_li) + wp.cw_mul(f_bs, s.bs_li), wp.vec3(0.0))
+        if wp.static(exact):
+            if s.exact == 2:  # a delta or transmitting BSDF at x_s: no other visible point can reconnect to it
+                if wp.dot(toward, -s.ray_d) >= 1.0 - 1.0e-6:
+                    return s.lo
+                return wp.vec3(0.0)
+            if s.exact != 0:
+                m = surface_material_at(scene, s.mat_s, s.uv_s, s.tri_s, s.xs, s.ns_s, s.ns)
+                frame = frame_from_normal(s.ns_s)
+                wo_s = to_local(frame, toward)
+                f_nee = bsdf.eval(m, wo_s, to_local(frame, s.nee_wi))
+                f_bs = bsdf.eval(m, wo_s, to_local(frame, s.bs_wi))
+                return wp.max(wp.cw_mul(f_nee, s.nee_li) + wp.cw_mul(f_bs, s.bs_li), wp.vec3(0.0))
+        return s.lo  # exact = 0 (every sample without exact_bsdf)
 
     @wp.func
     def gi_eval(scene: SceneData, si: SurfaceInteraction, wo: wp.vec3, s: GISample, target_mode: int) -> GIEval:
@@ -987,7 +989,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
         tile = (y // _TILE_H) * ((width + _TILE_W - 1) // _TILE_W) + x // _TILE_W
         return int(random_uniform(random_subkey(frame_key(sf, 1), tile), 0) < mb_fraction)
 
-    module = specialized_module(__name__, kinds)
+    module = specialized_module(__name__ + (".exact" if exact else ""), kinds)
 
     # ---- the initial pass (Alg. 2) in three stages, one path tracer each: validation, direct light, the sample ----
     @wp.kernel(module=module, cuda_max_registers=PATH_REGISTERS)
@@ -1152,8 +1154,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
 
         return sample_radiance_pass
 
-    sample_radiance_pass = make_sample_radiance_pass(0)
-    sample_radiance_exact_pass = make_sample_radiance_pass(1)
+    sample_radiance_pass = make_sample_radiance_pass(1 if exact else 0)
 
     @wp.kernel(module=module)
     def initial_target_pass(
@@ -1669,7 +1670,7 @@ def make_restir_gi_kernels(kinds: frozenset[int]) -> Any:
 
     return types.SimpleNamespace(
         gi_eval=gi_eval, validate_pass=validate_pass, direct_pass=direct_pass, initial_pass=initial_pass,
-        sample_radiance_pass=sample_radiance_pass, sample_radiance_exact_pass=sample_radiance_exact_pass, initial_target_pass=initial_target_pass, temporal_pass=temporal_pass, spatial_resample_pass=spatial_resample_pass,
+        sample_radiance_pass=sample_radiance_pass, initial_target_pass=initial_target_pass, temporal_pass=temporal_pass, spatial_resample_pass=spatial_resample_pass,
         spatial_mis_pass=spatial_mis_pass, spatial_canonical_pass=spatial_canonical_pass, spatial_merge_pass=spatial_merge_pass,
         shade_pass=shade_pass
     )
@@ -1741,7 +1742,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
         self.max_jacobian = float(max_jacobian)
         self.jitter = bool(jitter)
         self.timer = timer
-        self.k = make_restir_gi_kernels(built.features.kernel_kinds)
+        self.k = make_restir_gi_kernels(built.features.kernel_kinds, bool(self.exact_bsdf))
         dev = self.device = built.device
         shape = (self.height, self.width)
         self.di = None
@@ -1777,7 +1778,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
             self.di.reset(None if seed is None else int(seed) + 7919)
 
     def kernels(self) -> list[Any]:
-        radiance = self.k.sample_radiance_exact_pass if self.exact_bsdf else self.k.sample_radiance_pass
+        radiance = self.k.sample_radiance_pass
         ks = [self.gbuffer.kernel(self.built), self.k.validate_pass, self.k.direct_pass, self.k.initial_pass, radiance, self.k.initial_target_pass,
               self.k.temporal_pass, *self._spatial_kernels(), self.k.shade_pass]
         return ks + (self.di.kernels() if self.di is not None else [])
@@ -1826,7 +1827,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
                 device=dev,
             )
             wp.launch(
-                self.k.sample_radiance_exact_pass if self.exact_bsdf else self.k.sample_radiance_pass,
+                self.k.sample_radiance_pass,
                 dim=dim,
                 inputs=[data, self.max_depth, self.rr_depth, self.mb_fraction, self.sample_hit],
                 outputs=[self.initial[1]],
