@@ -20,13 +20,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import warp as wp
 
 from reuse_checks import builtin_image_mean
 
 from grisx.errors import InvalidParameterError
 from grisx.scene.builtin import BUILTIN_SCENES, build_builtin
 from grisx.render.driver import render
-from grisx.render.restir_gi import ReSTIRGI
+from grisx.render.restir_gi import GISample, GISampleCore, GISampleExact, GISamples, ReSTIRGI, gi_load, gi_samples, gi_store
 from grisx.testing import BIASED_K, DEFAULT_K, independent_runs, z_test
 
 W, H = 12, 9
@@ -136,8 +137,6 @@ def test_exact_bsdf_records_reproduce_the_sample_points_own_radiance():
 
 def _shade(r: ReSTIRGI) -> np.ndarray:
     """Re-run only the shading of the last frame with the renderer's (possibly edited) initial samples."""
-    import warp as wp
-
     from grisx.render.base.screen import screen_frame
 
     sf = screen_frame(r.gbuffer, r.seed, r.frames_rendered - 1)
@@ -284,3 +283,63 @@ def test_direct_auto_takes_restir_di_only_with_many_lights():
     assert render("many-lights", "restir-gi", res=(8, 6)).settings["params"]["direct"] == "restir-di"
     assert render("cornell-box", "restir-gi", res=(8, 6)).settings["params"]["direct"] == "nee"
     assert render("many-lights", "restir-gi", res=(8, 6), params={"direct": "nee"}).settings["params"]["direct"] == "nee"
+
+
+# ---- sample buffers: a sample's core and exact_bsdf's records in two arrays ----
+
+@wp.kernel
+def _sample_roundtrip(src: wp.array2d(dtype=GISample), buf: GISamples, out: wp.array2d(dtype=GISample)):
+    y, x = wp.tid()
+    gi_store(buf, y, x, src[y, x])
+    out[y, x] = gi_load(buf, y, x)
+
+
+@wp.kernel
+def _sample_roundtrip_lossy(src: wp.array2d(dtype=GISample), buf: GISamples, out: wp.array2d(dtype=GISample)):
+    y, x = wp.tid()
+    s = src[y, x]
+    s.box_hi = wp.vec3(0.0)  # a store that forgot one field
+    gi_store(buf, y, x, s)
+    out[y, x] = gi_load(buf, y, x)
+
+
+def _random_samples(rng: np.random.Generator, shape: tuple[int, int]) -> np.ndarray:
+    a = np.zeros(shape, dtype=GISample.numpy_dtype())
+    for name in a.dtype.names:
+        field = a[name]
+        if np.issubdtype(field.dtype, np.floating):
+            a[name] = rng.normal(size=field.shape).astype(field.dtype)
+        else:
+            a[name] = rng.integers(1, 2**31 - 1, size=field.shape).astype(field.dtype)
+    return a
+
+
+def _roundtrip(kernel, exact: bool, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    shape = (5, 7)
+    a = _random_samples(np.random.default_rng(seed), shape)
+    out = wp.zeros(shape, dtype=GISample, device="cpu")
+    wp.launch(kernel, dim=shape, inputs=[wp.array(a, dtype=GISample, device="cpu"), gi_samples(*shape, exact, "cpu")], outputs=[out], device="cpu")
+    return a, out.numpy()
+
+
+def test_sample_buffers_hold_every_field_of_a_sample():
+    """gi_store then gi_load gives back every word of a GISample where the buffer has exact_bsdf's records; without
+    them, every word of the core and the records as gi_sample_none leaves them (0: the Lambertian reuse). A field added
+    to GISample and to neither stored struct would come back as 0 and fail."""
+    assert set(GISampleCore.vars) | set(GISampleExact.vars) == set(GISample.vars)
+    assert not set(GISampleCore.vars) & set(GISampleExact.vars)
+    a, b = _roundtrip(_sample_roundtrip, True, 5)
+    for name in a.dtype.names:
+        assert np.array_equal(a[name], b[name]), name
+    a, b = _roundtrip(_sample_roundtrip, False, 6)
+    for name in a.dtype.names:
+        if name in GISampleCore.vars:
+            assert np.array_equal(a[name], b[name]), name
+        else:
+            assert not np.any(b[name]), name  # no records: read as none (exact = 0)
+
+
+def test_sample_buffers_sibling_a_store_that_drops_a_field_is_caught():
+    """The check above fails when one word is left out: the same round trip through a store that loses box_hi."""
+    a, b = _roundtrip(_sample_roundtrip_lossy, True, 7)
+    assert not np.array_equal(a["box_hi"], b["box_hi"])
