@@ -181,3 +181,16 @@ def check(method: str, params: dict[str, Any] | None = None, *, scene: Any = "co
     else:
         ref, var = reference(scene, depth, camera, frames - 1 if last_frame else 0, res=res, spp=reference_spp)
     return reuse_unbiasedness_test(run, ref, var, runs, block=block, k=k, skew_corrected=skew_corrected)
+
+
+def random_records(numpy_dtype: np.dtype, rng: np.random.Generator, shape: tuple[int, int]) -> np.ndarray:
+    """An array of Warp records (a struct's ``numpy_dtype()``) with every word random and non-zero: floats normal,
+    integers in [1, 2³¹ − 1), so that a round trip through a layout that loses or zeroes a field shows."""
+    a = np.zeros(shape, dtype=numpy_dtype)
+    for name in a.dtype.names:
+        field = a[name]
+        if np.issubdtype(field.dtype, np.floating):
+            a[name] = rng.normal(size=field.shape).astype(field.dtype)
+        else:
+            a[name] = rng.integers(1, 2**31 - 1, size=field.shape).astype(field.dtype)
+    return a

@@ -24,6 +24,7 @@ import warp as wp
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from reuse_checks import random_records
 from grisx.errors import InvalidParameterError
 from grisx.scene.builtin import build_builtin
 from grisx.scene.camera import Camera, lookat
@@ -324,13 +325,7 @@ def _slot_roundtrip(src: wp.array2d(dtype=PathSample), slots: PathSlots, out: wp
 
 
 def _random_paths(rng: np.random.Generator, shape: tuple[int, int]) -> np.ndarray:
-    a = np.zeros(shape, dtype=PathSample.numpy_dtype())
-    for name in a.dtype.names:
-        field = a[name]
-        if np.issubdtype(field.dtype, np.floating):
-            a[name] = rng.normal(size=field.shape).astype(field.dtype)
-        else:
-            a[name] = rng.integers(1, 2**31 - 1, size=field.shape).astype(field.dtype)
+    a = random_records(PathSample.numpy_dtype(), rng, shape)
     a["key"] = rng.integers(2**31, 2**32, size=shape, dtype=np.uint64).astype(np.uint32)  # the high bit survives
     return a
 

@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 import warp as wp
 
-from reuse_checks import builtin_image_mean
+from reuse_checks import builtin_image_mean, random_records
 
 from grisx.errors import InvalidParameterError
 from grisx.scene.builtin import BUILTIN_SCENES, build_builtin
@@ -303,20 +303,9 @@ def _sample_roundtrip_lossy(src: wp.array2d(dtype=GISample), buf: GISamples, out
     out[y, x] = gi_load(buf, y, x)
 
 
-def _random_samples(rng: np.random.Generator, shape: tuple[int, int]) -> np.ndarray:
-    a = np.zeros(shape, dtype=GISample.numpy_dtype())
-    for name in a.dtype.names:
-        field = a[name]
-        if np.issubdtype(field.dtype, np.floating):
-            a[name] = rng.normal(size=field.shape).astype(field.dtype)
-        else:
-            a[name] = rng.integers(1, 2**31 - 1, size=field.shape).astype(field.dtype)
-    return a
-
-
 def _roundtrip(kernel, exact: bool, seed: int) -> tuple[np.ndarray, np.ndarray]:
     shape = (5, 7)
-    a = _random_samples(np.random.default_rng(seed), shape)
+    a = random_records(GISample.numpy_dtype(), np.random.default_rng(seed), shape)
     out = wp.zeros(shape, dtype=GISample, device="cpu")
     wp.launch(kernel, dim=shape, inputs=[wp.array(a, dtype=GISample, device="cpu"), gi_samples(*shape, exact, "cpu")], outputs=[out], device="cpu")
     return a, out.numpy()
