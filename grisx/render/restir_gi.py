@@ -278,6 +278,9 @@ wp.set_module_options({"enable_backward": False})
 __all__ = [
     "GISample",
     "GISamples",
+    "GISampleCore",
+    "GISampleExact",
+    "GISampleBox",
     "gi_samples",
     "SOURCES",
     "TARGETS",
@@ -431,14 +434,15 @@ def gi_sample_none() -> GISample:
     return s
 
 
-# ---- sample buffers: what is stored of a GISample, in two arrays ----
+# ---- sample buffers: what is stored of a GISample, in three arrays ----
 # Every reuse pass moves whole samples (a history's or a neighbour's, to this pixel's output), and each lane's store
 # of a record is a store per word at the record's stride. exact_bsdf's records are 20 of a sample's 50 words and off by
 # default, so they live in an array of their own, allocated only with exact_bsdf: without them a door-ajar frame took
-# 15.2 ms instead of 18.2 (H200, 1080p; benchmarks/README, "ReSTIR GI's samples without their exact records").
+# 15.2 ms instead of 18.2 (H200, 1080p; benchmarks/README, "ReSTIR GI's samples without their exact records"). The box
+# of what L_o depends on (6 words) is read only in scenes with moving objects, and lives apart likewise.
 @wp.struct
 class GISampleCore:
-    """What a sample buffer stores of every :class:`GISample`: its fields up to ``valid``."""
+    """What a sample buffer stores of every :class:`GISample`: its fields up to ``valid`` but the box."""
 
     xv: wp.vec3
     nv: wp.vec3
@@ -449,9 +453,16 @@ class GISampleCore:
     ray_d: wp.vec3
     key: wp.uint32
     multi: int
+    valid: int
+
+
+@wp.struct
+class GISampleBox:
+    """The box of what a stored sample's L_o depends on (:class:`GISample`'s ``box_lo``, ``box_hi``): scenes with
+    moving objects only."""
+
     box_lo: wp.vec3
     box_hi: wp.vec3
-    valid: int
 
 
 @wp.struct
@@ -472,29 +483,37 @@ class GISampleExact:
 @wp.struct
 class GISamples:
     """A buffer of samples, one a pixel (:func:`gi_samples` allocates it; :func:`gi_load`, :func:`gi_store` read and
-    write it): each sample's core at ``core[y, x]`` and, where ``with_exact``, its ``exact_bsdf`` records at
-    ``exact[y, x]``; without them ``exact`` is a 1×1 placeholder and every sample reads as the paper's Lambertian
-    reuse (``exact`` = 0, as :func:`gi_sample_none`)."""
+    write it): each sample's core at ``core[y, x]``; where ``with_exact``, its ``exact_bsdf`` records at
+    ``exact[y, x]``; where ``with_box``, its box at ``box[y, x]``. Without them ``exact`` or ``box`` is a 1×1
+    placeholder, and every sample reads as the paper's Lambertian reuse (``exact`` = 0, as :func:`gi_sample_none`) or
+    with an empty box (no scene object moves: nothing reads it)."""
 
     core: wp.array2d(dtype=GISampleCore)
     exact: wp.array2d(dtype=GISampleExact)
+    box: wp.array2d(dtype=GISampleBox)
     with_exact: int
+    with_box: int
 
 
-def gi_samples(height: int, width: int, exact: bool, device: Any) -> GISamples:
-    """An empty sample buffer (every sample invalid) for a height × width image; ``exact``: with the records."""
+def gi_samples(height: int, width: int, exact: bool, moving: bool, device: Any) -> GISamples:
+    """An empty sample buffer (every sample invalid) for a height × width image; ``exact``: with the records;
+    ``moving``: with the boxes (a scene whose objects move)."""
     b = GISamples()
     b.core = wp.zeros((height, width), dtype=GISampleCore, device=device)
     b.exact = wp.zeros((height, width) if exact else (1, 1), dtype=GISampleExact, device=device)
+    b.box = wp.zeros((height, width) if moving else (1, 1), dtype=GISampleBox, device=device)
     b.with_exact = int(bool(exact))
+    b.with_box = int(bool(moving))
     return b
 
 
 def gi_samples_copy(dst: GISamples, src: GISamples) -> None:
-    """Copy buffer ``src`` into ``dst`` (same size and records)."""
+    """Copy buffer ``src`` into ``dst`` (same size, records and boxes)."""
     wp.copy(dst.core, src.core)
     if src.with_exact:
         wp.copy(dst.exact, src.exact)
+    if src.with_box:
+        wp.copy(dst.box, src.box)
 
 
 @wp.func
@@ -511,9 +530,11 @@ def gi_load(b: GISamples, y: int, x: int) -> GISample:
     s.ray_d = c.ray_d
     s.key = c.key
     s.multi = c.multi
-    s.box_lo = c.box_lo
-    s.box_hi = c.box_hi
     s.valid = c.valid
+    if b.with_box != 0:
+        box = b.box[y, x]
+        s.box_lo = box.box_lo
+        s.box_hi = box.box_hi
     if b.with_exact != 0:
         rec = b.exact[y, x]
         s.exact = rec.exact
@@ -541,10 +562,13 @@ def gi_store(b: GISamples, y: int, x: int, s: GISample):
     c.ray_d = s.ray_d
     c.key = s.key
     c.multi = s.multi
-    c.box_lo = s.box_lo
-    c.box_hi = s.box_hi
     c.valid = s.valid
     b.core[y, x] = c
+    if b.with_box != 0:
+        box = GISampleBox()
+        box.box_lo = s.box_lo
+        box.box_hi = s.box_hi
+        b.box[y, x] = box
     if b.with_exact != 0:
         rec = GISampleExact()
         rec.exact = s.exact
@@ -745,6 +769,8 @@ def make_restir_gi_kernels(kinds: frozenset[int], exact: bool = False) -> Any:
     @wp.func
     def reused_part_moved(scene: SceneData, s: GISample, across: int) -> bool:
         """Whether a shift across frames (``across``) would reuse an L_o that may differ in the other frame."""
+        if wp.static(not moving):
+            return False  # nothing moves (and the buffers keep no boxes)
         if across == 0:
             return False
         return motion_touches(scene, s.box_lo, s.box_hi)
@@ -1148,8 +1174,9 @@ def make_restir_gi_kernels(kinds: frozenset[int], exact: bool = False) -> Any:
                                    mb_fraction, wp.static(record))
             # the fields it computed, not the whole record back (a store per word and lane)
             samples.core[y, x].lo = sr.lo
-            samples.core[y, x].box_lo = sr.box_lo
-            samples.core[y, x].box_hi = sr.box_hi
+            if wp.static(moving):  # the buffer has the boxes
+                samples.box[y, x].box_lo = sr.box_lo
+                samples.box[y, x].box_hi = sr.box_hi
             if wp.static(record != 0):  # exact_bsdf: the buffer has the records
                 samples.exact[y, x].exact = 2 - sr.recorded
                 samples.exact[y, x].nee_wi = sr.nee_wi
@@ -1760,7 +1787,8 @@ class ReSTIRGI(ScreenSpaceRenderer):
             self.gbuffer = self.di.gbuffer
         else:
             self.gbuffer = GBuffer(self.width, self.height, dev, material=self.GBUFFER_MATERIAL)
-        pair = lambda: (wp.zeros(shape, dtype=Reservoir, device=dev), gi_samples(self.height, self.width, self.exact_bsdf != 0, dev))  # noqa: E731
+        moving = SCENE_MOVING_OBJECTS in built.features.kernel_kinds  # the samples keep their boxes
+        pair = lambda: (wp.zeros(shape, dtype=Reservoir, device=dev), gi_samples(self.height, self.width, self.exact_bsdf != 0, moving, dev))  # noqa: E731
         self.initial = pair()  # the initial sample buffer (as one-sample reservoirs)
         self.temporal_buf = DoubleBuffer(pair)  # temporal reservoir buffer
         self.spatial_buf = DoubleBuffer(pair)  # spatial reservoir buffer

@@ -27,7 +27,7 @@ from reuse_checks import builtin_image_mean, random_records
 from grisx.errors import InvalidParameterError
 from grisx.scene.builtin import BUILTIN_SCENES, build_builtin
 from grisx.render.driver import render
-from grisx.render.restir_gi import GISample, GISampleCore, GISampleExact, GISamples, ReSTIRGI, gi_load, gi_samples, gi_store
+from grisx.render.restir_gi import GISample, GISampleBox, GISampleCore, GISampleExact, GISamples, ReSTIRGI, gi_load, gi_samples, gi_store
 from grisx.testing import BIASED_K, DEFAULT_K, independent_runs, z_test
 
 W, H = 12, 9
@@ -303,32 +303,32 @@ def _sample_roundtrip_lossy(src: wp.array2d(dtype=GISample), buf: GISamples, out
     out[y, x] = gi_load(buf, y, x)
 
 
-def _roundtrip(kernel, exact: bool, seed: int) -> tuple[np.ndarray, np.ndarray]:
+def _roundtrip(kernel, exact: bool, moving: bool, seed: int) -> tuple[np.ndarray, np.ndarray]:
     shape = (5, 7)
     a = random_records(GISample.numpy_dtype(), np.random.default_rng(seed), shape)
     out = wp.zeros(shape, dtype=GISample, device="cpu")
-    wp.launch(kernel, dim=shape, inputs=[wp.array(a, dtype=GISample, device="cpu"), gi_samples(*shape, exact, "cpu")], outputs=[out], device="cpu")
+    wp.launch(kernel, dim=shape, inputs=[wp.array(a, dtype=GISample, device="cpu"), gi_samples(*shape, exact, moving, "cpu")], outputs=[out], device="cpu")
     return a, out.numpy()
 
 
-def test_sample_buffers_hold_every_field_of_a_sample():
-    """gi_store then gi_load gives back every word of a GISample where the buffer has exact_bsdf's records; without
-    them, every word of the core and the records as gi_sample_none leaves them (0: the Lambertian reuse). A field added
-    to GISample and to neither stored struct would come back as 0 and fail."""
-    assert set(GISampleCore.vars) | set(GISampleExact.vars) == set(GISample.vars)
-    assert not set(GISampleCore.vars) & set(GISampleExact.vars)
-    a, b = _roundtrip(_sample_roundtrip, True, 5)
+@pytest.mark.parametrize("exact,moving", [(True, True), (False, True), (True, False), (False, False)])
+def test_sample_buffers_hold_every_field_of_a_sample(exact, moving):
+    """gi_store then gi_load gives back every word of a GISample that the buffer keeps: the core always,
+    exact_bsdf's records and the box where it has them; what it does not keep reads as gi_sample_none leaves it (0:
+    the Lambertian reuse, an empty box). A field added to GISample and to no stored struct would come back as 0 and
+    fail."""
+    parts = (set(GISampleCore.vars), set(GISampleExact.vars), set(GISampleBox.vars))
+    assert set().union(*parts) == set(GISample.vars) and sum(map(len, parts)) == len(GISample.vars)
+    kept = parts[0] | (parts[1] if exact else set()) | (parts[2] if moving else set())
+    a, b = _roundtrip(_sample_roundtrip, exact, moving, 5)
     for name in a.dtype.names:
-        assert np.array_equal(a[name], b[name]), name
-    a, b = _roundtrip(_sample_roundtrip, False, 6)
-    for name in a.dtype.names:
-        if name in GISampleCore.vars:
+        if name in kept:
             assert np.array_equal(a[name], b[name]), name
         else:
-            assert not np.any(b[name]), name  # no records: read as none (exact = 0)
+            assert not np.any(b[name]), name
 
 
 def test_sample_buffers_sibling_a_store_that_drops_a_field_is_caught():
     """The check above fails when one word is left out: the same round trip through a store that loses box_hi."""
-    a, b = _roundtrip(_sample_roundtrip_lossy, True, 7)
+    a, b = _roundtrip(_sample_roundtrip_lossy, True, True, 7)
     assert not np.array_equal(a["box_hi"], b["box_hi"])
