@@ -79,7 +79,8 @@ diffuse sample points the option changes nothing (a test checks it). Its
 records (80 bytes a sample) live in a buffer of their own, allocated only with
 the option (:class:`GISamples`), and its code in a module of its own: every
 reuse pass moves whole samples, and without the records a sample is 120 bytes,
-not 200 (door-ajar at 1080p: 18.9 → 16.3 ms a frame, benchmarks/README).
+not 200 (door-ajar at 1080p: 18.9 → 16.3 ms a frame, benchmarks/README); 96 in
+scenes whose objects do not move, which keep no box either.
 
 **MIS weights** (``mis``). Both reuse passes are GRIS over domains — the
 history, the neighbours and the pixel's own (canonical) sample — and need
