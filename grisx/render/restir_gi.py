@@ -438,8 +438,8 @@ def gi_sample_none() -> GISample:
 # ---- sample buffers: what is stored of a GISample, in three arrays ----
 # Every reuse pass moves whole samples (a history's or a neighbour's, to this pixel's output), and each lane's store
 # of a record is a store per word at the record's stride. exact_bsdf's records are 20 of a sample's 50 words and off by
-# default, so they live in an array of their own, allocated only with exact_bsdf: without them a door-ajar frame took
-# 15.2 ms instead of 18.2 (H200, 1080p; benchmarks/README, "ReSTIR GI's samples without their exact records"). The box
+# default, so they live in an array of their own, allocated only with exact_bsdf: without them a door-ajar frame takes
+# 16.3 ms instead of 18.9 (H200, 1080p; benchmarks/README, "ReSTIR GI's samples without their exact records"). The box
 # of what L_o depends on (6 words) is read only in scenes with moving objects, and lives apart likewise.
 @wp.struct
 class GISampleCore:
