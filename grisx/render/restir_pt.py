@@ -393,8 +393,8 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
         s_cj = shift_across(scene, domains_prev[hp.y, hp.x], canonical[y, x].path, sp)
         target_cj[y, x] = target_to(s_cj)
         if wp.static(est is not None):
-            # a variant's estimate needs T_{i→j}(y_c)'s f and |J|: two words-wide arrays, not the whole 136-byte
-            # result (a record store per lane made this stage 6× ReSTIR PT's, H200 1080p)
+            # a variant's estimate needs T_{i→j}(y_c)'s f and |J|: two small arrays, not the whole 136-byte result
+            # (storing that record per lane made this stage 6× ReSTIR PT's, H200 1080p)
             f_cj[y, x] = s_cj.path.f
             jacobian_cj[y, x] = s_cj.jacobian
         history_pixel[y, x] = code
