@@ -1789,7 +1789,11 @@ class ReSTIRGI(ScreenSpaceRenderer):
         else:
             self.gbuffer = GBuffer(self.width, self.height, dev, material=self.GBUFFER_MATERIAL)
         moving = SCENE_MOVING_OBJECTS in built.features.kernel_kinds  # the samples keep their boxes
-        pair = lambda: (wp.zeros(shape, dtype=Reservoir, device=dev), gi_samples(self.height, self.width, self.exact_bsdf != 0, moving, dev))  # noqa: E731
+
+        def pair() -> tuple[wp.array, GISamples]:
+            """A reservoir buffer and its sample buffer."""
+            return wp.zeros(shape, dtype=Reservoir, device=dev), gi_samples(self.height, self.width, self.exact_bsdf != 0, moving, dev)
+
         self.initial = pair()  # the initial sample buffer (as one-sample reservoirs)
         self.temporal_buf = DoubleBuffer(pair)  # temporal reservoir buffer
         self.spatial_buf = DoubleBuffer(pair)  # spatial reservoir buffer
