@@ -1080,7 +1080,7 @@ def make_restir_gi_kernels(kinds: frozenset[int], exact: bool = False) -> Any:
     # the sample itself in three stages, so that the path tracer runs in a kernel of its own with nothing
     # else live across it (pt's occupancy): the sample point, L_o there, the target
     @wp.func
-    def initial_sample(scene: SceneData, sf: ScreenFrame, x: int, y: int, source: int, mb_fraction: float, exact_bsdf: int,
+    def initial_sample(scene: SceneData, sf: ScreenFrame, x: int, y: int, source: int, mb_fraction: float,
                        key: wp.uint32, si: SurfaceInteraction, wo: wp.vec3) -> InitialSample:
         """Alg. 2 at a visible point that has a reservoir: a direction from the source pdf p_q, and the ray to the
         sample point x_s (no sample where the direction or the ray gives none)."""
@@ -1111,7 +1111,7 @@ def make_restir_gi_kernels(kinds: frozenset[int], exact: bool = False) -> Any:
         s.ns = ns
         s.ray_o = o
         s.ray_d = wi
-        if exact_bsdf != 0:
+        if wp.static(exact):
             s.mat_s = hit.material
             s.uv_s = hit.uv
             s.tri_s = hit.tri
@@ -1129,7 +1129,6 @@ def make_restir_gi_kernels(kinds: frozenset[int], exact: bool = False) -> Any:
         source: int,
         max_depth: int,
         mb_fraction: float,
-        exact_bsdf: int,
         res_out: wp.array2d(dtype=Reservoir),
         s_out: GISamples,
         source_pdf: wp.array2d(dtype=float),
@@ -1146,48 +1145,42 @@ def make_restir_gi_kernels(kinds: frozenset[int], exact: bool = False) -> Any:
         if si.valid != 0 and not path_traced_here(scene, si):
             r.confidence = 1.0  # one initial sample: M = 1 (Alg. 1 UPDATE), even if it carries no weight
             if max_depth < 0 or max_depth > 2:  # else nothing indirect to estimate
-                src = initial_sample(scene, sf, x, y, source, mb_fraction, exact_bsdf, pixel_key(sf, x, y, 0), si, sf.wo[y, x])
+                src = initial_sample(scene, sf, x, y, source, mb_fraction, pixel_key(sf, x, y, 0), si, sf.wo[y, x])
         res_out[y, x] = r
         gi_store(s_out, y, x, src.s)
         if src.s.valid != 0:
             source_pdf[y, x] = src.pdf
             sample_hit[y, x] = src.hit  # the path tracer at x_s starts from it: x_v → x_s is traced once
 
-    def make_sample_radiance_pass(record: int) -> Any:
-        """The path tracer's kernel with ``exact_bsdf``'s records compiled in or out (a runtime flag would
-        keep the records' registers live in every run)."""
-
-        @wp.kernel(module=module, cuda_max_registers=PATH_REGISTERS)
-        def sample_radiance_pass(
-            scene: SceneData,
-            max_depth: int,
-            rr_depth: int,
-            mb_fraction: float,
-            sample_hit: wp.array2d(dtype=SurfaceInteraction),
-            samples: GISamples,
-        ):
-            """L_o at the sample point by path tracing (NEE + MIS), tile-level multi-bounce roulette."""
-            y, x = wp.tid()
-            s = gi_load(samples, y, x)
-            if s.valid == 0:
-                return
-            sr = outgoing_radiance(scene, s.ray_o, s.ray_d, sample_hit[y, x], s.key, depth_from_visible_point(max_depth), rr_depth, s.multi,
-                                   mb_fraction, wp.static(record))
-            # the fields it computed, not the whole record back (a store per word and lane)
-            samples.core[y, x].lo = sr.lo
-            if wp.static(moving):  # the buffer has the boxes
-                samples.box[y, x].box_lo = sr.box_lo
-                samples.box[y, x].box_hi = sr.box_hi
-            if wp.static(record != 0):  # exact_bsdf: the buffer has the records
-                samples.exact[y, x].exact = 2 - sr.recorded
-                samples.exact[y, x].nee_wi = sr.nee_wi
-                samples.exact[y, x].nee_li = sr.nee_li
-                samples.exact[y, x].bs_wi = sr.bs_wi
-                samples.exact[y, x].bs_li = sr.bs_li
-
-        return sample_radiance_pass
-
-    sample_radiance_pass = make_sample_radiance_pass(1 if exact else 0)
+    # the path tracer alone in its kernel, exact_bsdf's records compiled in only in its module (a runtime flag kept
+    # the records' registers live in every run)
+    @wp.kernel(module=module, cuda_max_registers=PATH_REGISTERS)
+    def sample_radiance_pass(
+        scene: SceneData,
+        max_depth: int,
+        rr_depth: int,
+        mb_fraction: float,
+        sample_hit: wp.array2d(dtype=SurfaceInteraction),
+        samples: GISamples,
+    ):
+        """L_o at the sample point by path tracing (NEE + MIS), tile-level multi-bounce roulette."""
+        y, x = wp.tid()
+        s = gi_load(samples, y, x)
+        if s.valid == 0:
+            return
+        sr = outgoing_radiance(scene, s.ray_o, s.ray_d, sample_hit[y, x], s.key, depth_from_visible_point(max_depth), rr_depth, s.multi,
+                               mb_fraction, wp.static(int(exact)))
+        # the fields it computed, not the whole record back (a store per word and lane)
+        samples.core[y, x].lo = sr.lo
+        if wp.static(moving):  # the buffer has the boxes
+            samples.box[y, x].box_lo = sr.box_lo
+            samples.box[y, x].box_hi = sr.box_hi
+        if wp.static(exact):  # exact_bsdf: the buffer has the records
+            samples.exact[y, x].exact = 2 - sr.recorded
+            samples.exact[y, x].nee_wi = sr.nee_wi
+            samples.exact[y, x].nee_li = sr.nee_li
+            samples.exact[y, x].bs_wi = sr.bs_wi
+            samples.exact[y, x].bs_li = sr.bs_li
 
     @wp.kernel(module=module)
     def initial_target_pass(
@@ -1860,7 +1853,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
             wp.launch(
                 self.k.initial_pass,
                 dim=dim,
-                inputs=[data, sf, self.source, self.max_depth, self.mb_fraction, self.exact_bsdf],
+                inputs=[data, sf, self.source, self.max_depth, self.mb_fraction],
                 outputs=[self.initial[0], self.initial[1], self.source_pdf, self.sample_hit],
                 device=dev,
             )
