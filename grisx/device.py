@@ -18,7 +18,7 @@ import warp as wp
 
 from grisx.errors import DeviceError
 
-__all__ = ["init", "resolve_device", "cuda_available", "available_memory", "synchronize", "specialized_module", "load_kernels", "PATH_REGISTERS", "SHIFT_REGISTERS"]
+__all__ = ["init", "resolve_device", "cuda_available", "available_memory", "synchronize", "specialized_module", "load_kernels", "launch", "LAUNCH_BLOCK_DIM", "PATH_REGISTERS", "SHIFT_REGISTERS"]
 
 
 #: a line Warp's native library prints on every machine without a GPU; on such
@@ -123,10 +123,31 @@ def specialized_module(owner: str, kinds: Iterable[int]) -> wp.context.Module:
     return module
 
 
+#: Threads per block of every render pass on CUDA (Warp launches 256 unless told). Lanes end their paths,
+#: shifts and shadow rays at different times, and a block keeps its registers until its last warp ends:
+#: a 256-thread block of a path tracer holds eight warps' worth of the SM for its longest path. In blocks
+#: of 64 an SM refills in finer steps, and kernels above 128 registers fit more warps (149 registers:
+#: one 256-thread block an SM, 8 warps; six 64-thread blocks, 12). Measured on an H200 at 1080p
+#: (``benchmarks/README.md``, "Blocks of 64 threads"): door-ajar pt 9.90 -> 9.40 ms, restir-gi
+#: 14.63 -> 12.84, restir-pt 26.45 -> 24.53. The CPU runs one thread a block whatever is asked.
+LAUNCH_BLOCK_DIM = 64
+
+
+def launch(kernel: Any, dim: Any, inputs: Any = (), outputs: Any = (), device: Any = None, **kw: Any) -> None:
+    """``wp.launch`` in blocks of :data:`LAUNCH_BLOCK_DIM` threads: how grisx launches its render passes.
+
+    ``wp.launch`` is looked up at each call, so a tool that wraps it (``benchmarks/kernels.py``'s per-kernel
+    timer) sees every pass.
+    """
+    kw.setdefault("block_dim", LAUNCH_BLOCK_DIM)
+    wp.launch(kernel, dim=dim, inputs=list(inputs), outputs=list(outputs), device=device, **kw)
+
+
 #: ``cuda_max_registers`` of the kernels that trace paths or shadow rays (the path tracer's sample
-#: pass, ReSTIR GI's stages). A Warp kernel runs in blocks of 256 threads and an SM has 64K
-#: registers, so occupancy only changes at 128 (2 blocks), 80 (3) and 64 (4) registers a thread;
-#: software BVH traversal is latency-bound, and more warps in flight pay for the spills. Measured
+#: pass, ReSTIR GI's stages). Chosen when kernels ran in blocks of 256 threads: an SM has 64K
+#: registers, so occupancy then only changed at 128 (2 blocks), 80 (3) and 64 (4) registers a thread;
+#: software BVH traversal is latency-bound, and more warps in flight pay for the spills. (In blocks of
+#: :data:`LAUNCH_BLOCK_DIM` the steps are finer; the budgets were not measured again.) Measured
 #: at 1080p (``benchmarks/README.md``, "Register budgets"): pt's 1-spp frame on an H200 12.7 -> 10.2 ms
 #: (door-ajar), 19.1 -> 10.6 (glossy-room), 4.7 -> 3.6 (cornell-box); ReSTIR GI's frame on an H100
 #: 39.3 -> 26.1 ms (door-ajar), 45.2 -> 29.0 (glossy-room); 64 gives the same, 128 less. Kernels that

@@ -66,3 +66,23 @@ def test_warp_code_names_no_variable_after_a_warp_constant():
 def test_a_local_named_after_a_warp_constant_is_caught():
     source = "import warp as wp\n@wp.func\ndef f(x: float) -> float:\n    e = Rec()\n    e.dist = x\n    return e.dist\n"
     assert _warp_constant_attributes(source) == ["f:5: e.dist", "f:6: e.dist"]
+
+
+def _direct_launches(source: str) -> list[int]:
+    """Lines that call ``wp.launch`` itself (not :func:`grisx.device.launch`)."""
+    return [n.lineno for n in ast.walk(ast.parse(source))
+            if isinstance(n, ast.Call) and ast.unparse(n.func) == "wp.launch"]
+
+
+def test_render_passes_launch_in_the_projects_blocks():
+    # a pass launched with wp.launch runs in Warp's 256-thread blocks, 4-14% slower on an H200
+    # (grisx.device.LAUNCH_BLOCK_DIM); one-off table builds at scene load (lights, microfacet) may
+    bad = [f"{path.relative_to(ROOT)}:{line}" for layer in ("render", "scene")
+           for path in (ROOT / layer).rglob("*.py") if path.name not in ("lights.py", "microfacet.py")
+           for line in _direct_launches(path.read_text())]
+    assert not bad, bad
+
+
+def test_a_direct_launch_is_caught():
+    source = "import warp as wp\nfrom grisx.device import launch\nlaunch(k, dim=4)\nwp.launch(k, dim=4)\n"
+    assert _direct_launches(source) == [4]

@@ -67,7 +67,7 @@ from typing import Any
 
 import warp as wp
 
-from grisx.device import SHIFT_REGISTERS, specialized_module
+from grisx.device import launch, SHIFT_REGISTERS, specialized_module
 from grisx.errors import InvalidParameterError
 from grisx.params import Param
 from grisx.render.base.area import FILM_STREAM, FilmSample, film_onto_itself, film_sample, film_translate_wrapped, make_area_domain, temporal_film_offset
@@ -371,12 +371,12 @@ class AreaReSTIR(ReSTIRPT):
         cam, _ = self.cameras(frame)
         film = self.films[3]
         with self._phase("primary"):
-            wp.launch(k["primary"], dim=dim, inputs=[b.data, cam, self.seed, sf], outputs=[film, self.domains[0], self.direct], device=dev)
+            launch(k["primary"], dim=dim, inputs=[b.data, cam, self.seed, sf], outputs=[film, self.domains[0], self.direct], device=dev)
         cur = self.buffers[1]
         with self._phase("initial"):
-            wp.launch(k["initial"], dim=dim, inputs=[b.data, self.seed, sf, self.candidates, self.max_bounces, self.shift_params, 1.0, self.domains[0],
+            launch(k["initial"], dim=dim, inputs=[b.data, self.seed, sf, self.candidates, self.max_bounces, self.shift_params, 1.0, self.domains[0],
                                                     self.kept_paths], outputs=[cur], device=dev)
-            wp.launch(k["settle"], dim=dim, inputs=[b.data, self.shift_params, self.domains[0], self.kept_paths], outputs=[cur], device=dev)
+            launch(k["settle"], dim=dim, inputs=[b.data, self.shift_params, self.domains[0], self.kept_paths], outputs=[cur], device=dev)
         return cur, film
 
     def after_canonical(self, reservoirs: wp.array) -> None:
@@ -401,12 +401,12 @@ class AreaReSTIR(ReSTIRPT):
                 scene_from_prev, scene_prev = b.across_frames()  # each domain in its own frame's scene
                 # a pixel carried onto itself under a still camera in a still scene: its two domains are one (film_shift_as_is)
                 still = int(camera_data_equal(cam, cam_prev) and SCENE_MOVING_OBJECTS not in b.features.kernel_kinds)
-                wp.launch(
+                launch(
                     k["temporal_canonical"], dim=dim,
                     inputs=[scene_prev, cam, cam_prev, self.shift_params, still, g, g_prev, cur, film_cur, history],
                     outputs=[other, film_a, self.history_pixel, self.target_cj], device=dev,
                 )
-                wp.launch(
+                launch(
                     k["temporal_merge"], dim=dim,
                     inputs=[scene_from_prev, cam, self.seed, int(frame), self.shift_params, self.history_cap, still, g, cur, film_cur, history, film_hist,
                             self.history_pixel, self.target_cj],
@@ -418,12 +418,12 @@ class AreaReSTIR(ReSTIRPT):
             film_out = film_b if film_cur is not film_b else film_a
             with self._phase("spatial"):
                 nbs = self.spatial_domains
-                wp.launch(
+                launch(
                     k["spatial_canonical"], dim=dim,
                     inputs=[b.data, cam, self.seed, int(frame), rnd, self.neighbors, self.radius, self.shift_params, g, cur, film_cur],
                     outputs=[other, film_out, nbs.codes, nbs.slots, nbs.count, self.m_canonical], device=dev,
                 )
-                wp.launch(
+                launch(
                     k["spatial_merge"], dim=dim,
                     inputs=[b.data, cam, self.seed, int(frame), rnd, self.shift_params, cur, film_cur, nbs.codes, nbs.slots, nbs.count, self.m_canonical],
                     outputs=[other, film_out], device=dev,
@@ -440,7 +440,7 @@ class AreaReSTIR(ReSTIRPT):
         """One frame: primary vertices, initial candidates, temporal and spatial reuse, shading."""
         cur, _ = self.resample(frame)
         with self._phase("shade"):
-            wp.launch(self.k["shade"], dim=(self.height, self.width), inputs=[self.direct, cur], outputs=[self.image, self.nonfinite], device=self.built.device)
+            launch(self.k["shade"], dim=(self.height, self.width), inputs=[self.direct, cur], outputs=[self.image, self.nonfinite], device=self.built.device)
         return self.image
 
 

@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 import warp as wp
 
-from grisx.device import load_kernels, resolve_device, synchronize
+from grisx.device import launch, load_kernels, resolve_device, synchronize
 from grisx.errors import INT32_MAX, GrisxWarning, InvalidParameterError, InvalidValueError, UnknownNameError
 from grisx.render.base.registry import METHODS, RenderContext, RenderMethod, load_plugins, method_params
 from grisx.scene.material import MATERIAL_KIND_NAMES
@@ -273,14 +273,14 @@ def _run(spec: RenderMethod, method: str, sc: Any, built: Any, dev: Any, timer: 
             if acc is None:
                 acc = wp.zeros(frame_img.shape, dtype=wp.vec3d, device=dev)
                 average = wp.empty(frame_img.shape, dtype=wp.vec3, device=dev)
-            wp.launch(_accumulate, dim=frame_img.shape, inputs=[acc, frame_img], device=dev)
+            launch(_accumulate, dim=frame_img.shape, inputs=[acc, frame_img], device=dev)
         synchronize(dev)
         frame_seconds.append(time.perf_counter() - frame_start)
         need_host = on_frame is not None or f == frames - 1  # data stays on the device otherwise
         if isinstance(frame_img, wp.array):
             if accumulate:
                 if need_host:
-                    wp.launch(_average, dim=frame_img.shape, inputs=[acc, wp.float64(1.0 / (f + 1))], outputs=[average], device=dev)
+                    launch(_average, dim=frame_img.shape, inputs=[acc, wp.float64(1.0 / (f + 1))], outputs=[average], device=dev)
                     image = average.numpy()
             elif need_host:
                 image = frame_img.numpy()

@@ -46,6 +46,7 @@ from typing import Any
 import numpy as np
 import warp as wp
 
+from grisx.device import launch
 from grisx.params import Param
 from grisx.poisson import FrameReconstruction, frame_tol
 from grisx.render.area_restir import AREA_KEYS, AreaReSTIR, area_params
@@ -82,7 +83,7 @@ class GradientFromPrimal(AreaReSTIR):
         cam, _ = self.cameras(frame)
         b = self.built
         with self._phase("gradients"):
-            wp.launch(
+            launch(
                 self.gk["gradient"], dim=(self.height, self.width),
                 inputs=[b.data, cam, self.shift_params, float(scale), int(differences), int(self.symmetric), self.films[3], film, self.direct, reservoirs],
                 outputs=[self.gradient.primal, self.gradient.halves, self.nonfinite], device=b.device,

@@ -37,7 +37,7 @@ import numpy as np
 import warp as wp
 
 from grisx.render.base.screen import kernel_cache
-from grisx.device import PATH_REGISTERS, specialized_module
+from grisx.device import launch, PATH_REGISTERS, specialized_module
 from grisx.render.base.trace import STRATEGIES, make_trace_path, no_first_hit
 from grisx.params import Param
 from grisx.render.base.registry import RenderMethod, register, renderer_params
@@ -172,7 +172,7 @@ class PathTracer:
         cam = self.built.camera_data(float(frame), self.width, self.height)
         start = self.samples if first_sample is None else int(first_sample)
         for i in range(count):
-            wp.launch(
+            launch(
                 self.kernel,
                 dim=(self.height, self.width),
                 inputs=[self.built.data, cam, self.seed, int(frame), start + i, self.max_depth, self.rr_depth, self.strategy, self.jitter],
@@ -191,7 +191,7 @@ class PathTracer:
                 self.add_samples(frame, self.spp)
         else:
             self.add_samples(frame, self.spp)
-        wp.launch(image_from_sum, dim=self.total.shape, inputs=[self.total, wp.float64(1.0 / max(self.samples, 1))], outputs=[self.image], device=self.built.device)
+        launch(image_from_sum, dim=self.total.shape, inputs=[self.total, wp.float64(1.0 / max(self.samples, 1))], outputs=[self.image], device=self.built.device)
         return self.image
 
     def mean(self) -> np.ndarray:

@@ -96,7 +96,7 @@ from typing import Any
 
 import warp as wp
 
-from grisx.device import specialized_module
+from grisx.device import launch, specialized_module
 from grisx.render.base.screen import ScreenFrame, ScreenSpaceRenderer, kernel_cache, pixel_key, screen_frame, write_pixel
 from grisx.params import Param
 from grisx.render.base.registry import RenderMethod, create_renderer, register, renderer_params
@@ -759,7 +759,7 @@ class ReSTIRDI(ScreenSpaceRenderer):
         self.final.swap()
         sf = screen_frame(self.gbuffer, self.seed, frame)
         with self._phase("di_initial"):
-            wp.launch(
+            launch(
                 self.k.initial_pass,
                 dim=dim,
                 inputs=[data, sf, self.light_candidates, self.bsdf_candidates],
@@ -769,7 +769,7 @@ class ReSTIRDI(ScreenSpaceRenderer):
         src = self.initial
         if self.temporal and self.frames_rendered > 0:
             with self._phase("di_temporal"):
-                wp.launch(
+                launch(
                     self.k.temporal_pass,
                     dim=dim,
                     inputs=[
@@ -783,7 +783,7 @@ class ReSTIRDI(ScreenSpaceRenderer):
         dst = self.final.current
         if self.spatial and self.neighbors > 0:
             with self._phase("di_spatial"):
-                wp.launch(
+                launch(
                     self.k.spatial_pass,
                     dim=dim,
                     inputs=[
@@ -799,7 +799,7 @@ class ReSTIRDI(ScreenSpaceRenderer):
 
     def shade(self) -> wp.array:
         with self._phase("di_shade"):
-            wp.launch(
+            launch(
                 self.k.shade_pass,
                 dim=(self.height, self.width),
                 inputs=[self.built.data, screen_frame(self.gbuffer, self.seed, 0), self.unbiased, self.base, *self.final.current],

@@ -219,7 +219,7 @@ from typing import Any
 
 import warp as wp
 
-from grisx.device import PATH_REGISTERS, specialized_module
+from grisx.device import launch, PATH_REGISTERS, specialized_module
 from grisx.params import Param
 from grisx.render.base.registry import RenderMethod, composed_direct, create_renderer, register, renderer_params
 from grisx.scene.bsdf import MATERIAL_ROUGH_DIELECTRIC, cosine_hemisphere_pdf, make_bsdf, sample_cosine_hemisphere
@@ -1840,7 +1840,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
         )
         if validate_now:
             with self._phase("gi_validate"):
-                wp.launch(
+                launch(
                     self.k.validate_pass,
                     dim=dim,
                     inputs=[data, sf, self.max_depth, self.rr_depth, self.mb_fraction, self.validation_tolerance],
@@ -1848,23 +1848,23 @@ class ReSTIRGI(ScreenSpaceRenderer):
                     device=dev,
                 )
         with self._phase("gi_direct"):
-            wp.launch(self.k.direct_pass, dim=dim, inputs=[data, sf, self.max_depth, self.rr_depth, self.direct], outputs=[self.base], device=dev)
+            launch(self.k.direct_pass, dim=dim, inputs=[data, sf, self.max_depth, self.rr_depth, self.direct], outputs=[self.base], device=dev)
         with self._phase("gi_initial"):
-            wp.launch(
+            launch(
                 self.k.initial_pass,
                 dim=dim,
                 inputs=[data, sf, self.source, self.max_depth, self.mb_fraction],
                 outputs=[self.initial[0], self.initial[1], self.source_pdf, self.sample_hit],
                 device=dev,
             )
-            wp.launch(
+            launch(
                 self.k.sample_radiance_pass,
                 dim=dim,
                 inputs=[data, self.max_depth, self.rr_depth, self.mb_fraction, self.sample_hit],
                 outputs=[self.initial[1]],
                 device=dev,
             )
-            wp.launch(
+            launch(
                 self.k.initial_target_pass,
                 dim=dim,
                 inputs=[data, sf, self.target, self.source_pdf, self.initial[1]],
@@ -1876,7 +1876,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
         # frame's domains and their Z tests (each domain in its own frame's scene)
         scene, scene_prev = self.built.across_frames()
         with self._phase("gi_temporal"):
-            wp.launch(
+            launch(
                 self.k.temporal_pass,
                 dim=dim,
                 inputs=[
@@ -1890,7 +1890,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
         s_out = self.spatial_buf.current
         if self.spatial and self.mis == MIS["pairwise"]:
             with self._phase("gi_spatial"):
-                wp.launch(
+                launch(
                     self.k.spatial_canonical_pass,
                     dim=dim,
                     inputs=[
@@ -1901,7 +1901,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
                     outputs=[s_out[0], s_out[1], self.domains.codes, self.domains.slots, self.domains.count, self.m_canonical],
                     device=dev,
                 )
-                wp.launch(
+                launch(
                     self.k.spatial_merge_pass,
                     dim=dim,
                     inputs=[
@@ -1914,7 +1914,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
                 )
         elif self.spatial:
             with self._phase("gi_spatial"):
-                wp.launch(
+                launch(
                     self.k.spatial_resample_pass,
                     dim=dim,
                     inputs=[
@@ -1925,7 +1925,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
                     outputs=[s_out[0], s_out[1], self.kept, self.domains.codes, self.domains.slots, self.domains.count],
                     device=dev,
                 )
-                wp.launch(
+                launch(
                     self.k.spatial_mis_pass,
                     dim=dim,
                     inputs=[
@@ -1943,7 +1943,7 @@ class ReSTIRGI(ScreenSpaceRenderer):
         if self.di is not None:
             direct = self.di.direct_light(frame)
         with self._phase("gi_shade"):
-            wp.launch(
+            launch(
                 self.k.shade_pass,
                 dim=dim,
                 inputs=[data, sf, self.target, self.base, s_out[0], s_out[1], direct, int(self.di is not None)],

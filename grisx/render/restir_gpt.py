@@ -87,7 +87,7 @@ from typing import Any
 
 import warp as wp
 
-from grisx.device import SHIFT_REGISTERS, specialized_module
+from grisx.device import launch, SHIFT_REGISTERS, specialized_module
 from grisx.errors import InvalidParameterError
 from grisx.params import Param
 from grisx.render.base.area import FilmSample, film_onto_itself, film_translate_wrapped, make_area_domain, temporal_film_offset
@@ -783,26 +783,26 @@ class ReSTIRGPT(GradientFromPrimal):
         # a temporal source pair onto itself (zero motion), under a still camera in a scene where nothing moves, is this
         # pair's own domain: T* and T*⁻¹ are the identity there (pair_as_is)
         still = int(temporal and camera_data_equal(cam, cam_src) and SCENE_MOVING_OBJECTS not in b.features.kernel_kinds)
-        wp.launch(self.pk["source"], dim=pairs, inputs=[self.seed, int(frame), int(temporal), still, int(self.positivize), self.pair_reuse,
+        launch(self.pk["source"], dim=pairs, inputs=[self.seed, int(frame), int(temporal), still, int(self.positivize), self.pair_reuse,
                                                        self.radius, g, g_src, own, src],
                   outputs=[self.pair_source, self.pair_to_source, self.pair_as_is, self.pair_due_back, self.pair_due_here, self.pair_edge], device=dev)
         if not temporal and self.pair_reuse == PAIR_REUSE["adaptive"]:
             n = self.pair_queue.build(self.pair_edge)  # the edge pairs (the queue is free until the shift stages)
             if n > 0:
-                wp.launch(self.pk["search"], dim=n, inputs=[self.seed, int(frame), int(self.positivize), self.pair_search, self.radius, g,
+                launch(self.pk["search"], dim=n, inputs=[self.seed, int(frame), int(self.positivize), self.pair_search, self.radius, g,
                                                             self.pair_queue.items, own],
                           outputs=[self.pair_source, self.pair_to_source, self.pair_as_is, self.pair_due_back, self.pair_due_here], device=dev)
         # the pair's own samples to the source pair (T*⁻¹): base, inner, what the merge keeps of them
         self.shift_stages(scene_src, cam_src, 1, temporal, own, src, self.pair_due_back)
-        wp.launch(self.pk["back"], dim=each, inputs=[own, self.pair_source, self.pair_as_is, self.pair_due_back, self.pair_carried], outputs=[self.pair_back], device=dev)
+        launch(self.pk["back"], dim=each, inputs=[own, self.pair_source, self.pair_as_is, self.pair_due_back, self.pair_carried], outputs=[self.pair_back], device=dev)
         # the source's samples here (T*), then the merge
         self.shift_stages(scene_here, cam, 0, temporal, own, src, self.pair_due_here)
         out = own if temporal else scratch
-        wp.launch(self.pk["merge"], dim=pairs, inputs=[self.seed, int(frame), int(self.positivize), int(self.cross_sign), int(temporal), self.history_cap,
+        launch(self.pk["merge"], dim=pairs, inputs=[self.seed, int(frame), int(self.positivize), int(self.cross_sign), int(temporal), self.history_cap,
                                                       own, src, self.pair_source, self.pair_as_is, self.pair_due_here, self.pair_back,
                                                       self.pair_carried], outputs=[out], device=dev)
         if not temporal:
-            wp.launch(self.pk["commit"], dim=pairs, inputs=[self.pair_source, scratch], outputs=[own], device=dev)
+            launch(self.pk["commit"], dim=pairs, inputs=[self.pair_source, scratch], outputs=[own], device=dev)
 
     def shift_stages(self, scene: Any, cam: Any, toward_source: int, temporal: bool, own: wp.array, src: wp.array, due: wp.array) -> None:
         """The outer shift of the reservoirs flagged in ``due`` (slot, orientation, pixel), over work queues: the base
@@ -813,12 +813,12 @@ class ReSTIRGPT(GradientFromPrimal):
         n = self.pair_queue.build(due)
         if n == 0:
             return
-        wp.launch(self.pk["base"], dim=n, inputs=[scene, cam, self.shift_params, toward_source, int(self.outer_jacobian), int(temporal), own, src,
+        launch(self.pk["base"], dim=n, inputs=[scene, cam, self.shift_params, toward_source, int(self.outer_jacobian), int(temporal), own, src,
                                                   self.pair_source, self.pair_to_source, self.pair_queue.items], outputs=[self.pair_carried, self.pair_inner_due], device=dev)
         m = self.inner_queue.build(self.pair_inner_due, n)
         if m == 0:
             return
-        wp.launch(self.pk["inner"], dim=m, inputs=[scene, cam, self.shift_params, toward_source, int(self.symmetric), self.pair_source, self.pair_queue.items,
+        launch(self.pk["inner"], dim=m, inputs=[scene, cam, self.shift_params, toward_source, int(self.symmetric), self.pair_source, self.pair_queue.items,
                                                    self.inner_queue.items], outputs=[self.pair_carried], device=dev)
 
     def render_frame(self, frame: int) -> wp.array:
@@ -834,7 +834,7 @@ class ReSTIRGPT(GradientFromPrimal):
         history, pairs, other = self.pairs
         # ---- initial paired-pixel candidates ----
         with self._phase("pair_initial"):
-            wp.launch(self.pk["initial"], dim=dim, inputs=[b.data, cam, self.seed, int(frame), self.shift_params, int(self.positivize), int(self.symmetric), self.films[3], self.canonical_kept, self.direct],
+            launch(self.pk["initial"], dim=dim, inputs=[b.data, cam, self.seed, int(frame), self.shift_params, int(self.positivize), int(self.symmetric), self.films[3], self.canonical_kept, self.direct],
                       outputs=[pairs, self.gradient.halves, self.nonfinite], device=dev)
         g, g_prev = self.gbuffer.current, self.gbuffer.previous
         # ---- temporal reuse ----
@@ -850,7 +850,7 @@ class ReSTIRGPT(GradientFromPrimal):
         # ---- gradients and reconstruction ----
         with self._phase("gradients"):
             self.gradient.gradients(self.gk)
-            wp.launch(self.pk["gradient"], dim=dim, inputs=[pairs], outputs=[self.gradient.dx, self.gradient.dy, self.nonfinite], device=dev)
+            launch(self.pk["gradient"], dim=dim, inputs=[pairs], outputs=[self.gradient.dx, self.gradient.dy, self.nonfinite], device=dev)
         return self.reconstructed()
 
 

@@ -93,7 +93,7 @@ from typing import Any
 import numpy as np
 import warp as wp
 
-from grisx.device import SHIFT_REGISTERS, specialized_module
+from grisx.device import launch, SHIFT_REGISTERS, specialized_module
 from grisx.params import Param
 from grisx.render.base.registry import RenderMethod, composed_direct, create_renderer, register, renderer_params
 from grisx.errors import InvalidParameterError
@@ -734,29 +734,29 @@ class ReSTIRPT(ScreenSpaceRenderer):
         self.domains.reverse()  # the previous frame's domains become "previous"
         dom, dom_prev = self.domains
         with self._phase("primary"):
-            wp.launch(k["primary"], dim=dim, inputs=[self.gbuffer.current], outputs=[dom, self.direct], device=dev)
+            launch(k["primary"], dim=dim, inputs=[self.gbuffer.current], outputs=[dom, self.direct], device=dev)
         history, cur, other = self.buffers
         with self._phase("initial"):
-            wp.launch(
+            launch(
                 k["initial"],
                 dim=dim,
                 inputs=[b.data, self.seed, int(frame), self.candidates, self.max_bounces, self.shift_params, 0.0, dom, self.kept_paths],
                 outputs=[cur],
                 device=dev,
             )
-            wp.launch(k["settle"], dim=dim, inputs=[b.data, self.shift_params, dom, self.kept_paths], outputs=[cur], device=dev)
+            launch(k["settle"], dim=dim, inputs=[b.data, self.shift_params, dom, self.kept_paths], outputs=[cur], device=dev)
         if self.temporal and self.frames_rendered > 0:
             with self._phase("temporal"):
                 g, g_prev = self.gbuffer.current, self.gbuffer.previous
                 scene_from_prev, scene_prev = b.across_frames()  # each domain in its own frame's scene
-                wp.launch(
+                launch(
                     k["temporal_canonical"],
                     dim=dim,
                     inputs=[scene_prev, self.shift_params, g, g_prev, dom, dom_prev, cur, history],
                     outputs=[other, self.history_pixel, self.target_cj, self.f_cj, self.jacobian_cj],
                     device=dev,
                 )
-                wp.launch(
+                launch(
                     k["temporal_merge"],
                     dim=dim,
                     inputs=[scene_from_prev, self.seed, int(frame), self.shift_params, self.history_cap, self.cv_options, g, g_prev, dom, cur, history,
@@ -768,14 +768,14 @@ class ReSTIRPT(ScreenSpaceRenderer):
         for rnd in range(self.spatial_rounds):
             with self._phase("spatial"):
                 nbs = self.spatial_domains
-                wp.launch(
+                launch(
                     k["spatial_canonical"],
                     dim=dim,
                     inputs=[b.data, self.seed, int(frame), rnd, self.neighbors, self.radius, self.shift_params, self.cv_options, self.gbuffer.current, dom, cur],
                     outputs=[other, nbs.codes, nbs.slots, nbs.count, self.m_canonical, self.f_cq, self.jacobian_cq],
                     device=dev,
                 )
-                wp.launch(
+                launch(
                     k["spatial_merge"],
                     dim=dim,
                     inputs=[b.data, self.seed, int(frame), rnd, self.shift_params, self.cv_options, self.gbuffer.current, dom, cur,
@@ -788,7 +788,7 @@ class ReSTIRPT(ScreenSpaceRenderer):
         if self.di is not None:
             direct = self.di.direct_light(frame)
         with self._phase("shade"):
-            wp.launch(k["shade"], dim=dim, inputs=[direct, cur], outputs=[self.image, self.nonfinite], device=dev)
+            launch(k["shade"], dim=dim, inputs=[direct, cur], outputs=[self.image, self.nonfinite], device=dev)
         self.buffers = [cur, history, other]  # this frame's reservoirs are the next frame's history
         self.frames_rendered += 1
         return self.image

@@ -76,7 +76,7 @@ from typing import Any
 import numpy as np
 import warp as wp
 
-from grisx.device import specialized_module
+from grisx.device import launch, specialized_module
 from grisx.errors import InvalidParameterError
 from grisx.params import Param
 from grisx.render.base.registry import RenderMethod, register, renderer_params
@@ -868,16 +868,16 @@ class BernoulliStage:
         active, m, done, side = self.order, n, int(first_trial), 0
         while m > 0 and done < self.cap:
             lanes = max(1, min(self.threads // m, max(done, self.MIN_LANES), self.cap - done))
-            wp.launch(k["trials_round"], dim=m * lanes, inputs=[spec, self.pending, prior_tiles, active, lanes, done],
+            launch(k["trials_round"], dim=m * lanes, inputs=[spec, self.pending, prior_tiles, active, lanes, done],
                       outputs=[self.hit, self.newton], device=dev)
             self.next_count.zero_()
-            wp.launch(k["trials_settle"], dim=m, inputs=[self.pending, active, lanes, done, self.hit, self.newton],
+            launch(k["trials_settle"], dim=m, inputs=[self.pending, active, lanes, done, self.hit, self.newton],
                       outputs=[self.newton_total, self.active[side], self.next_count], device=dev)
             active, side = self.active[side], 1 - side
             done += lanes
             self.rounds += 1
             m = int(self.next_count.numpy()[0])
-        wp.launch(k[finish], dim=n, inputs=[self.pending, prior_tiles, self.hit, self.newton_total], outputs=[stats, *outputs], device=dev)
+        launch(k[finish], dim=n, inputs=[self.pending, prior_tiles, self.hit, self.newton_total], outputs=[stats, *outputs], device=dev)
 
 
 class SMSRenderer(PathTracer):
@@ -962,14 +962,14 @@ class SMSRenderer(PathTracer):
         if not self.prior or not self.casters_host:
             return
         dev = self.built.device
-        wp.launch(
+        launch(
             self.kernels_["prior_walks"],
             dim=(self.blocks_y, self.blocks_x, self.presamples),
             inputs=[self.spec, cam, self.casters, self.seed, int(frame), self.block, self.tiles, self.blocks_x, self.prior_view_base],
             outputs=[self.prior_hits, self.stats],
             device=dev,
         )
-        wp.launch(
+        launch(
             self.kernels_["prior_sets"],
             dim=self.blocks_x * self.blocks_y,
             inputs=[len(self.casters_host), self.prior_hits],
@@ -1003,7 +1003,7 @@ class SMSRenderer(PathTracer):
             with self._timed("manifold_sampling"):
                 if self.trial_stage is not None:
                     self.trial_stage.begin()
-                wp.launch(self.kernels_["sample_pass"], dim=(self.height, self.width), inputs=[self.spec, p, self.samples, self.radiance, self.points],
+                launch(self.kernels_["sample_pass"], dim=(self.height, self.width), inputs=[self.spec, p, self.samples, self.radiance, self.points],
                           outputs=[self.total, self.total_sq, self.nonfinite], device=dev)
                 if self.trial_stage is not None:  # before the next pass overwrites the views
                     self.trial_stage.run(self.spec, self.prior_tiles, self.stats, self.inline_trials, "trials_shade", [self.total, self.total_sq, self.nonfinite])
@@ -1014,14 +1014,14 @@ class SMSRenderer(PathTracer):
     def camera_pass(self, p: SMSPass, sample: int) -> None:
         """The path tracer's sample ``sample`` of every pixel, without SMS's paths; x₁ into ``points``."""
         with self._timed("path_tracing"):
-            wp.launch(self.kernels_["camera_pass"], dim=(self.height, self.width), inputs=[self.spec, p, int(sample)],
+            launch(self.kernels_["camera_pass"], dim=(self.height, self.width), inputs=[self.spec, p, int(sample)],
                       outputs=[self.radiance, self.points], device=self.built.device)
 
     def render_frame(self, frame: int) -> wp.array:
         self.reset()
         self.add_samples(frame, self.spp)
         self.frames += 1
-        wp.launch(image_from_sum, dim=self.total.shape, inputs=[self.total, wp.float64(1.0 / max(self.samples, 1))], outputs=[self.image], device=self.built.device)
+        launch(image_from_sum, dim=self.total.shape, inputs=[self.total, wp.float64(1.0 / max(self.samples, 1))], outputs=[self.image], device=self.built.device)
         return self.image
 
     def statistics(self) -> dict[str, float]:
@@ -1067,9 +1067,9 @@ class SMSReSTIR(SMSRenderer):
         domain = [cam_prev, self.seed, int(frame), self.width, self.height, spatial, self.radius]
         buffers = [self.points, points_n, self.res[src], self.smp[src], self.res[nb], self.smp[nb]]
         # the two shifts of every pixel in threads of their own, then the merge (seed 003, Sec. 5.2)
-        wp.launch(self.kernels_["restir_shifts"], dim=(2, self.height, self.width), inputs=[self.spec, *domain, *buffers],
+        launch(self.kernels_["restir_shifts"], dim=(2, self.height, self.width), inputs=[self.spec, *domain, *buffers],
                   outputs=[self.carried, self.shifted], device=dev)
-        wp.launch(self.kernels_["restir_merge"], dim=(self.height, self.width), inputs=[*domain, self.history_cap, *buffers, self.carried, self.shifted],
+        launch(self.kernels_["restir_merge"], dim=(self.height, self.width), inputs=[*domain, self.history_cap, *buffers, self.carried, self.shifted],
                   outputs=[self.res[dst], self.smp[dst], self.stats], device=dev)
 
     def render_frame(self, frame: int) -> wp.array:
@@ -1083,7 +1083,7 @@ class SMSReSTIR(SMSRenderer):
         with self._timed("manifold_sampling"):
             if self.trial_stage is not None:
                 self.trial_stage.begin()
-            wp.launch(self.kernels_["restir_initial"], dim=(self.height, self.width), inputs=[self.spec, p, self.points],
+            launch(self.kernels_["restir_initial"], dim=(self.height, self.width), inputs=[self.spec, p, self.points],
                       outputs=[self.res[0], self.smp[0]], device=dev)
             if self.trial_stage is not None:
                 self.trial_stage.run(self.spec, self.prior_tiles, self.stats, self.inline_trials, "trials_reservoir", [self.res[0]])
@@ -1099,7 +1099,7 @@ class SMSReSTIR(SMSRenderer):
                 self._reuse(frame, 1, self.points, cur, cur, 2)
             cur = 2
         with self._timed("shade"):
-            wp.launch(self.kernels_["restir_shade"], dim=(self.height, self.width),
+            launch(self.kernels_["restir_shade"], dim=(self.height, self.width),
                       inputs=[self.spec, self.width, self.radiance, self.points, self.res[cur], self.smp[cur]],
                       outputs=[self.total, self.total_sq, self.nonfinite], device=dev)
             wp.copy(self.res[3], self.res[cur])
@@ -1108,7 +1108,7 @@ class SMSReSTIR(SMSRenderer):
         self.history = True
         self.samples = 1
         self.frames += 1
-        wp.launch(image_from_sum, dim=self.total.shape, inputs=[self.total, wp.float64(1.0)], outputs=[self.image], device=dev)
+        launch(image_from_sum, dim=self.total.shape, inputs=[self.total, wp.float64(1.0)], outputs=[self.image], device=dev)
         return self.image
 
 

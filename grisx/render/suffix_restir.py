@@ -136,7 +136,7 @@ from typing import Any
 import numpy as np
 import warp as wp
 
-from grisx.device import SHIFT_REGISTERS, specialized_module
+from grisx.device import launch, SHIFT_REGISTERS, specialized_module
 from grisx.errors import InvalidParameterError
 from grisx.params import Param
 from grisx.render.base.path_shift import (
@@ -1157,12 +1157,12 @@ class SuffixReSTIR(ScreenSpaceRenderer):
         self.domains.reverse()
         dom, dom_prev = self.domains
         with self._phase("primary"):
-            wp.launch(k["primary"], dim=dim, inputs=[self.gbuffer.current], outputs=[dom, self.direct], device=dev)
+            launch(k["primary"], dim=dim, inputs=[self.gbuffer.current], outputs=[dom, self.direct], device=dev)
         history, cur, other = self.buffers
         if self.reuses:
             with self._phase("support"):
                 history_valid = self.temporal and self.frames_rendered > 0
-                wp.launch(
+                launch(
                     k[self._support_prefix],
                     dim=dim,
                     inputs=[
@@ -1172,9 +1172,9 @@ class SuffixReSTIR(ScreenSpaceRenderer):
                     outputs=[cur, self.temporal_src],
                     device=dev,
                 )
-                wp.launch(k["support_suffix"], dim=dim, inputs=[self.spec, self.seed, int(frame), self.suffix_kept], outputs=[cur], device=dev)
+                launch(k["support_suffix"], dim=dim, inputs=[self.spec, self.seed, int(frame), self.suffix_kept], outputs=[cur], device=dev)
                 if history_valid:
-                    wp.launch(
+                    launch(
                         k["support_temporal"],
                         dim=dim,
                         inputs=[self.spec, self.seed, int(frame), self.history_cap, history, self.temporal_src, self.rows["temporal"]],
@@ -1183,7 +1183,7 @@ class SuffixReSTIR(ScreenSpaceRenderer):
                     )
             if self.spatial and self.neighbors > 0:
                 with self._phase("spatial"):
-                    wp.launch(
+                    launch(
                         k["spatial"],
                         dim=dim,
                         inputs=[self.spec, self.seed, int(frame), self.neighbors, self.radius, self.history_cap, self.gbuffer.current, dom, cur, self.rows["spatial"]],
@@ -1192,17 +1192,17 @@ class SuffixReSTIR(ScreenSpaceRenderer):
                     )
                 cur, other = other, cur
             with self._phase("grid"):
-                wp.launch(k["points"], dim=dim, inputs=[cur], outputs=[self.points], device=dev)
+                launch(k["points"], dim=dim, inputs=[cur], outputs=[self.points], device=dev)
                 self.grid.build(self.points, 2.0 * self.grid_radius)  # cells of 2 radii: see hash_grid_dims
         if self.suffixes > 0:
             with self._phase("own_suffixes"):
-                wp.launch(k["own"], dim=dim, inputs=[self.spec, self.seed, int(frame), dom, self.suffix_kept], outputs=[self.own_z, self.own_x, self.own_res], device=dev)
+                launch(k["own"], dim=dim, inputs=[self.spec, self.seed, int(frame), dom, self.suffix_kept], outputs=[self.own_z, self.own_x, self.own_res], device=dev)
         direct = self.direct  # emission seen at x₁; with ReSTIR DI, emission and direct light
         if self.di is not None:
             direct = self.di.direct_light(frame)
         with self._phase("gather"):
             for j in range(self.prefixes):
-                wp.launch(
+                launch(
                     k["gather_prefix"],
                     dim=dim,
                     inputs=[
@@ -1213,21 +1213,21 @@ class SuffixReSTIR(ScreenSpaceRenderer):
                     outputs=[self.accum],
                     device=dev,
                 )
-                wp.launch(
+                launch(
                     k["gather_suffix"],
                     dim=dim,
                     inputs=[self.spec, self.seed, int(frame), j, self.prefixes, self.suffixes, self.kept, int(self.canonical), self.width, self.rows["gather"],
                             self.suffix_kept],
                     device=dev,
                 )
-                wp.launch(
+                launch(
                     k["gather_mis"],
                     dim=dim,
                     inputs=[self.spec, self.seed, int(frame), j, self.prefixes, self.suffixes, self.kept, int(self.canonical), self.mis_mode, self.rows["gather"]],
                     outputs=[self.accum],
                     device=dev,
                 )
-            wp.launch(k["gather_finish"], dim=dim, inputs=[self.accum], outputs=[self.image, self.nonfinite], device=dev)
+            launch(k["gather_finish"], dim=dim, inputs=[self.accum], outputs=[self.image, self.nonfinite], device=dev)
         self.buffers = [cur, history, other]
         self.frames_rendered += 1
         return self.image

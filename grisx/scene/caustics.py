@@ -88,6 +88,7 @@ from typing import Any
 import numpy as np
 import warp as wp
 
+from grisx.device import launch
 from grisx.scene.bsdf import make_bsdf
 from grisx.scene.frame import frame_from_normal, to_local, to_world
 from grisx.scene.material import MATERIAL_BUMPMAP, MATERIAL_DIELECTRIC, MATERIAL_NORMALMAP, Material
@@ -665,7 +666,7 @@ def solve_chains(
         "jacobian": wp.zeros(n, dtype=wp.mat22, device=dev),
         "geometry": wp.zeros(n, dtype=float, device=dev),
     }
-    wp.launch(funcs.probe, dim=n, inputs=[spec, wp.array(seeds, dtype=wp.vec2, device=dev), int(max_iterations)],
+    launch(funcs.probe, dim=n, inputs=[spec, wp.array(seeds, dtype=wp.vec2, device=dev), int(max_iterations)],
               outputs=[out["u"], out["converged"], out["vertices"], out["c"], out["jacobian"], out["geometry"]], device=dev)
     return {k: v.numpy() for k, v in out.items()}
 
@@ -691,5 +692,5 @@ def sms_estimates(
     funcs = make_caustics(built.features.kernel_kinds)
     out = wp.zeros(int(n), dtype=float, device=dev)
     prior = wp.zeros(1, dtype=int, device=dev)
-    wp.launch(funcs.estimate, dim=int(n), inputs=[spec, int(tiles), int(max_trials), int(seed), prior], outputs=[out], device=dev)
+    launch(funcs.estimate, dim=int(n), inputs=[spec, int(tiles), int(max_trials), int(seed), prior], outputs=[out], device=dev)
     return out.numpy()

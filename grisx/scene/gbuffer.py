@@ -28,7 +28,7 @@ from typing import Any
 
 import warp as wp
 
-from grisx.device import specialized_module
+from grisx.device import launch, specialized_module
 from grisx.scene.bsdf import make_bsdf
 from grisx.scene.camera import CameraData, camera_project, camera_ray, camera_sample_key, sample_camera
 from grisx.scene.lights import make_lights
@@ -193,7 +193,7 @@ class GBuffer:
         kernel = self.kernel(built)
         cam = built.camera_data(frame, self.width, self.height)
         cam_prev = built.camera_data(frame - 1.0, self.width, self.height)
-        wp.launch(
+        launch(
             kernel,
             dim=(self.height, self.width),
             inputs=[

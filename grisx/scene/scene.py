@@ -39,7 +39,7 @@ from typing import Any, NamedTuple
 import numpy as np
 import warp as wp
 
-from grisx.device import resolve_device
+from grisx.device import launch, resolve_device
 from grisx.errors import InvalidParameterError, InvalidValueError
 from grisx.scene.analytic import (
     SHAPE_KIND_NAMES,
@@ -1407,7 +1407,7 @@ class BuiltScene:
         """Move the frame-0 geometry by ``transforms`` (per object) into one frame's vertices, centres and BVH."""
         moved_centers = np.einsum("nij,nj->ni", transforms[:, :3, :3], self._object_centers) + transforms[:, :3, 3]
         centers.assign(moved_centers.astype(np.float32))
-        wp.launch(
+        launch(
             _move_vertices,
             dim=self.num_vertices,
             inputs=[self.base_positions, self.base_normals, self.vertex_object, device_transforms],

@@ -39,7 +39,7 @@ from typing import Any
 import numpy as np
 import warp as wp
 
-from grisx.device import specialized_module
+from grisx.device import launch, specialized_module
 from grisx.errors import InvalidParameterError
 from grisx.render.base.area import FilmSample, make_area_domain
 from grisx.render.base.path_shift import PathReservoir, ShiftParams, make_path_shift, path_target
@@ -196,7 +196,7 @@ class GradientFrame:
 
     def gradients(self, kernels: dict[str, Any]) -> None:
         """dx and dy from the pixels' parts (after the last ``gradient`` pass of the frame)."""
-        wp.launch(kernels["combine"], dim=self.dx.shape, inputs=[self.halves], outputs=[self.dx, self.dy], device=self.device)
+        launch(kernels["combine"], dim=self.dx.shape, inputs=[self.halves], outputs=[self.dx, self.dy], device=self.device)
 
     def extra(self) -> dict[str, np.ndarray]:
         """The last frame's primal, dx and dy (the render CLI writes them as EXRs beside the image)."""

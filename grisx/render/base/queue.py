@@ -18,6 +18,7 @@ from typing import Any
 
 import warp as wp
 
+from grisx.device import launch
 from grisx.errors import InvalidParameterError
 
 wp.set_module_options({"enable_backward": False})
@@ -59,5 +60,5 @@ class WorkQueue:
             return 0
         flat = flat[:n]
         wp.utils.array_scan(flat, self.offsets[:n], inclusive=False)
-        wp.launch(enqueue, dim=n, inputs=[flat, self.offsets], outputs=[self.items, self.count], device=self.device)
+        launch(enqueue, dim=n, inputs=[flat, self.offsets], outputs=[self.items, self.count], device=self.device)
         return int(self.count.numpy()[0])
