@@ -5,13 +5,19 @@ What users of a real-time renderer see is a **single frame**, jittered (a
 new camera sample per pixel and frame), under a static or a moving camera.
 So the protocol measures, per scene, camera and method:
 
-* **frame time** (protocol v2): the median and quartiles of the frames after
-  the first (32 frames by default) of each frame's device time, as
+* **frame time** (protocol v2): the median and quartiles, over the frames whose
+  error is measured (the second half of the run; 32 frames by default), of
+  each frame's device time, as
   :func:`grisx.render.driver.render` reports it in ``frame_seconds``: the
   device synchronized before the frame and after its last pass, the host copy
   of the image off the clock, for every method, ``pt`` included (protocol v1
   timed ``pt`` with each frame's copy to the host: its gains were inflated);
-  ``pt_spp`` is the method's frame time over pt's at 1 spp;
+  ``pt_spp`` is the method's frame time over pt's at 1 spp. The frames timed
+  are the frames evaluated because a reuse method's frame is not steady while
+  its reservoirs fill: ReSTIR GI's grows by a fifth between frames 16 and 64 of
+  door-ajar (benchmarks/README.md, "ReSTIR GI's frame grows as its reservoirs
+  fill"); until the nineteenth session the protocol timed every frame after
+  the first (``frame_seconds_all`` keeps that median);
 * **per-frame relMSE** (ε = 1e-2, :func:`grisx.eval.metrics.relmse`) of the
   frames in the second half of the run (history warmed up), each against a
   path-traced reference *at that frame's camera* with the method's own
@@ -123,7 +129,8 @@ def reference_relmse(ref: np.ndarray, var: np.ndarray, eps: float) -> float:
 
 def render_frames(scene: str, method: str, params: dict[str, Any], spp: int | None, camera: str, args: argparse.Namespace,
                   eval_frames: list[int]) -> tuple[dict[int, np.ndarray], dict[str, float], Any]:
-    """Render ``args.frames`` frames; keep the ``eval_frames`` images; frame time statistics after the first frame.
+    """Render ``args.frames`` frames; keep the ``eval_frames`` images; frame time statistics over the frames from the first
+    evaluated one on (and ``median_all``: every frame after the first).
 
     Time is :attr:`~grisx.render.driver.RenderResult.frame_seconds`: each frame's device time
     (synchronized before and after, the host copy of the image excluded), the same clock for
@@ -139,14 +146,17 @@ def render_frames(scene: str, method: str, params: dict[str, Any], spp: int | No
 
     r = render(scene, method, spp=spp, frames=args.frames, res=args.res, device=args.device, seed=args.seed, params=params,
                camera="path" if camera == "moving" else "static", on_frame=on_frame)
-    return kept, frame_time(r.frame_seconds), r
+    return kept, frame_time(r.frame_seconds, min(eval_frames)), r
 
 
-def frame_time(frame_seconds: list[float]) -> dict[str, float]:
-    """Median and quartiles of the frames after the first (its history is empty; compilation is off the clock anyway)."""
-    t = np.asarray(frame_seconds[1:] if len(frame_seconds) > 1 else frame_seconds, dtype=np.float64)
+def frame_time(frame_seconds: list[float], first: int = 1) -> dict[str, float]:
+    """Median and quartiles of frames ``first``, ``first`` + 1, … (never frame 0: its history is empty), and the median of
+    every frame after the first (``median_all``, the window of earlier runs)."""
+    s = np.asarray(frame_seconds, dtype=np.float64)
+    t = s[max(1, min(first, s.size - 1)):] if s.size > 1 else s
     q25, q50, q75 = np.percentile(t, [25, 50, 75])
-    return {"median": float(q50), "q25": float(q25), "q75": float(q75), "frames_timed": int(t.size)}
+    return {"median": float(q50), "q25": float(q25), "q75": float(q75), "frames_timed": int(t.size),
+            "median_all": float(np.median(s[1:] if s.size > 1 else s))}
 
 
 def frame_relmse(kept: dict[int, np.ndarray], ref_for: Any, depth: int) -> float:
@@ -199,7 +209,8 @@ def run_scene(scene: str, args: argparse.Namespace) -> list[dict[str, Any]]:
             rec = {"scene": scene, "camera": camera, "method": label, "renderer": method, "params": {k: str(v) for k, v in p.items()},
                    "max_depth": depth, "width": width, "height": height, "frames": frames, "eval_frames": sorted(kept),
                    "frame_seconds": seconds, "frame_seconds_q25": timing["q25"], "frame_seconds_q75": timing["q75"],
-                   "frames_timed": timing["frames_timed"], "frame_relmse": frame_relmse(kept, ref_for, depth),
+                   "frames_timed": timing["frames_timed"], "frame_seconds_all": timing["median_all"],
+                   "frame_relmse": frame_relmse(kept, ref_for, depth),
                    "frame_mape": frame_metric("mape", kept, ref_for, depth), "frame_chroma": frame_metric("chroma", kept, ref_for, depth),
                    "nonfinite_samples": r.settings.get("nonfinite_samples", 0)}
             if method == "pt" and depth not in baseline:
@@ -246,6 +257,7 @@ def _pt_row(scene: str, camera: str, depth: int, args: argparse.Namespace, eval_
     return {"scene": scene, "camera": camera, "method": f"pt (max_depth {depth})", "renderer": "pt", "params": {"max_depth": str(depth)},
             "max_depth": depth, "width": args.res[0], "height": args.res[1], "frames": args.frames, "eval_frames": sorted(kept),
             "frame_seconds": sec, "frame_seconds_q25": timing["q25"], "frame_seconds_q75": timing["q75"], "frames_timed": timing["frames_timed"],
+            "frame_seconds_all": timing["median_all"],
             "frame_relmse": frame_relmse(kept, ref_for, depth), "gain": 1.0, "pt_spp": 1.0}
 
 
@@ -283,7 +295,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--scenes", default=None, help=f"comma-separated scenes (default: {','.join(SCENES)})")
     ap.add_argument("--methods", default=",".join(METHODS), help="comma-separated label=method:k=v entries (pt first: the baseline)")
     ap.add_argument("--res", default=None, help="WxH (default 1920x1080 on CUDA, 64x36 on CPU)")
-    ap.add_argument("--frames", type=int, default=32, help="frames per run (the second half is evaluated; all but the first timed)")
+    ap.add_argument("--frames", type=int, default=32, help="frames per run (the second half is evaluated and timed)")
     ap.add_argument("--reference-spp", type=int, default=None, help="spp of each reference (default 1024 on CUDA, 256 on CPU)")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--reference-cache", type=Path, default=None,
