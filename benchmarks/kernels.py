@@ -218,18 +218,19 @@ def launch_seconds(name: Callable[[Any], str]) -> Iterator[dict[str, float]]:
 
 
 def time_method(method: str, params: dict[str, Any], args: argparse.Namespace) -> dict[str, Any]:
-    """ms per frame of each phase (pass timer) and of each kernel (synchronised launches), first frame not counted."""
+    """ms per frame of each phase (pass timer) and of each kernel (synchronised launches) over ``args.frames`` frames after
+    the first ``args.warmup`` (1: the first frame, which has no history; more for a reuse method's steady state)."""
     from grisx.render.driver import render
 
     res = tuple(args.res)
-    n = args.frames
-    one = render(**render_kwargs(method, params, args, res=res, frames=1))
-    many = render(**render_kwargs(method, params, args, res=res, frames=1 + n))
+    n, w = args.frames, max(1, args.warmup)
+    one = render(**render_kwargs(method, params, args, res=res, frames=w))
+    many = render(**render_kwargs(method, params, args, res=res, frames=w + n))
     phases = {k: 1e3 * (v - one.pass_seconds.get(k, 0.0)) / n for k, v in many.pass_seconds.items()}
 
-    with launch_seconds(lambda kernel: f"{kernel.module.name} {unhashed(kernel.get_mangled_name())}") as seconds:  # frame 1 (no history) dropped
-        render(**render_kwargs(method, params, args, res=res, frames=1 + n, progress=lambda i, _: i == 1 and seconds.clear()))
-    return {"frame_ms": 1e3 * statistics.median(many.frame_seconds[1:]), "phase_ms": phases,
+    with launch_seconds(lambda kernel: f"{kernel.module.name} {unhashed(kernel.get_mangled_name())}") as seconds:  # the warm-up dropped
+        render(**render_kwargs(method, params, args, res=res, frames=w + n, progress=lambda i, _: i == w and seconds.clear()))
+    return {"frame_ms": 1e3 * statistics.median(many.frame_seconds[w:]), "phase_ms": phases,
             "kernel_ms": {k: 1e3 * v / n for k, v in seconds.items()}}
 
 
@@ -379,6 +380,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--methods", default=None, help="comma-separated labels (default: all of " + ", ".join(v[0] for v in VARIANTS) + "; on request: " + ", ".join(v[0] for v in EXTRA_VARIANTS) + ")")
     ap.add_argument("--res", type=int, nargs=2, default=(1920, 1080), metavar=("W", "H"), help="timing resolution (CUDA)")
     ap.add_argument("--frames", type=int, default=None, help="timed frames after the first (default 32 on CUDA, 0 = no timing on CPU)")
+    ap.add_argument("--warmup", type=int, default=1, help="frames rendered before the timed ones (default 1; ReSTIR GI's frame grows "
+                    "for some 64 frames: benchmarks/README.md, \"ReSTIR GI's frame grows as its reservoirs fill\")")
     ap.add_argument("--camera", default="static", choices=("static", "path"),
                     help="timing camera: still, or the scene's moving path (the temporal shifts of a still camera can be the identity)")
     ap.add_argument("--arch", type=int, default=90, help="CUDA compute capability of the resource numbers (90: H100/H200)")
@@ -413,7 +416,7 @@ def main(argv: list[str] | None = None) -> int:
     path = args.out / f"{kind}_{'cuda' if dev.is_cuda else 'cpu'}{camera}.json"
     result = {"benchmark": kind, **environment(args, dev), "methods": {}}
     if kind == "kernels":
-        result.update(res=list(args.res), frames=args.frames, camera=args.camera)
+        result.update(res=list(args.res), frames=args.frames, warmup=args.warmup, camera=args.camera)
     if path.exists():  # a run split over several calls fills one file
         earlier = json.loads(path.read_text())
         if earlier.get("scene") == args.scene:
