@@ -37,7 +37,7 @@ import numpy as np
 import warp as wp
 
 from grisx.render.base.screen import kernel_cache
-from grisx.device import launch, PATH_REGISTERS, specialized_module
+from grisx.device import PATH_REGISTERS, launch, specialized_module
 from grisx.render.base.trace import STRATEGIES, make_trace_path, no_first_hit
 from grisx.params import Param
 from grisx.render.base.registry import RenderMethod, register, renderer_params

@@ -219,7 +219,7 @@ from typing import Any
 
 import warp as wp
 
-from grisx.device import launch, PATH_REGISTERS, specialized_module
+from grisx.device import PATH_REGISTERS, launch, specialized_module
 from grisx.params import Param
 from grisx.render.base.registry import RenderMethod, composed_direct, create_renderer, register, renderer_params
 from grisx.scene.bsdf import MATERIAL_ROUGH_DIELECTRIC, cosine_hemisphere_pdf, make_bsdf, sample_cosine_hemisphere

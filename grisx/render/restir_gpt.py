@@ -87,7 +87,7 @@ from typing import Any
 
 import warp as wp
 
-from grisx.device import launch, SHIFT_REGISTERS, specialized_module
+from grisx.device import SHIFT_REGISTERS, launch, specialized_module
 from grisx.errors import InvalidParameterError
 from grisx.params import Param
 from grisx.render.base.area import FilmSample, film_onto_itself, film_translate_wrapped, make_area_domain, temporal_film_offset

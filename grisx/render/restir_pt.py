@@ -93,7 +93,7 @@ from typing import Any
 import numpy as np
 import warp as wp
 
-from grisx.device import launch, SHIFT_REGISTERS, specialized_module
+from grisx.device import SHIFT_REGISTERS, launch, specialized_module
 from grisx.params import Param
 from grisx.render.base.registry import RenderMethod, composed_direct, create_renderer, register, renderer_params
 from grisx.errors import InvalidParameterError

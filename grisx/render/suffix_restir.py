@@ -136,7 +136,7 @@ from typing import Any
 import numpy as np
 import warp as wp
 
-from grisx.device import launch, SHIFT_REGISTERS, specialized_module
+from grisx.device import SHIFT_REGISTERS, launch, specialized_module
 from grisx.errors import InvalidParameterError
 from grisx.params import Param
 from grisx.render.base.path_shift import (
