@@ -111,6 +111,7 @@ from grisx.render.base.reuse import (
     SIMILARITY_DEPTH,
     SIMILARITY_NORMAL_COS,
     DoubleBuffer,
+    NeighborPixel,
     pixels_similar,
     spatial_neighbor,
     temporal_neighbor,
@@ -522,45 +523,53 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
         r_c = res_in[y, x]
         y_c = lp_in[y, x]
         si = sf.si[y, x]
-        res_out[y, x] = r_c
-        lp_out[y, x] = y_c
-        est_out[y, x] = est_in[y, x]
-        if si.valid == 0:
-            return
-        tn = temporal_neighbor(sf.g, sf.g_prev, x, y, normal_cos, depth_tol)
-        if tn.valid == 0:
-            return
-        wo = sf.wo[y, x]
-        si_p = sf.si_prev[tn.y, tn.x]
-        wo_p = sf.wo_prev[tn.y, tn.x]
-        r_p = res_prev[tn.y, tn.x]
-        y_p = lp_prev[tn.y, tn.x]
-        r_p.confidence = confidence_capped(r_p.confidence, history_cap)
-        # ---- pairwise MIS between the fresh (canonical) reservoir and the history ----
-        step = pairwise_step(
-            scene, scene_prev, reservoir_empty(), si, surface_material(scene, si), frame_from_normal(si.ns), wo, r_c, y_c, si_p, wo_p, r_p,
-            y_p, 1, r_c.confidence + r_p.confidence, unbiased,
-            random_uniform(key, 1)
-        )
-        sel = light_point_none()
-        if step.res.selected:
-            sel = y_p
-        out = reservoir_merge(step.res, r_c, step.canonical, r_c.target, 1.0, random_uniform(key, 0))
-        if out.selected:
-            sel = y_c
-        res_out[y, x] = reservoir_finalize(out)
-        lp_out[y, x] = sel
+        # each output written once, at the end (the fresh reservoir where there is no history); the estimate only by
+        # ReSTCV's variant, the one that reads it
+        r_out = r_c
+        lp_sel = y_c
+        est = wp.vec3(0.0, 0.0, 0.0)
         if wp.static(cv):
-            if o.temporal != 0:
-                # ---- ReSTCV: ⟨Ḋ_i⟩ = (q_init ⟨Ḋ_i⟩_init + q_j ⟨Ḋ_i⟩_{←j}) / (q_init + q_j) (seed 002, Eq. 6–7) ----
-                aux_c = own_aux(scene, si, wo, r_c, y_c)
-                est_j = est_prev[tn.y, tn.x]
-                alpha = cv_alpha_or_sample(o.alpha, sf.g.albedo[y, x], sf.g_prev.albedo[tn.y, tn.x], aux_c * r_c.ucw, est_j)
-                from_j = cv_from_pixel(  # light samples move by the identity: |J| = 1 (module docstring, "Measure")
-                    r_c, r_p, est_j, aux_c, step.aux_n_of_c, own_aux(scene_prev, si_p, wo_p, r_p, y_p), step.aux_c_of_n, 1.0, 1.0, alpha, o.difference_mis
-                )
-                c = cv_composite_add(cv_composite_empty(), est_in[y, x], Q_INIT)
-                est_out[y, x] = cv_composite_value(cv_composite_add(c, from_j, compositing_weight(r_p.confidence)))
+            est = est_in[y, x]
+        tn = NeighborPixel()
+        tn.valid = 0
+        if si.valid != 0:
+            tn = temporal_neighbor(sf.g, sf.g_prev, x, y, normal_cos, depth_tol)
+        if tn.valid != 0:
+            wo = sf.wo[y, x]
+            si_p = sf.si_prev[tn.y, tn.x]
+            wo_p = sf.wo_prev[tn.y, tn.x]
+            r_p = res_prev[tn.y, tn.x]
+            y_p = lp_prev[tn.y, tn.x]
+            r_p.confidence = confidence_capped(r_p.confidence, history_cap)
+            # ---- pairwise MIS between the fresh (canonical) reservoir and the history ----
+            step = pairwise_step(
+                scene, scene_prev, reservoir_empty(), si, surface_material(scene, si), frame_from_normal(si.ns), wo, r_c, y_c, si_p, wo_p, r_p,
+                y_p, 1, r_c.confidence + r_p.confidence, unbiased,
+                random_uniform(key, 1)
+            )
+            sel = light_point_none()
+            if step.res.selected:
+                sel = y_p
+            out = reservoir_merge(step.res, r_c, step.canonical, r_c.target, 1.0, random_uniform(key, 0))
+            if out.selected:
+                sel = y_c
+            r_out = reservoir_finalize(out)
+            lp_sel = sel
+            if wp.static(cv):
+                if o.temporal != 0:
+                    # ---- ReSTCV: ⟨Ḋ_i⟩ = (q_init ⟨Ḋ_i⟩_init + q_j ⟨Ḋ_i⟩_{←j}) / (q_init + q_j) (seed 002, Eq. 6–7) ----
+                    aux_c = own_aux(scene, si, wo, r_c, y_c)
+                    est_j = est_prev[tn.y, tn.x]
+                    alpha = cv_alpha_or_sample(o.alpha, sf.g.albedo[y, x], sf.g_prev.albedo[tn.y, tn.x], aux_c * r_c.ucw, est_j)
+                    from_j = cv_from_pixel(  # light samples move by the identity: |J| = 1 (module docstring, "Measure")
+                        r_c, r_p, est_j, aux_c, step.aux_n_of_c, own_aux(scene_prev, si_p, wo_p, r_p, y_p), step.aux_c_of_n, 1.0, 1.0, alpha, o.difference_mis
+                    )
+                    c = cv_composite_add(cv_composite_empty(), est, Q_INIT)
+                    est = cv_composite_value(cv_composite_add(c, from_j, compositing_weight(r_p.confidence)))
+        res_out[y, x] = r_out
+        lp_out[y, x] = lp_sel
+        if wp.static(cv):
+            est_out[y, x] = est
 
     @wp.kernel(module=module)
     def spatial_pass(
@@ -589,65 +598,72 @@ def build_restir_di_kernels(kinds: frozenset[int], cv: bool) -> Any:
         r_c = res_in[y, x]
         y_c = lp_in[y, x]
         si = sf.si[y, x]
-        res_out[y, x] = r_c
-        lp_out[y, x] = y_c
-        est_out[y, x] = est_in[y, x]
-        if si.valid == 0:
-            return
-        wo = sf.wo[y, x]
+        # each output written once, at the end (the input reservoir where nothing is resampled); the estimate only by
+        # ReSTCV's variant, the one that reads it
+        r_out = r_c
+        lp_sel = y_c
+        est = wp.vec3(0.0, 0.0, 0.0)
+        if wp.static(cv):
+            est = est_in[y, x]
         # ---- choose the neighbours (similar G-buffer only), drawn once into a DomainList (global memory,
         # not a per-thread array); k counts the accepted ones ----
         total = r_c.confidence
         k = int(0)
-        for i in range(wp.min(neighbors, codes.shape[2])):
-            nb = spatial_neighbor(x, y, width, height, radius, wp.vec2(random_uniform(key, 4 * i), random_uniform(key, 4 * i + 1)))
-            if nb.valid != 0 and pixels_similar(sf.g, x, y, sf.g, nb.x, nb.y, normal_cos, depth_tol):
-                codes[y, x, k] = domain_code(nb.x, nb.y, width, 0)
-                slots[y, x, k] = i
-                k += 1
-                total += confidence_capped(res_in[nb.y, nb.x].confidence, history_cap)
-        if k == 0:
-            return
-        # ---- merge each neighbour with its pairwise MIS weight; collect the canonical weight ----
-        out = reservoir_empty()
-        sel = light_point_none()
-        m_c = float(0.0)
-        # ReSTCV: Eq. 8's composite starts with ⟨Ḋ_i⟩_{←i} = ⟨Ḋ_i⟩, q_i = M_i ≤ 20 (seed 002)
-        composite = cv_composite_add(cv_composite_empty(), est_in[y, x], compositing_weight(r_c.confidence))
-        aux_c = wp.vec3(0.0, 0.0, 0.0)
-        if wp.static(cv):
-            aux_c = own_aux(scene, si, wo, r_c, y_c)
-        m_si = surface_material(scene, si)  # the canonical point's, once for its k neighbours
-        frame_si = frame_from_normal(si.ns)
-        for j in range(k):
-            nb = domain_pixel(codes[y, x, j], width)
-            r_n = res_in[nb.y, nb.x]
-            y_n = lp_in[nb.y, nb.x]
-            r_n.confidence = confidence_capped(r_n.confidence, history_cap)
-            si_n = sf.si[nb.y, nb.x]
-            wo_n = sf.wo[nb.y, nb.x]
-            step = pairwise_step(scene, scene, out, si, m_si, frame_si, wo, r_c, y_c, si_n, wo_n, r_n, y_n, k, total, unbiased,
-                                 random_uniform(key, 4 * slots[y, x, j] + 2))
-            out = step.res
-            m_c += step.canonical
-            if out.selected:
-                sel = y_n
+        if si.valid != 0:
+            for i in range(wp.min(neighbors, codes.shape[2])):
+                nb = spatial_neighbor(x, y, width, height, radius, wp.vec2(random_uniform(key, 4 * i), random_uniform(key, 4 * i + 1)))
+                if nb.valid != 0 and pixels_similar(sf.g, x, y, sf.g, nb.x, nb.y, normal_cos, depth_tol):
+                    codes[y, x, k] = domain_code(nb.x, nb.y, width, 0)
+                    slots[y, x, k] = i
+                    k += 1
+                    total += confidence_capped(res_in[nb.y, nb.x].confidence, history_cap)
+        if k > 0:
+            wo = sf.wo[y, x]
+            # ---- merge each neighbour with its pairwise MIS weight; collect the canonical weight ----
+            out = reservoir_empty()
+            sel = light_point_none()
+            m_c = float(0.0)
+            # ReSTCV: Eq. 8's composite starts with ⟨Ḋ_i⟩_{←i} = ⟨Ḋ_i⟩, q_i = M_i ≤ 20 (seed 002)
+            composite = cv_composite_add(cv_composite_empty(), est, compositing_weight(r_c.confidence))
+            aux_c = wp.vec3(0.0, 0.0, 0.0)
             if wp.static(cv):
-                if o.spatial != 0:
-                    # ---- ReSTCV: + q_n ⟨Ḋ_i⟩_{←n} from the targets the pairwise MIS just evaluated (Eq. 7–8, 10–11) ----
-                    est_n = est_in[nb.y, nb.x]
-                    alpha = cv_alpha_or_sample(o.alpha, sf.g.albedo[y, x], sf.g.albedo[nb.y, nb.x], aux_c * r_c.ucw, est_n)
-                    from_n = cv_from_pixel(
-                        r_c, r_n, est_n, aux_c, step.aux_n_of_c, own_aux(scene, si_n, wo_n, r_n, y_n), step.aux_c_of_n, 1.0, 1.0, alpha, o.difference_mis
-                    )
-                    composite = cv_composite_add(composite, from_n, compositing_weight(r_n.confidence))
-        out = reservoir_merge(out, r_c, m_c, r_c.target, 1.0, random_uniform(key, 4 * neighbors))
-        if out.selected:
-            sel = y_c
-        res_out[y, x] = reservoir_finalize(out)
-        lp_out[y, x] = sel
+                aux_c = own_aux(scene, si, wo, r_c, y_c)
+            m_si = surface_material(scene, si)  # the canonical point's, once for its k neighbours
+            frame_si = frame_from_normal(si.ns)
+            for j in range(k):
+                nb = domain_pixel(codes[y, x, j], width)
+                r_n = res_in[nb.y, nb.x]
+                y_n = lp_in[nb.y, nb.x]
+                r_n.confidence = confidence_capped(r_n.confidence, history_cap)
+                si_n = sf.si[nb.y, nb.x]
+                wo_n = sf.wo[nb.y, nb.x]
+                step = pairwise_step(scene, scene, out, si, m_si, frame_si, wo, r_c, y_c, si_n, wo_n, r_n, y_n, k, total, unbiased,
+                                     random_uniform(key, 4 * slots[y, x, j] + 2))
+                out = step.res
+                m_c += step.canonical
+                if out.selected:
+                    sel = y_n
+                if wp.static(cv):
+                    if o.spatial != 0:
+                        # ---- ReSTCV: + q_n ⟨Ḋ_i⟩_{←n} from the targets the pairwise MIS just evaluated (Eq. 7–8, 10–11) ----
+                        est_n = est_in[nb.y, nb.x]
+                        alpha = cv_alpha_or_sample(o.alpha, sf.g.albedo[y, x], sf.g.albedo[nb.y, nb.x], aux_c * r_c.ucw, est_n)
+                        from_n = cv_from_pixel(
+                            r_c, r_n, est_n, aux_c, step.aux_n_of_c, own_aux(scene, si_n, wo_n, r_n, y_n), step.aux_c_of_n, 1.0, 1.0, alpha,
+                            o.difference_mis
+                        )
+                        composite = cv_composite_add(composite, from_n, compositing_weight(r_n.confidence))
+            out = reservoir_merge(out, r_c, m_c, r_c.target, 1.0, random_uniform(key, 4 * neighbors))
+            if out.selected:
+                sel = y_c
+            r_out = reservoir_finalize(out)
+            lp_sel = sel
+            if wp.static(cv):
+                est = cv_composite_value(composite)
+        res_out[y, x] = r_out
+        lp_out[y, x] = lp_sel
         if wp.static(cv):
-            est_out[y, x] = cv_composite_value(composite)
+            est_out[y, x] = est
 
     @wp.kernel(module=module)
     def shade_pass(
