@@ -660,33 +660,32 @@ def make_sms_kernels(kinds: frozenset[int], chain: int) -> dict[str, Any]:
         y, x = wp.tid()
         q = y * width + x
         pixels = width * height
-        res_out[q] = res[q]
-        samples_out[q] = samples[q]
-        if points[q].valid == 0:
-            return
-        key = random_subkey(sample_key(seed, frame, q, 0), 10 + spatial)
-        nb = reuse_domain(cam_prev, seed, frame, width, height, spatial, radius, points, points_n, q)
-        absent = reuse_neighbor(reservoir_empty(), wp.vec2(0.0, 0.0), 0, 0, 0, 0)
-        n0 = absent
-        sh = ReuseShifts()
-        if nb >= 0:
-            n0 = neighbor_in_views(res_n, samples_n, nb, q, pixels)
-            sh = shifted[q]
-            c = carried[q]
-            sh.carried = c.carried
-            sh.walks += c.walks
-            sh.newton += c.newton
-            sh.succeeded += c.succeeded
-        y_c = samples[q]
-        out = SMS.reuse_merge(res[q], y_c.u, n0, absent, sh, cap, key)
-        _tally(stats, q, 10, float(out.walks))
-        _tally(stats, q, 11, float(out.valid))
-        _tally(stats, q, 12, float(out.newton))
-        kept = y_c
-        if out.source == 0:
-            kept = samples_n[nb]
-        kept.u = out.y
-        res_out[q] = out.r
+        # each output written once, at the end (the pixel's own reservoir where it has no point)
+        r_kept = res[q]
+        kept = samples[q]
+        if points[q].valid != 0:
+            key = random_subkey(sample_key(seed, frame, q, 0), 10 + spatial)
+            nb = reuse_domain(cam_prev, seed, frame, width, height, spatial, radius, points, points_n, q)
+            absent = reuse_neighbor(reservoir_empty(), wp.vec2(0.0, 0.0), 0, 0, 0, 0)
+            n0 = absent
+            sh = ReuseShifts()
+            if nb >= 0:
+                n0 = neighbor_in_views(res_n, samples_n, nb, q, pixels)
+                sh = shifted[q]
+                c = carried[q]
+                sh.carried = c.carried
+                sh.walks += c.walks
+                sh.newton += c.newton
+                sh.succeeded += c.succeeded
+            out = SMS.reuse_merge(r_kept, kept.u, n0, absent, sh, cap, key)
+            _tally(stats, q, 10, float(out.walks))
+            _tally(stats, q, 11, float(out.valid))
+            _tally(stats, q, 12, float(out.newton))
+            if out.source == 0:
+                kept = samples_n[nb]
+            kept.u = out.y
+            r_kept = out.r
+        res_out[q] = r_kept
         samples_out[q] = kept
 
     @wp.kernel(module=reuse_module)
