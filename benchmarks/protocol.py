@@ -14,9 +14,9 @@ So the protocol measures, per scene, camera and method:
   timed ``pt`` with each frame's copy to the host: its gains were inflated);
   ``pt_spp`` is the method's frame time over pt's at 1 spp. The frames timed
   are the frames evaluated because a reuse method's frame is not steady while
-  its reservoirs fill: ReSTIR GI's grows by a fifth between frames 16 and 64 of
-  door-ajar (benchmarks/README.md, "ReSTIR GI's frame grows as its reservoirs
-  fill"); until the nineteenth session the protocol timed every frame after
+  its reservoirs fill: ReSTIR GI's grows by a quarter between its first 16
+  frames and frames 64–79 of door-ajar (benchmarks/README.md, "ReSTIR GI's frame
+  grows as its reservoirs fill"); until the nineteenth session the protocol timed every frame after
   the first (``frame_seconds_all`` keeps that median);
 * **per-frame relMSE** (ε = 1e-2, :func:`grisx.eval.metrics.relmse`) of the
   frames in the second half of the run (history warmed up), each against a
