@@ -27,6 +27,10 @@ a warm-up render, then ``--frames`` frames after a first one that is not counted
 (``RenderResult.pass_seconds``), as (phases of 1 + N frames − phases of 1 frame) / N; the frame's
 from ``RenderResult.frame_seconds`` (median, host copy excluded).
 
+Register budgets come from ``grisx.device`` (``PATH_REGISTERS``, ``SHIFT_REGISTERS``); a sweep sets
+``GRISX_PATH_REGISTERS`` / ``GRISX_SHIFT_REGISTERS`` for the process, with a kernel cache of its own
+(``WARP_CACHE_PATH``), and the JSON records the budgets it ran under.
+
 ``--compile`` measures first-use compilation instead: per method, a fresh process renders one
 tiny frame with an empty kernel cache (``WARP_CACHE_PATH``, a temporary folder), then a second
 fresh process with that cache filled (the warm start). On CUDA that is Warp's real compile; on
@@ -295,6 +299,7 @@ def environment(args: argparse.Namespace, dev: Any) -> dict[str, Any]:
     from warp._src.context import runtime
 
     import grisx
+    from grisx.device import LAUNCH_BLOCK_DIM, PATH_REGISTERS, SHIFT_REGISTERS
 
     def git(*a: str) -> str:
         return subprocess.run(["git", *a], capture_output=True, text=True, cwd=Path(grisx.__file__).parent).stdout.strip()
@@ -302,6 +307,7 @@ def environment(args: argparse.Namespace, dev: Any) -> dict[str, Any]:
     commit = git("rev-parse", "--short", "HEAD") + ("+dirty" if git("status", "--porcelain", "--", ".") else "")
     return {"device": str(dev), "device_name": dev.name if dev.is_cuda else platform.processor() or platform.machine(),
             "commit": commit if not commit.startswith("+") else None, "date": time.strftime("%Y-%m-%d"), "scene": args.scene, "arch": args.arch,
+            "block_dim": LAUNCH_BLOCK_DIM, "path_registers": PATH_REGISTERS, "shift_registers": SHIFT_REGISTERS,
             "versions": {"grisx": grisx.__version__, "warp": wp.config.version, "nvrtc": ".".join(map(str, runtime.toolkit_version or ())),
                          "ptxas": ptxas_version(args.ptxas) if args.ptxas else None, "python": platform.python_version()}}
 

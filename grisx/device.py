@@ -16,9 +16,9 @@ from typing import Any
 
 import warp as wp
 
-from grisx.errors import DeviceError
+from grisx.errors import DeviceError, InvalidValueError
 
-__all__ = ["init", "resolve_device", "cuda_available", "available_memory", "synchronize", "specialized_module", "load_kernels", "launch", "LAUNCH_BLOCK_DIM", "PATH_REGISTERS", "SHIFT_REGISTERS"]
+__all__ = ["init", "resolve_device", "cuda_available", "available_memory", "synchronize", "specialized_module", "load_kernels", "launch", "LAUNCH_BLOCK_DIM", "PATH_REGISTERS", "SHIFT_REGISTERS", "register_budget"]
 
 
 #: a line Warp's native library prints on every machine without a GPU; on such
@@ -143,6 +143,25 @@ def launch(kernel: Any, dim: Any, inputs: Any = (), outputs: Any = (), device: A
     wp.launch(kernel, dim=dim, inputs=list(inputs), outputs=list(outputs), device=device, **kw)
 
 
+def register_budget(variable: str, default: int) -> int:
+    """A ``cuda_max_registers`` budget: ``default``, or the environment's ``variable`` where it is set.
+
+    The override is for register-budget sweeps on a GPU (``GRISX_SHIFT_REGISTERS=96 python benchmarks/kernels.py ...``): one tree, one
+    process per budget, each with its own kernel cache. A budget outside 32–255 (CUDA's range) or not an integer
+    is an :class:`~grisx.errors.InvalidValueError` that names the variable.
+    """
+    text = os.environ.get(variable, "").strip()
+    if not text:
+        return default
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if not 32 <= value <= 255:
+        raise InvalidValueError(f"{variable}={text!r}: a register budget is an integer from 32 to 255")
+    return value
+
+
 #: ``cuda_max_registers`` of the kernels that trace paths or shadow rays (the path tracer's sample
 #: pass, ReSTIR GI's stages). Chosen when kernels ran in blocks of 256 threads: an SM has 64K
 #: registers, so occupancy then only changed at 128 (2 blocks), 80 (3) and 64 (4) registers a thread;
@@ -152,7 +171,7 @@ def launch(kernel: Any, dim: Any, inputs: Any = (), outputs: Any = (), device: A
 #: (door-ajar), 19.1 -> 10.6 (glossy-room), 4.7 -> 3.6 (cornell-box); ReSTIR GI's frame on an H100
 #: 39.3 -> 26.1 ms (door-ajar), 45.2 -> 29.0 (glossy-room); 64 gives the same, 128 less. Kernels that
 #: lost at a cap keep none (ReSTIR DI's spatial pass: 7.1 -> 14.9 ms at 128). Ignored on the CPU.
-PATH_REGISTERS = 80
+PATH_REGISTERS = register_budget("GRISX_PATH_REGISTERS", 80)
 #: the same for the kernels that run ReSTIR PT's hybrid shift or its candidate walk, whose live state
 #: (path samples) spills heavily below 128: at 128 ReSTIR PT's frame on door-ajar 44.0 -> 34.6 ms
 #: (H100, 1080p), at 80 40.7. Area ReSTIR runs ReSTIR PT's walk and its own stages under it too, chosen
@@ -160,7 +179,7 @@ PATH_REGISTERS = 80
 #: all its passes at once had lost on glossy-room (115 -> 135 ms). ReSTIR G-PT's shift stages (base, inner) and
 #: its initial pair pass, uncapped at 200-223 registers without spills, run faster at 128 with spills (H200,
 #: 1080p, moving camera: glossy-room 237.5 -> 217.0 ms, door-ajar 133.4 -> 125.2).
-SHIFT_REGISTERS = 128
+SHIFT_REGISTERS = register_budget("GRISX_SHIFT_REGISTERS", 128)
 
 
 #: seconds a kernel load may take before the user is told that Warp is compiling (cached loads take milliseconds)
