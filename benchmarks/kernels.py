@@ -299,7 +299,7 @@ def environment(args: argparse.Namespace, dev: Any) -> dict[str, Any]:
     from warp._src.context import runtime
 
     import grisx
-    from grisx.device import LAUNCH_BLOCK_DIM, PATH_REGISTERS, SHIFT_REGISTERS
+    from grisx.device import LAUNCH_BLOCK_DIM, PATH_REGISTERS, SHIFT_REGISTERS, WALK_REGISTERS
 
     def git(*a: str) -> str:
         return subprocess.run(["git", *a], capture_output=True, text=True, cwd=Path(grisx.__file__).parent).stdout.strip()
@@ -307,7 +307,7 @@ def environment(args: argparse.Namespace, dev: Any) -> dict[str, Any]:
     commit = git("rev-parse", "--short", "HEAD") + ("+dirty" if git("status", "--porcelain", "--", ".") else "")
     return {"device": str(dev), "device_name": dev.name if dev.is_cuda else platform.processor() or platform.machine(),
             "commit": commit if not commit.startswith("+") else None, "date": time.strftime("%Y-%m-%d"), "scene": args.scene, "arch": args.arch,
-            "block_dim": LAUNCH_BLOCK_DIM, "path_registers": PATH_REGISTERS, "shift_registers": SHIFT_REGISTERS,
+            "block_dim": LAUNCH_BLOCK_DIM, "path_registers": PATH_REGISTERS, "shift_registers": SHIFT_REGISTERS, "walk_registers": WALK_REGISTERS,
             "versions": {"grisx": grisx.__version__, "warp": wp.config.version, "nvrtc": ".".join(map(str, runtime.toolkit_version or ())),
                          "ptxas": ptxas_version(args.ptxas) if args.ptxas else None, "python": platform.python_version()}}
 

@@ -18,7 +18,7 @@ import warp as wp
 
 from grisx.errors import DeviceError, InvalidValueError
 
-__all__ = ["init", "resolve_device", "cuda_available", "available_memory", "synchronize", "specialized_module", "load_kernels", "launch", "LAUNCH_BLOCK_DIM", "PATH_REGISTERS", "SHIFT_REGISTERS", "register_budget"]
+__all__ = ["init", "resolve_device", "cuda_available", "available_memory", "synchronize", "specialized_module", "load_kernels", "launch", "LAUNCH_BLOCK_DIM", "PATH_REGISTERS", "SHIFT_REGISTERS", "WALK_REGISTERS", "register_budget"]
 
 
 #: a line Warp's native library prints on every machine without a GPU; on such
@@ -163,23 +163,28 @@ def register_budget(variable: str, default: int) -> int:
 
 
 #: ``cuda_max_registers`` of the kernels that trace paths or shadow rays (the path tracer's sample
-#: pass, ReSTIR GI's stages). Chosen when kernels ran in blocks of 256 threads: an SM has 64K
-#: registers, so occupancy then only changed at 128 (2 blocks), 80 (3) and 64 (4) registers a thread;
-#: software BVH traversal is latency-bound, and more warps in flight pay for the spills. (In blocks of
-#: :data:`LAUNCH_BLOCK_DIM` the steps are finer; the budgets were not measured again.) Measured
-#: at 1080p (``benchmarks/README.md``, "Register budgets"): pt's 1-spp frame on an H200 12.7 -> 10.2 ms
-#: (door-ajar), 19.1 -> 10.6 (glossy-room), 4.7 -> 3.6 (cornell-box); ReSTIR GI's frame on an H100
-#: 39.3 -> 26.1 ms (door-ajar), 45.2 -> 29.0 (glossy-room); 64 gives the same, 128 less. Kernels that
-#: lost at a cap keep none (ReSTIR DI's spatial pass: 7.1 -> 14.9 ms at 128). Ignored on the CPU.
-PATH_REGISTERS = register_budget("GRISX_PATH_REGISTERS", 80)
-#: the same for the kernels that run ReSTIR PT's hybrid shift or its candidate walk, whose live state
-#: (path samples) spills heavily below 128: at 128 ReSTIR PT's frame on door-ajar 44.0 -> 34.6 ms
+#: pass, ReSTIR GI's stages). Software BVH traversal is latency-bound, and more warps in flight pay for
+#: the spills. In 64-thread blocks an SM holds 65536 / (64 r) blocks: 24 warps at 80 registers, 32 at 64.
+#: Measured on an H200 at 1080p (``benchmarks/README.md``, "Register budgets in blocks of 64"): 80 -> 64
+#: takes pt's 1-spp frame 9.38 -> 8.72 ms (door-ajar), 10.11 -> 9.60 (glossy-room), 3.3 -> 3.3
+#: (cornell-box); ReSTIR GI 13.4 -> 12.4 and 18.5 -> 17.4 ms; 56 and 48 lose again. (Earlier, in blocks
+#: of 256: 80 beat no cap, pt 12.7 -> 10.2 ms on door-ajar.) Kernels that lost at a cap keep none
+#: (ReSTIR DI's spatial pass: 7.1 -> 14.9 ms at 128). Ignored on the CPU.
+PATH_REGISTERS = register_budget("GRISX_PATH_REGISTERS", 64)
+#: the same for the kernels that run ReSTIR PT's hybrid shift (its candidate walk: ``WALK_REGISTERS``), whose live
+#: state (path samples) spills heavily below 128: at 128 ReSTIR PT's frame on door-ajar 44.0 -> 34.6 ms
 #: (H100, 1080p), at 80 40.7. Area ReSTIR runs ReSTIR PT's walk and its own stages under it too, chosen
 #: per stage (its spatial stages on an H200: door-ajar 11.4 -> 8.2 ms, glossy-room the same); capping
 #: all its passes at once had lost on glossy-room (115 -> 135 ms). ReSTIR G-PT's shift stages (base, inner) and
 #: its initial pair pass, uncapped at 200-223 registers without spills, run faster at 128 with spills (H200,
 #: 1080p, moving camera: glossy-room 237.5 -> 217.0 ms, door-ajar 133.4 -> 125.2).
 SHIFT_REGISTERS = register_budget("GRISX_SHIFT_REGISTERS", 128)
+#: the same for ReSTIR PT's candidate walk (``initial_pass``, shared by ReSTCV and its variants, Area ReSTIR, G-PT):
+#: a path tracer that also keeps its candidate path, so it gains from more warps in flight like ``PATH_REGISTERS``'s
+#: kernels, where the shift stages do not. H200, 1080p, 64-thread blocks ("Register budgets in blocks of 64"):
+#: door-ajar's walk 13.5 -> 11.7 ms at 80 (12.5 at 96), ReSTIR PT's frame 24.5 -> 22.7; the shift stages at 96
+#: or 80 lose on cornell-box (spatial 3.2 -> 3.5 / 3.8 ms), so they keep 128.
+WALK_REGISTERS = register_budget("GRISX_WALK_REGISTERS", 80)
 
 
 #: seconds a kernel load may take before the user is told that Warp is compiling (cached loads take milliseconds)

@@ -65,7 +65,8 @@ inlined shift or walk: ``initial_pass`` (the candidate walk, its kept candidate 
 ``spatial_canonical_pass`` (draws the neighbours into a :class:`~grisx.render.base.reuse.DomainList`,
 m_c) then ``spatial_merge_pass``. What one stage hands the next (the neighbours, m_c, p̂_{←j}(y_c), a
 variant's state) goes through per-pixel buffers; the images are bit-identical to the one-kernel
-passes. On CUDA these kernels run under :data:`~grisx.device.SHIFT_REGISTERS`, and each stage writes
+passes. On CUDA the walk runs under :data:`~grisx.device.WALK_REGISTERS` and the shift stages under
+:data:`~grisx.device.SHIFT_REGISTERS`, and each stage writes
 a reservoir's words once where it can: a lane's store of one field at a record's stride is a memory
 transaction of its own, so a record copied and then rewritten cost the temporal stages a third of their
 time (benchmarks/README, "ReSTIR PT's merges write the kept path once").
@@ -93,7 +94,7 @@ from typing import Any
 import numpy as np
 import warp as wp
 
-from grisx.device import SHIFT_REGISTERS, launch, specialized_module
+from grisx.device import SHIFT_REGISTERS, WALK_REGISTERS, launch, specialized_module
 from grisx.params import Param
 from grisx.render.base.registry import RenderMethod, composed_direct, create_renderer, register, renderer_params
 from grisx.errors import InvalidParameterError
@@ -311,7 +312,7 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
         direct[y, x] = g.emission[y, x]  # emission seen directly (the environment where nothing was hit)
 
     # ---- initial candidates ----
-    @wp.kernel(module=module, cuda_max_registers=SHIFT_REGISTERS)
+    @wp.kernel(module=module, cuda_max_registers=WALK_REGISTERS)
     def initial_pass(
         scene: SceneData,
         seed: int,
