@@ -214,9 +214,9 @@ _python_showwarning = warnings.showwarning
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
     argv = _values_that_look_like_options(list(sys.argv[1:] if argv is None else argv))
     try:
+        parser = build_parser()  # imports the layers: a bad GRISX_* setting fails here, as bad input
         with warnings.catch_warnings():
             warnings.simplefilter("always", GrisxWarning)
             warnings.showwarning = _show_warning

@@ -1,6 +1,7 @@
 """The CLI contract: `grisx toy list|run`, `grisx demo`, and one-line errors with a non-zero exit."""
 
 import json
+import os
 import subprocess
 import sys
 
@@ -95,6 +96,14 @@ def test_console_entry_point_runs_as_a_module():
     assert CONTRACT_KEYS <= set(json.loads(proc.stdout))
     bad = subprocess.run([sys.executable, "-m", "grisx", "toy", "run", "x", "--method", "y"], capture_output=True, text=True, timeout=300)
     assert bad.returncode == 2 and "Traceback" not in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
+
+
+def test_a_bad_register_budget_in_the_environment_is_one_line_of_bad_input():
+    # read when grisx.device is first imported, i.e. while the CLI builds its parser
+    env = dict(os.environ, GRISX_PATH_REGISTERS="abc")
+    bad = subprocess.run([sys.executable, "-m", "grisx", "scenes"], capture_output=True, text=True, timeout=300, env=env)
+    assert bad.returncode == 2 and "Traceback" not in bad.stderr, bad.stderr
+    assert bad.stderr.strip().splitlines() == ["grisx: error: GRISX_PATH_REGISTERS='abc': a register budget is an integer from 32 to 255"]
 
 
 def test_demo_writes_a_figure_and_a_summary(capsys, tmp_path):
