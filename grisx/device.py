@@ -146,9 +146,9 @@ def launch(kernel: Any, dim: Any, inputs: Any = (), outputs: Any = (), device: A
 def register_budget(variable: str, default: int) -> int:
     """A ``cuda_max_registers`` budget: ``default``, or the environment's ``variable`` where it is set.
 
-    The override is for register-budget sweeps on a GPU (``GRISX_SHIFT_REGISTERS=96 python benchmarks/kernels.py ...``): one tree, one
-    process per budget, each with its own kernel cache. A budget outside 32–255 (CUDA's range) or not an integer
-    is an :class:`~grisx.errors.InvalidValueError` that names the variable.
+    The override is for register-budget sweeps on a GPU (``benchmarks/register_sweep.sh``): one tree, one process
+    per budget, each with its own kernel cache. A budget outside 32–255 (CUDA's range) or not an integer is an
+    :class:`~grisx.errors.InvalidValueError` that names the variable.
     """
     text = os.environ.get(variable, "").strip()
     if not text:
@@ -167,13 +167,13 @@ def register_budget(variable: str, default: int) -> int:
 #: the spills. In 64-thread blocks an SM holds 65536 / (64 r) blocks: 24 warps at 80 registers, 32 at 64.
 #: Measured on an H200 at 1080p (``benchmarks/README.md``, "Register budgets in blocks of 64"): 80 -> 64
 #: takes pt's 1-spp frame 9.38 -> 8.72 ms (door-ajar), 10.11 -> 9.60 (glossy-room), 3.3 -> 3.3
-#: (cornell-box); ReSTIR GI 13.4 -> 12.4 and 18.5 -> 17.4 ms; 56 and 48 lose again. (Earlier, in blocks
+#: (cornell-box); ReSTIR GI 13.4 -> 12.4 and 18.5 -> 17.4 ms (cornell-box: 7.1 -> 7.4); 56 and 48 lose again. (Earlier, in blocks
 #: of 256: 80 beat no cap, pt 12.7 -> 10.2 ms on door-ajar.) Kernels that lost at a cap keep none
 #: (ReSTIR DI's spatial pass: 7.1 -> 14.9 ms at 128). Ignored on the CPU.
 PATH_REGISTERS = register_budget("GRISX_PATH_REGISTERS", 64)
 #: the same for the kernels that run ReSTIR PT's hybrid shift (its candidate walk: ``WALK_REGISTERS``), whose live
 #: state (path samples) spills heavily below 128: at 128 ReSTIR PT's frame on door-ajar 44.0 -> 34.6 ms
-#: (H100, 1080p), at 80 40.7. Area ReSTIR runs ReSTIR PT's walk and its own stages under it too, chosen
+#: (H100, 1080p), at 80 40.7. Area ReSTIR's own stages run under it too, chosen
 #: per stage (its spatial stages on an H200: door-ajar 11.4 -> 8.2 ms, glossy-room the same); capping
 #: all its passes at once had lost on glossy-room (115 -> 135 ms). ReSTIR G-PT's shift stages (base, inner) and
 #: its initial pair pass, uncapped at 200-223 registers without spills, run faster at 128 with spills (H200,
