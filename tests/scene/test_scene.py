@@ -13,9 +13,9 @@ from grisx.cli import main
 from grisx.errors import InvalidParameterError, InvalidValueError
 from grisx.scene.builtin import BUILTIN_SCENES, build_builtin, cornell_box_moving
 from grisx.scene.camera import Camera, CameraData, CameraPath, camera_project, camera_ray, lookat
-from grisx.scene.gbuffer import GBuffer
+from grisx.scene.gbuffer import GBuffer, make_gbuffer_kernel
 from grisx.scene.lights import PointLight  # noqa: F401  (records used by the builder)
-from grisx.scene.material import Diffuse
+from grisx.scene.material import ALL_MATERIAL_KINDS, SCENE_MOVING_OBJECTS, Diffuse
 from grisx.scene.scene import RigidMotion, Scene, SceneData, intersect
 from grisx.scene.shapes import rectangle
 from grisx.scene.texture import Bitmap, Checkerboard, TextureSet, pack_textures, texture_gradient, texture_lookup
@@ -272,6 +272,35 @@ def test_motion_vectors_follow_a_moving_object_and_refit_only_when_it_moves():
     np.testing.assert_allclose(fields["motion"][ys, xs], expected, atol=2e-3)
     static = _plane_scene(None).build("cpu")
     assert static.set_frame(5.0) is False
+
+
+def _gbuffer_fields(built, kinds, frames: int = 3) -> dict:
+    """Every G-buffer field after ``frames`` jittered frames, its kernel compiled for ``kinds``."""
+    g = GBuffer(32, 24, built.device)
+    g.kernel = lambda b: make_gbuffer_kernel(frozenset(kinds), True)
+    for frame in range(frames):
+        built.set_frame(float(frame))
+        g.fill(built, float(frame), seed=7, jitter=True)
+    return {**g.numpy(), "si": g.current.si.numpy(), "wo": g.current.wo.numpy()}
+
+
+def test_a_still_scenes_gbuffer_skips_the_object_round_trip_bit_for_bit():
+    """A scene without SCENE_MOVING_OBJECTS compiles its G-buffer without the per-pixel trip through its objects' frames
+    (identity transforms): every field, motion under a moving camera included, is the all-kinds kernel's to the bit. The
+    sibling: a scene whose objects move, compiled without the kind, loses their motion."""
+    built = build_builtin("door-ajar").build("cpu")
+    built.animate_camera = True
+    kinds = built.features.material_kinds
+    assert SCENE_MOVING_OBJECTS not in kinds
+    lean, every = _gbuffer_fields(built, kinds), _gbuffer_fields(built, ALL_MATERIAL_KINDS)
+    assert np.abs(lean["motion"]).max() > 0.05  # the camera moved (door-ajar's path: ~0.07 px a frame at this size)
+    for name in every:
+        np.testing.assert_array_equal(lean[name], every[name], err_msg=name)
+    moving = _plane_scene(None, RigidMotion(velocity=(0.05, 0.0, 0.0))).build("cpu")
+    kinds = moving.features.material_kinds
+    assert SCENE_MOVING_OBJECTS in kinds
+    right, wrong = _gbuffer_fields(moving, kinds), _gbuffer_fields(moving, kinds - {SCENE_MOVING_OBJECTS})
+    assert np.abs(right["motion"]).max() > 0.5 and not np.array_equal(wrong["motion"], right["motion"])
 
 
 # ---- textures --------------------------------------------------------------------------
