@@ -289,7 +289,8 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
     shifts = make_path_shift(kinds)
     shift = shifts.shift
     shift_across = shifts.shift_across  # between frames: fails where the reused suffix met something that moved
-    sample_paths = shifts.stream_candidates_kept
+    # ReSTIR PT shades f(y) W_y: only a variant (its hooks) reads the walk's colour estimate
+    sample_paths = shifts.stream_candidates_kept if hooks is not None else shifts.stream_candidates_kept_bare
     settle = shifts.settle
     est = hooks  # the variant's code is compiled in only where it is not None (wp.static)
     est_temporal = None if hooks is None else hooks.temporal

@@ -570,7 +570,9 @@ class PathShiftFuncs:
     ``stream_candidates(scene, dom, key, max_bounces, weight_scale, sp, pr, ukey) -> PathReservoir``
     traces one path and streams its candidates (with their reconnection data) into a path
     reservoir, and ``settle(scene, dom, pr, sp) -> PathReservoir`` finalizes it; ``stream_candidates_kept`` (the same
-    arguments, then ``kept, ky, kx``) writes the path it keeps into slot (ky, kx) of the :class:`PathSlots` ``kept`` instead of returning it; ``stream_prefix`` (the same arguments,
+    arguments, then ``kept, ky, kx``) writes the path it keeps into slot (ky, kx) of the :class:`PathSlots` ``kept`` instead of returning it,
+    and ``stream_candidates_kept_bare`` does so without the colour estimate (``pr.estimate`` left as given: for a
+    renderer that shades f(y) W_y and never reads it); ``stream_prefix`` (the same arguments,
     then ``cut_sp, cut_rule``; returns :class:`StreamedPath`) walks a path for ``estimate`` alone (Σ f/(N p) of its
     candidates; the reservoir is left as given) up to where :func:`prefix_cut_here` ends its prefix.
     ``shift_across`` is ``shift`` between the frames of :meth:`~grisx.scene.scene.BuiltScene.across_frames`,
@@ -584,6 +586,7 @@ class PathShiftFuncs:
     roughness: Any
     stream_candidates: Any
     stream_candidates_kept: Any
+    stream_candidates_kept_bare: Any
     stream_prefix: Any
     settle: Any
     suffix_moved: Any
@@ -891,11 +894,14 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
     # data (Suffix ReSTIR's gather walks a prefix for its light alone: two thirds of its prefix pass was that bookkeeping).
     # ``cut``: the walk also ends its prefix where ``prefix_cut_here`` says (the gather sampled the prefix in a walk of its
     # own before, the same directions traced twice)
+    # ``with_estimate``: the walk sums Σ f/(N p) into ``pr.estimate`` (ReSTCV's ⟨F⟩_init, Suffix ReSTIR's gather); without
+    # it that vec3 and its sum are not live across the walk's rays (ReSTIR PT's walk at 80 registers on door-ajar, sm_90:
+    # 1264 -> 1200 B of stack, spill stores 1816 -> 1660 B)
     # ``kept_in_memory``: the walk writes the candidate it keeps into slot (ky, kx) of ``kept`` (PathSlots) when it keeps it, instead of
     # carrying it across every ray of the walk: a third 32-word PathSample live beside the walk's reconnection data and
     # the candidate being composed, it spilled (sm_90, glossy-room: initial_pass 2160 -> 1104 B of stack at 128
     # registers). ``pr.path`` is then left as given
-    def make_stream(estimate_only: bool, cut: bool, kept_in_memory: bool) -> Any:
+    def make_stream(estimate_only: bool, cut: bool, kept_in_memory: bool, with_estimate: bool = True) -> Any:
         @wp.func
         def stream_path(
             scene: SceneData,
@@ -977,7 +983,8 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                                 f_cand = wp.cw_mul(fthru, wp.cw_mul(fo, ls.radiance)) * mis  # m_t · f
                                 t = target_of(f_cand)
                                 w = ris_weight(weight_scale, t, pdf * ls.pdf * s_nee)  # seed 000, Eq. 6 (m_t is inside t)
-                                estimate += decoupled_contribution(w, t, f_cand)  # w f/p̂ = m_t f/(N p)
+                                if wp.static(with_estimate):
+                                    estimate += decoupled_contribution(w, t, f_cand)  # w f/p̂ = m_t f/(N p)
                                 if wp.static(not estimate_only):
                                     r = reservoir_update(r, w, t, 0.0, random_uniform(ukey, ucount))
                                     ucount += 1
@@ -1054,7 +1061,8 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
                     f_cand = wp.cw_mul(fthru, le) * mis  # m_t · f
                     t = target_of(f_cand)
                     w = ris_weight(weight_scale, t, pdf)
-                    estimate += decoupled_contribution(w, t, f_cand)
+                    if wp.static(with_estimate):
+                        estimate += decoupled_contribution(w, t, f_cand)
                     if wp.static(not estimate_only):
                         r = reservoir_update(r, w, t, 0.0, random_uniform(ukey, ucount))
                         ucount += 1
@@ -1123,6 +1131,7 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
 
     stream_path = make_stream(False, False, False)
     stream_path_kept = make_stream(False, False, True)
+    stream_path_kept_bare = make_stream(False, False, True, with_estimate=False)
     stream_path_prefix_walk = make_stream(True, True, False)
 
     @wp.func
@@ -1150,6 +1159,14 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
         return stream_path_kept(scene, dom, key, max_bounces, weight_scale, sp, pr, ukey, sp, CUT_NONE, kept, ky, kx).pr
 
     @wp.func
+    def stream_path_candidates_kept_bare(
+        scene: SceneData, dom: Domain, key: wp.uint32, max_bounces: int, weight_scale: float, sp: ShiftParams, pr: PathReservoir,
+        ukey: wp.uint32, kept: PathSlots, ky: int, kx: int,
+    ) -> PathReservoir:
+        """:func:`stream_path_candidates_kept` without the colour estimate (``pr.estimate`` is left as given)."""
+        return stream_path_kept_bare(scene, dom, key, max_bounces, weight_scale, sp, pr, ukey, sp, CUT_NONE, kept, ky, kx).pr
+
+    @wp.func
     def settle(scene: SceneData, dom: Domain, pr: PathReservoir, sp: ShiftParams) -> PathReservoir:
         """Re-evaluate a kept path that reconnects as the shifts see it, and finalize (UCW, seed 000 Eq. 8).
 
@@ -1174,7 +1191,7 @@ def make_path_shift(kinds: Iterable[int]) -> PathShiftFuncs:
         return out
 
     funcs = PathShiftFuncs(kinds=key, shift=shift, roughness=roughness, stream_candidates=stream_path_candidates,
-                           stream_candidates_kept=stream_path_candidates_kept,
+                           stream_candidates_kept=stream_path_candidates_kept, stream_candidates_kept_bare=stream_path_candidates_kept_bare,
                            stream_prefix=stream_path_prefix, settle=settle,
                            suffix_moved=suffix_moved, shift_across=shift_across, vertex_material=vertex_material)
     return funcs
