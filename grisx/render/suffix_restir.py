@@ -357,7 +357,7 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
     surface = make_surface(kinds)  # the shapes of these kinds only
     intersect, segment_occluded = surface.intersect, surface.segment_occluded
     path_shift = shifts.shift
-    stream_kept = shifts.stream_candidates_kept  # the suffix walk keeps its candidate in memory, not across its rays
+    stream_kept = shifts.stream_candidates_kept_bare  # the suffix walk keeps its candidate in memory, not across its rays; no colour estimate (nothing reads it)
     stream_prefix = shifts.stream_prefix  # the gather's walk: its prefix and the light within it, no reservoir
     vertex_material = shifts.vertex_material
     settle = shifts.settle
