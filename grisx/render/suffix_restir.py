@@ -921,19 +921,21 @@ def make_suffix_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         inv_n = 1.0 / float(prefixes)
         w_prefix = ucw_from_source_pdf(z.pdf)
         L = accum[y, x]
-        # ---- Eq. 22 for this prefix: borrowed suffixes, then the (rouletted) canonical one ----
-        for l in range(1, rows.conf.shape[1]):
-            if rows.conf[t, l] > 0.0:
-                gw = CRIS.gather_sample(spec, mis_mode, z, w_prefix, l, 0, rows.z[t], rows.x[t], rows.res[t], rows.conf[t], rows.targets[t])
-                if gw.weight > 0.0:
-                    L += wp.cw_mul(z.f, gw.y.f) * (gw.weight * inv_n)  # f(X^p, Y_l) m_l W_{X^p,Y_l} / N
-        if traced:
-            gw = CRIS.gather_sample(spec, mis_mode, z, w_prefix, 0, 0, rows.z[t], rows.x[t], rows.res[t], rows.conf[t], rows.targets[t])
-            if gw.weight > 0.0:
-                rw = float(1.0)
+        # ---- Eq. 22 for this prefix: borrowed suffixes l = 1 … k, then the (rouletted) canonical one, l = 0 ----
+        # one loop, so that gather_sample (shifts and the MIS sums over the domains) is inlined once, not twice
+        domains = rows.conf.shape[1]
+        for step in range(1, domains + 1):
+            l = step % domains  # the canonical domain last
+            rw = float(1.0)  # the canonical term's roulette weight
+            due = rows.conf[t, l] > 0.0
+            if l == 0:
+                due = traced
                 if j >= own_suffixes:
                     rw = roulette_window_weight(True, kept, prefixes - own_suffixes)  # N/R (Eq. 23: N)
-                L += wp.cw_mul(z.f, gw.y.f) * (gw.weight * rw * inv_n)
+            if due:
+                gw = CRIS.gather_sample(spec, mis_mode, z, w_prefix, l, 0, rows.z[t], rows.x[t], rows.res[t], rows.conf[t], rows.targets[t])
+                if gw.weight > 0.0:
+                    L += wp.cw_mul(z.f, gw.y.f) * (gw.weight * rw * inv_n)  # f(X^p, Y_l) m_l W_{X^p,Y_l} / N (× N/R)
         accum[y, x] = L
 
     @wp.kernel(module=module)
