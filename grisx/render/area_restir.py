@@ -79,7 +79,7 @@ from grisx.render.base.path_shift import (
     make_path_shift,
     path_sample_empty,
     path_target,
-    target_back,
+    target_back_from,
     target_to,
 )
 from grisx.render.base.registry import METHODS, RenderMethod, create_renderer, register
@@ -229,11 +229,12 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         # history sample translated into pixel i (fractional motion vector), its path shifted from the new x₁
         to_here = -temporal_film_offset(x, y, nb.x, nb.y, g.motion[y, x])
         fs_t = film_translate_wrapped(film_hist[nb.y, nb.x], to_here, cam)
+        t_j = path_target(prev.path)  # p̂_j(y_t), before the shift
         s_t = film_shift_as_is(fs_t, prev)  # onto itself: the identity
         if not film_onto_itself(still, x, y, nb.x, nb.y, to_here):
             s_t = film_shift_across(scene, cam, x, y, fs_t, prev, sp)
         t_ti = path_target(s_t.path)
-        t_tj = target_back(prev.path, s_t)
+        t_tj = target_back_from(t_j, s_t)
         m_t = two_domain_balance(c_j, t_tj, c_i, t_ti)
         r = reservoir_empty()
         r = reservoir_update(r, resampling_weight(m_c, t_c, can.res.ucw, 1.0), t_c, c_i, random_uniform(ukey, 0))
@@ -317,11 +318,12 @@ def make_area_restir_kernels(kinds: frozenset[int]) -> dict[str, Any]:
         # each neighbour's sample moved here by the whole-pixel translation, weighted against the canonical
         for j in range(k):
             nb = domain_pixel(codes[y, x, j], width)
-            other = inp[nb.y, nb.x]
+            t_q = path_target(inp[nb.y, nb.x].path)  # p̂_q of the neighbour's path, before its shift
             fs_q = film_in[nb.y, nb.x]
-            s = film_shift(scene, cam, x, y, fs_q, other, sp)
+            s = film_shift(scene, cam, x, y, fs_q, inp[nb.y, nb.x], sp)
+            other = inp[nb.y, nb.x]  # read after the shift: not held across it
             t_qi = path_target(s.path)
-            t_qq = target_back(other.path, s)
+            t_qq = target_back_from(t_q, s)
             m_q = pairwise_mis_neighbor(other.res.confidence, t_qq, c_c, t_qi, k, total)
             r = reservoir_merge(r, other.res, m_q, t_qi, s.jacobian, random_uniform(ukey, 101 + slots[y, x, j]))  # seed 000, Eq. 9
             if r.selected:

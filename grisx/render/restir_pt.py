@@ -113,7 +113,7 @@ from grisx.render.base.path_shift import (
     path_slots,
     path_target,
     shift_params,
-    target_back,
+    target_back_from,
     target_to,
     vertex_from_hit,
 )
@@ -435,9 +435,10 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
         t_cj = target_cj[y, x]
         m_c = two_domain_balance(c_i, t_c, c_j, t_cj)  # seed 001, Eq. 15
         # history path y_t shifted into this pixel: p̂_i(T(y_t)) and p̂_{←j}(T(y_t)) = p̂_j(y_t) / |J|
+        t_j = path_target(prev.path)  # p̂_j(y_t), before the shift
         s_t = shift_across(scene, dom_i, prev.path, sp)
         t_ti = path_target(s_t.path)  # 0 where the shift failed
-        t_tj = target_back(prev.path, s_t)
+        t_tj = target_back_from(t_j, s_t)
         m_t = two_domain_balance(c_j, t_tj, c_i, t_ti)
         r = reservoir_empty()
         r = reservoir_update(r, resampling_weight(m_c, t_c, can.res.ucw, 1.0), t_c, c_i, random_uniform(ukey, 0))
@@ -567,10 +568,11 @@ def build_restir_pt_kernels(kinds: frozenset[int], hooks: PixelEstimateHooks | N
         # each neighbour's path shifted here, weighted against the canonical domain
         for j in range(k):
             nb = domain_pixel(codes[y, x, j], width)
-            other = inp[nb.y, nb.x]
-            s = shift(scene, domains[y, x], other.path, sp)  # x₁ read again for each shift, not held across them
+            t_q = path_target(inp[nb.y, nb.x].path)  # p̂_q of the neighbour's path, before its shift
+            s = shift(scene, domains[y, x], inp[nb.y, nb.x].path, sp)  # x₁ read again for each shift, not held across them
+            other = inp[nb.y, nb.x]  # read after the shift: not held across it
             t_qi = path_target(s.path)  # 0 where the shift failed
-            t_qq = target_back(other.path, s)
+            t_qq = target_back_from(t_q, s)
             m_q = pairwise_mis_neighbor(other.res.confidence, t_qq, c_c, t_qi, k, total)
             if wp.static(est is not None):
                 # the canonical reservoir read again for each neighbour, not held across the shifts (the variant's spills)

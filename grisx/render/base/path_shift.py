@@ -155,7 +155,7 @@ __all__ = [
     "vertex_material",
     "vertex_from_hit",
     "target_to",
-    "target_back",
+    "target_back_from",
     "jacobian_accepted",
     "EmitterHit",
     "SHIFT_MODES",
@@ -536,10 +536,12 @@ def target_to(s: PathShiftResult) -> float:
 
 
 @wp.func
-def target_back(x: PathSample, s: PathShiftResult) -> float:
-    """p̂_{←src}(T(x)) = p̂_src(x) / |∂T/∂x| for ``s`` = T(x): the source domain's target carried over (seed 001, Eq. 16)."""
+def target_back_from(target_at_source: float, s: PathShiftResult) -> float:
+    """p̂_{←src}(T(x)) = p̂_src(x) / |∂T/∂x| for ``s`` = T(x), from ``target_at_source`` = p̂_src(x): the source
+    domain's target carried over (seed 001, Eq. 16). A pass that reads p̂_src(x) before the shift need not hold x
+    across it."""
     if s.valid:
-        return target_from(path_target(x), 1.0 / s.jacobian)
+        return target_from(target_at_source, 1.0 / s.jacobian)
     return 0.0
 
 
