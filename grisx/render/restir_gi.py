@@ -1534,11 +1534,13 @@ def make_restir_gi_kernels(kinds: frozenset[int], exact: bool = False) -> Any:
                     own = c == code
                     if own:
                         test_support = 0
-                    counts = bool(False)
-                    if domain_flags(c) & DOMAIN_PREVIOUS:  # a domain of last frame, in last frame's scene
-                        counts = domain_counts(scene_prev, n.si, n.wo, si, wo, sel, target_mode, test_support, unbiased, max_jacobian, 1)
-                    else:
-                        counts = domain_counts(scene, n.si, n.wo, si, wo, sel, target_mode, test_support, unbiased, max_jacobian, 0)
+                    # a domain of last frame, in last frame's scene: one call site, so that domain_counts is inlined once
+                    previous = int(0)
+                    sc = scene
+                    if domain_flags(c) & DOMAIN_PREVIOUS:
+                        previous = 1
+                        sc = scene_prev
+                    counts = domain_counts(sc, n.si, n.wo, si, wo, sel, target_mode, test_support, unbiased, max_jacobian, previous)
                     z = support_count(z, n.res.confidence, counts and (not own or n.res.target > 0.0))
         out = reservoir_finalize_mis(out, support_mis(1.0, out.target, z))
         res_out[y, x] = out
