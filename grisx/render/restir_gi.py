@@ -1604,11 +1604,13 @@ def make_restir_gi_kernels(kinds: frozenset[int], exact: bool = False) -> Any:
             code = domains[y, x, j]
             n = domain_of(sf, code, temporal_cap, spatial_cap, res_t, s_t, res_s_prev, s_s_prev)
             test = unbiased * shift_tests_visibility(scene, code, n.si, si)
-            t_cj = float(0.0)  # p̂_{←j}(y_c), each domain in its own frame's scene
+            # p̂_{←j}(y_c), each domain in its own frame's scene: one call site, so that target_at_domain is inlined once
+            previous = int(0)
+            sc = scene
             if domain_flags(code) & DOMAIN_PREVIOUS:
-                t_cj = target_at_domain(scene_prev, n.si, n.wo, si, wo, y_c, target_mode, test, use_jacobian, max_jacobian, 1)
-            else:
-                t_cj = target_at_domain(scene, n.si, n.wo, si, wo, y_c, target_mode, test, use_jacobian, max_jacobian, 0)
+                previous = 1
+                sc = scene_prev
+            t_cj = target_at_domain(sc, n.si, n.wo, si, wo, y_c, target_mode, test, use_jacobian, max_jacobian, previous)
             m_c += pairwise_mis_canonical_term(n.res.confidence, t_cj, c_c, r_c.target, k, total)
         m_canonical[y, x] = m_c
         domain_count[y, x] = k
