@@ -408,6 +408,23 @@ def gi_shift_none() -> GIShift:
 
 
 @wp.func
+def domain_of_last_frame(code: wp.int32) -> int:
+    """1 for a reuse domain of last frame (its visible point is seen in last frame's scene), else 0."""
+    if domain_flags(code) & DOMAIN_PREVIOUS:
+        return 1
+    return 0
+
+
+@wp.func
+def frame_scene(scene: SceneData, scene_prev: SceneData, previous: int) -> SceneData:
+    """The scene of a domain's frame: last frame's where ``previous``. A pass that evaluates a domain of either frame
+    through one call site inlines that evaluation once (its rays and BSDF), not once for each scene."""
+    if previous != 0:
+        return scene_prev
+    return scene
+
+
+@wp.func
 def sample_uniform_hemisphere(u: wp.vec2) -> wp.vec3:
     """Uniform direction on the hemisphere z > 0 (local frame)."""
     z = u[0]
@@ -1534,13 +1551,9 @@ def make_restir_gi_kernels(kinds: frozenset[int], exact: bool = False) -> Any:
                     own = c == code
                     if own:
                         test_support = 0
-                    # a domain of last frame, in last frame's scene: one call site, so that domain_counts is inlined once
-                    previous = int(0)
-                    sc = scene
-                    if domain_flags(c) & DOMAIN_PREVIOUS:
-                        previous = 1
-                        sc = scene_prev
-                    counts = domain_counts(sc, n.si, n.wo, si, wo, sel, target_mode, test_support, unbiased, max_jacobian, previous)
+                    previous = domain_of_last_frame(c)  # a domain of last frame, in last frame's scene
+                    counts = domain_counts(frame_scene(scene, scene_prev, previous), n.si, n.wo, si, wo, sel, target_mode, test_support, unbiased,
+                                           max_jacobian, previous)
                     z = support_count(z, n.res.confidence, counts and (not own or n.res.target > 0.0))
         out = reservoir_finalize_mis(out, support_mis(1.0, out.target, z))
         res_out[y, x] = out
@@ -1604,13 +1617,9 @@ def make_restir_gi_kernels(kinds: frozenset[int], exact: bool = False) -> Any:
             code = domains[y, x, j]
             n = domain_of(sf, code, temporal_cap, spatial_cap, res_t, s_t, res_s_prev, s_s_prev)
             test = unbiased * shift_tests_visibility(scene, code, n.si, si)
-            # p̂_{←j}(y_c), each domain in its own frame's scene: one call site, so that target_at_domain is inlined once
-            previous = int(0)
-            sc = scene
-            if domain_flags(code) & DOMAIN_PREVIOUS:
-                previous = 1
-                sc = scene_prev
-            t_cj = target_at_domain(sc, n.si, n.wo, si, wo, y_c, target_mode, test, use_jacobian, max_jacobian, previous)
+            previous = domain_of_last_frame(code)  # p̂_{←j}(y_c), each domain in its own frame's scene
+            t_cj = target_at_domain(frame_scene(scene, scene_prev, previous), n.si, n.wo, si, wo, y_c, target_mode, test, use_jacobian, max_jacobian,
+                                    previous)
             m_c += pairwise_mis_canonical_term(n.res.confidence, t_cj, c_c, r_c.target, k, total)
         m_canonical[y, x] = m_c
         domain_count[y, x] = k
